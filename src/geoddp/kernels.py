@@ -1,0 +1,412 @@
+"""Compiled hot loops over plain arrays (numba, cached to disk).
+
+Everything the solver does per node and in sequence lives here: the backward Riccati-like
+recursion (paper eqs. Qfunctions, dustar, backv), the gradient recursion (Lemma psi) and the
+satellite rollout with the feedback law of Algorithm 1. Inputs are contiguous float64 arrays
+over the horizon; there is no Python call per node.
+
+Why numba: a Python loop over 300 nodes with a dozen small numpy calls per node costs ~10 ms per
+pass; compiled, the same recursion costs ~1 us per node. ``cache=True`` keeps the compiled code
+on disk, so only the first run after install pays the compilation (a few seconds).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+_PI = np.pi
+
+
+# ----------------------------------------------------------------------------- SO(3) in numba
+@njit(cache=True, fastmath=False)
+def so3_exp(x0: float, x1: float, x2: float, out: np.ndarray) -> None:
+    """Rodrigues' formula into out (3, 3), NaN-free at 0."""
+    t2 = x0 * x0 + x1 * x1 + x2 * x2
+    t = np.sqrt(t2)
+    if t < 1e-4:
+        s = 1.0 - t2 / 6.0
+        a = 0.5 - t2 / 24.0
+    else:
+        s = np.sin(t) / t
+        h = np.sin(0.5 * t) / (0.5 * t)
+        a = 0.5 * h * h
+    out[0, 0] = 1.0 - a * (x1 * x1 + x2 * x2)
+    out[1, 1] = 1.0 - a * (x0 * x0 + x2 * x2)
+    out[2, 2] = 1.0 - a * (x0 * x0 + x1 * x1)
+    out[0, 1] = -s * x2 + a * x0 * x1
+    out[1, 0] = s * x2 + a * x0 * x1
+    out[0, 2] = s * x1 + a * x0 * x2
+    out[2, 0] = -s * x1 + a * x0 * x2
+    out[1, 2] = -s * x0 + a * x1 * x2
+    out[2, 1] = s * x0 + a * x1 * x2
+
+
+@njit(cache=True)
+def so3_log(R: np.ndarray, out: np.ndarray) -> None:
+    """Rotation vector of R into out (3,), angle in [0, pi]; robust near 0 and near pi."""
+    w0 = 0.5 * (R[2, 1] - R[1, 2])
+    w1 = 0.5 * (R[0, 2] - R[2, 0])
+    w2 = 0.5 * (R[1, 0] - R[0, 1])
+    s = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)  # sin(theta)
+    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)  # cos(theta)
+    t = np.arctan2(s, c)
+    if c > -0.99:
+        # theta / sin(theta), with its series where sin(theta) ~ theta.
+        if s < 1e-6:
+            f = 1.0 + s * s / 6.0
+        else:
+            f = t / s
+        out[0] = f * w0
+        out[1] = f * w1
+        out[2] = f * w2
+        return
+    # Near pi, the skew part vanishes: take the axis from the symmetric part,
+    # (R + R^T)/2 - cos I = (1 - cos) n n^T, and its sign from the skew part.
+    d0 = R[0, 0] - c
+    d1 = R[1, 1] - c
+    d2 = R[2, 2] - c
+    omc = 1.0 - c
+    if d0 >= d1 and d0 >= d2:
+        n0 = np.sqrt(max(d0 / omc, 0.0))
+        n1 = 0.5 * (R[0, 1] + R[1, 0]) / (omc * n0)
+        n2 = 0.5 * (R[0, 2] + R[2, 0]) / (omc * n0)
+    elif d1 >= d2:
+        n1 = np.sqrt(max(d1 / omc, 0.0))
+        n0 = 0.5 * (R[0, 1] + R[1, 0]) / (omc * n1)
+        n2 = 0.5 * (R[1, 2] + R[2, 1]) / (omc * n1)
+    else:
+        n2 = np.sqrt(max(d2 / omc, 0.0))
+        n0 = 0.5 * (R[0, 2] + R[2, 0]) / (omc * n2)
+        n1 = 0.5 * (R[1, 2] + R[2, 1]) / (omc * n2)
+    nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    n0 /= nn
+    n1 /= nn
+    n2 /= nn
+    if n0 * w0 + n1 * w1 + n2 * w2 < 0.0:
+        n0, n1, n2 = -n0, -n1, -n2
+    out[0] = t * n0
+    out[1] = t * n1
+    out[2] = t * n2
+
+
+@njit(cache=True)
+def _matmul33(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+
+
+@njit(cache=True)
+def _satellite_velocity_step(
+    Om: np.ndarray, tau: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarray, dt: float, out: np.ndarray
+) -> None:
+    """out = Om + dt I^-1 ((I Om) x Om + tau)   (paper eq. disceqs, velocity part)."""
+    L0 = inertia[0, 0] * Om[0] + inertia[0, 1] * Om[1] + inertia[0, 2] * Om[2]
+    L1 = inertia[1, 0] * Om[0] + inertia[1, 1] * Om[1] + inertia[1, 2] * Om[2]
+    L2 = inertia[2, 0] * Om[0] + inertia[2, 1] * Om[1] + inertia[2, 2] * Om[2]
+    g0 = L1 * Om[2] - L2 * Om[1] + tau[0]
+    g1 = L2 * Om[0] - L0 * Om[2] + tau[1]
+    g2 = L0 * Om[1] - L1 * Om[0] + tau[2]
+    for i in range(3):
+        out[i] = Om[i] + dt * (inertia_inv[i, 0] * g0 + inertia_inv[i, 1] * g1 + inertia_inv[i, 2] * g2)
+
+
+@njit(cache=True)
+def satellite_rollout(
+    R0: np.ndarray,
+    Om0: np.ndarray,
+    R_bar: np.ndarray,
+    Om_bar: np.ndarray,
+    u_bar: np.ndarray,
+    k_ff: np.ndarray,
+    K_fb: np.ndarray,
+    gamma: float,
+    use_feedback: bool,
+    inertia: np.ndarray,
+    inertia_inv: np.ndarray,
+    actuation: np.ndarray,
+    dt: float,
+    semi_implicit: bool,
+    R_out: np.ndarray,
+    Om_out: np.ndarray,
+    u_out: np.ndarray,
+) -> bool:
+    """Roll the satellite forward under u_k = u_bar_k - gamma k_k - K_k zeta_k (paper eq. dustar).
+
+    zeta_k = (log(R_bar_k^T R_k), Om_k - Om_bar_k). Without feedback, u_out = u_bar.
+    Integrators: explicit Euler (R+ = R exp(dt Om), paper eq. disceqs) or semi-implicit Euler
+    (Om+ first, then R+ = R exp(dt Om+), Crocoddyl's). Returns False if a state became non-finite.
+    """
+    H = u_bar.shape[0]
+    m = u_bar.shape[1]
+    R_out[0] = R0
+    Om_out[0] = Om0
+    E = np.empty((3, 3))
+    Ex = np.empty((3, 3))
+    zeta = np.empty(6)
+    eta = np.empty(3)
+    tau = np.empty(3)
+    Om_next = np.empty(3)
+    for k in range(H):
+        Rk = R_out[k]
+        Omk = Om_out[k]
+        if use_feedback:
+            for i in range(3):
+                for j in range(3):
+                    E[i, j] = R_bar[k, 0, i] * Rk[0, j] + R_bar[k, 1, i] * Rk[1, j] + R_bar[k, 2, i] * Rk[2, j]
+            so3_log(E, eta)
+            for i in range(3):
+                zeta[i] = eta[i]
+                zeta[3 + i] = Omk[i] - Om_bar[k, i]
+            for a in range(m):
+                acc = u_bar[k, a] - gamma * k_ff[k, a]
+                for b in range(6):
+                    acc -= K_fb[k, a, b] * zeta[b]
+                u_out[k, a] = acc
+        else:
+            for a in range(m):
+                u_out[k, a] = u_bar[k, a]
+        for i in range(3):
+            acc = 0.0
+            for a in range(m):
+                acc += actuation[i, a] * u_out[k, a]
+            tau[i] = acc
+        _satellite_velocity_step(Omk, tau, inertia, inertia_inv, dt, Om_next)
+        if semi_implicit:
+            so3_exp(dt * Om_next[0], dt * Om_next[1], dt * Om_next[2], Ex)
+        else:
+            so3_exp(dt * Omk[0], dt * Omk[1], dt * Omk[2], Ex)
+        _matmul33(Rk, Ex, R_out[k + 1])
+        for i in range(3):
+            Om_out[k + 1, i] = Om_next[i]
+            if not np.isfinite(Om_next[i]):
+                return False
+    return True
+
+
+# ----------------------------------------------------------------------------- backward pass
+@njit(cache=True)
+def _cholesky_inplace(A: np.ndarray) -> bool:
+    """Lower Cholesky factor of a small SPD matrix, in place. False if not positive definite."""
+    n = A.shape[0]
+    for j in range(n):
+        s = A[j, j]
+        for p in range(j):
+            s -= A[j, p] * A[j, p]
+        if not (s > 0.0):  # also catches NaN
+            return False
+        d = np.sqrt(s)
+        A[j, j] = d
+        for i in range(j + 1, n):
+            s = A[i, j]
+            for p in range(j):
+                s -= A[i, p] * A[j, p]
+            A[i, j] = s / d
+        for i in range(j):
+            A[i, j] = 0.0
+    return True
+
+
+@njit(cache=True)
+def _cholesky_solve(L: np.ndarray, b: np.ndarray) -> None:
+    """Solve (L L^T) x = b in place, b (n,) or (n, k)."""
+    n = L.shape[0]
+    if b.ndim == 1:
+        for i in range(n):
+            s = b[i]
+            for p in range(i):
+                s -= L[i, p] * b[p]
+            b[i] = s / L[i, i]
+        for i in range(n - 1, -1, -1):
+            s = b[i]
+            for p in range(i + 1, n):
+                s -= L[p, i] * b[p]
+            b[i] = s / L[i, i]
+    else:
+        for c in range(b.shape[1]):
+            for i in range(n):
+                s = b[i, c]
+                for p in range(i):
+                    s -= L[i, p] * b[p, c]
+                b[i, c] = s / L[i, i]
+            for i in range(n - 1, -1, -1):
+                s = b[i, c]
+                for p in range(i + 1, n):
+                    s -= L[p, i] * b[p, c]
+                b[i, c] = s / L[i, i]
+
+
+@njit(cache=True)
+def backward_pass(
+    Phi: np.ndarray,
+    B: np.ndarray,
+    lx: np.ndarray,
+    lu: np.ndarray,
+    lxx: np.ndarray,
+    lux: np.ndarray,
+    luu: np.ndarray,
+    Vx_final: np.ndarray,
+    Vxx_final: np.ndarray,
+    Theta: np.ndarray,
+    Gamma: np.ndarray,
+    Xi: np.ndarray,
+    second_order: bool,
+    reg: float,
+    k_ff: np.ndarray,
+    K_fb: np.ndarray,
+    Quu_min_eig_proxy: np.ndarray,
+) -> tuple[int, float, float]:
+    """The paper's backward recursion on trivialised derivatives, nodes H-1 ... 0.
+
+    Per node (eq. Qfunctions): Q_x = l_x + Phi^T V_x', Q_u = l_u + B^T V_x',
+    Q_xx = l_xx + Phi^T V_xx' Phi (+ sum_i V_x'_i Theta_i), Q_ux = l_ux + B^T V_xx' Phi
+    (+ sum_i V_x'_i Gamma_i^T), Q_uu = l_uu + B^T V_xx' B (+ sum_i V_x'_i Xi_i) + reg I
+    (Remark rem:theta). Gains (eq. dustar): k = Q_uu^-1 Q_u, K = Q_uu^-1 Q_ux. Value backup
+    (eq. backv): V_x = Q_x - Q_ux^T k, V_xx = Q_xx - Q_ux^T K. Terminal values (eq. vfinal) are
+    passed in.
+
+    Shapes: Phi (H,n,n), B (H,n,m), lx (H,n), lu (H,m), lxx (H,n,n), lux (H,m,n), luu (H,m,m),
+    Theta (H,n,n,n), Gamma (H,n,n,m), Xi (H,n,m,m) (ignored unless second_order).
+
+    Returns (failed_node, d1, d2): failed_node = -1 on success, else the node where Q_uu + reg I
+    was not positive definite (the pass stops there); d1 = sum_k Q_u^T k_k and
+    d2 = sum_k k_k^T Q_uu k_k give the model's predicted change
+    dJ(gamma) = -gamma d1 + gamma^2 d2 / 2 (Theorem th1 to first order).
+    Quu_min_eig_proxy (H,) receives min_j L_jj^2 of the Cholesky factor (a cheap conditioning
+    signal; exact minimum eigenvalue for diagonal Q_uu).
+    """
+    H = Phi.shape[0]
+    n = Phi.shape[1]
+    m = B.shape[2]
+    Vx = Vx_final.copy()
+    Vxx = Vxx_final.copy()
+    Qx = np.empty(n)
+    Qu = np.empty(m)
+    Qxx = np.empty((n, n))
+    Qux = np.empty((m, n))
+    Quu = np.empty((m, m))
+    L = np.empty((m, m))
+    VxxPhi = np.empty((n, n))
+    VxxB = np.empty((n, m))
+    d1 = 0.0
+    d2 = 0.0
+    for k in range(H - 1, -1, -1):
+        P = Phi[k]
+        Bk = B[k]
+        for i in range(n):
+            for j in range(n):
+                s = 0.0
+                for p in range(n):
+                    s += Vxx[i, p] * P[p, j]
+                VxxPhi[i, j] = s
+            for j in range(m):
+                s = 0.0
+                for p in range(n):
+                    s += Vxx[i, p] * Bk[p, j]
+                VxxB[i, j] = s
+        for i in range(n):
+            s = lx[k, i]
+            for p in range(n):
+                s += P[p, i] * Vx[p]
+            Qx[i] = s
+            for j in range(i, n):
+                s = lxx[k, i, j]
+                for p in range(n):
+                    s += P[p, i] * VxxPhi[p, j]
+                Qxx[i, j] = s
+        for a in range(m):
+            s = lu[k, a]
+            for p in range(n):
+                s += Bk[p, a] * Vx[p]
+            Qu[a] = s
+            for j in range(n):
+                s = lux[k, a, j]
+                for p in range(n):
+                    s += Bk[p, a] * VxxPhi[p, j]
+                Qux[a, j] = s
+            for b in range(a, m):
+                s = luu[k, a, b]
+                for p in range(n):
+                    s += Bk[p, a] * VxxB[p, b]
+                Quu[a, b] = s
+        if second_order:
+            for i in range(n):
+                v = Vx[i]
+                if v == 0.0:
+                    continue
+                for a in range(n):
+                    for b in range(a, n):
+                        Qxx[a, b] += v * Theta[k, i, a, b]
+                    for c in range(m):
+                        Qux[c, a] += v * Gamma[k, i, a, c]
+                for a in range(m):
+                    for b in range(a, m):
+                        Quu[a, b] += v * Xi[k, i, a, b]
+        for i in range(n):
+            for j in range(i):
+                Qxx[i, j] = Qxx[j, i]
+        for a in range(m):
+            for b in range(a):
+                Quu[a, b] = Quu[b, a]
+            for b in range(m):
+                L[a, b] = Quu[a, b]
+            L[a, a] += reg
+        if not _cholesky_inplace(L):
+            return k, d1, d2
+        mn = L[0, 0] * L[0, 0]
+        for a in range(1, m):
+            if L[a, a] * L[a, a] < mn:
+                mn = L[a, a] * L[a, a]
+        Quu_min_eig_proxy[k] = mn
+        kk = k_ff[k]
+        KK = K_fb[k]
+        for a in range(m):
+            kk[a] = Qu[a]
+            for j in range(n):
+                KK[a, j] = Qux[a, j]
+        _cholesky_solve(L, kk)
+        _cholesky_solve(L, KK)
+        for a in range(m):
+            d1 += Qu[a] * kk[a]
+            s = 0.0
+            for b in range(m):
+                s += Quu[a, b] * kk[b]
+            d2 += kk[a] * s
+        for i in range(n):
+            s = Qx[i]
+            for a in range(m):
+                s -= Qux[a, i] * kk[a]
+            Vx[i] = s
+            for j in range(i, n):
+                s = Qxx[i, j]
+                for a in range(m):
+                    s -= Qux[a, i] * KK[a, j]
+                Vxx[i, j] = s
+        for i in range(n):
+            for j in range(i):
+                Vxx[i, j] = Vxx[j, i]
+    return -1, d1, d2
+
+
+@njit(cache=True)
+def gradient(Phi: np.ndarray, B: np.ndarray, lx: np.ndarray, lu: np.ndarray, lx_final: np.ndarray, out: np.ndarray) -> None:
+    """dJ/du_k = l_u^k + B_k^T psi^{k+1}, psi^k = l_x^k + Phi_k^T psi^{k+1}, psi^H = l_x^H
+    (Lemma lemm:psi). out: (H, m)."""
+    H = Phi.shape[0]
+    n = Phi.shape[1]
+    m = B.shape[2]
+    psi = lx_final.copy()
+    nxt = np.empty(n)
+    for k in range(H - 1, -1, -1):
+        for a in range(m):
+            s = lu[k, a]
+            for p in range(n):
+                s += B[k, p, a] * psi[p]
+            out[k, a] = s
+        for i in range(n):
+            s = lx[k, i]
+            for p in range(n):
+                s += Phi[k, p, i] * psi[p]
+            nxt[i] = s
+        for i in range(n):
+            psi[i] = nxt[i]
