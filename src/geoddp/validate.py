@@ -59,3 +59,44 @@ def actuation_matrix(H, name="actuation"):
     if a.ndim != 2 or a.shape[0] != 3 or a.shape[1] < 1:
         raise InputError(name, f"expected shape (3, m) with m >= 1, got {a.shape}")
     return a
+
+
+def rotation_matrix(R, name, tol=1e-9):
+    a = finite_array(R, name, (3, 3))
+    if np.abs(a.T @ a - np.eye(3)).max() > tol:
+        raise InputError(name, "expected an orthonormal matrix (R^T R = I)")
+    if np.linalg.det(a) < 0:
+        raise InputError(name, "expected det = +1, got -1 (a reflection)")
+    return a
+
+
+def spd_matrix(S, name, n, allow_scalar=True, allow_vector=True, semidefinite=False):
+    a = finite_array(S, name)
+    if a.ndim == 0 and allow_scalar:
+        a = float(a) * np.eye(n)
+    elif a.shape == (n,) and allow_vector:
+        a = np.diag(a)
+    if a.shape != (n, n):
+        raise InputError(name, f"expected a scalar, {n} numbers or a {n}x{n} matrix, got shape {a.shape}")
+    if not np.allclose(a, a.T, rtol=1e-12, atol=0):
+        raise InputError(name, "expected a symmetric matrix")
+    ev = np.linalg.eigvalsh(a)
+    if semidefinite:
+        if ev.min() < -1e-12 * max(abs(ev.max()), 1.0):
+            raise InputError(name, "expected a positive semidefinite matrix")
+    elif ev.min() <= 0:
+        raise InputError(name, "expected a positive definite matrix")
+    return a
+
+
+def positive_int(x, name):
+    if isinstance(x, bool) or int(x) != x or x < 1:
+        raise InputError(name, f"expected an integer >= 1, got {x!r}")
+    return int(x)
+
+
+def nonnegative_float(x, name):
+    v = float(finite_array(x, name, ()))
+    if v < 0:
+        raise InputError(name, f"expected a number >= 0, got {v}")
+    return v

@@ -1,0 +1,336 @@
+"""Algorithm 1 of the paper: DDP on Lie groups.
+
+One iteration: expand dynamics and costs along the nominal trajectory (first or second order,
+Section IV), run the backward recursion (eqs. Qfunctions, dustar, backv, vfinal) with Q_uu
+regularisation, then a forward pass with line search on gamma (eq. dustar, step 'steph').
+
+Decisions the paper leaves open, and why:
+* Regularisation (Remark rem:theta): when Q_uu + lambda I is not positive definite at some node,
+  lambda <- max(1.9 lambda, reg_min) and the backward pass *restarts* from k = H. Continuing from
+  the failing node would mix value functions of different lambda; with the second-order expansion
+  the first iterations need this to produce descent directions. After an accepted step with
+  gamma >= 0.5, lambda <- lambda / 10 (and to 0 below reg_min) so that the last iterations run
+  unregularised and keep their superlinear rate.
+* Line search: gamma in {1, 1/3, 1/9, ...} until J <= J_bar (the paper's test); if gamma falls
+  below min_step, lambda is raised and the iteration is redone; past reg_max the solve stops.
+* Stopping: |J_i - J_(i-1)| <= tol after an accepted step, or ||dJ/dU|| <= grad_tol (gradient by
+  Lemma lemm:psi), or max_iter. A final backward pass at the returned iterate, with the exact
+  second-order expansion and lambda = 0, gives the feedback gains and tells whether the point is
+  a strict local minimum: for exact second-order DDP, all Q_uu positive definite is equivalent to
+  a positive definite Hessian of J(U). A stationary point that fails this test is reported as a
+  saddle, never as converged.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import TextIO
+
+import numpy as np
+
+from . import kernels
+from .problem import Problem
+from .result import (
+    STATUS_CONVERGED_COST,
+    STATUS_CONVERGED_GRAD,
+    STATUS_MAX_ITER,
+    STATUS_MAX_REG,
+    STATUS_NO_DESCENT,
+    STATUS_SADDLE,
+    Result,
+)
+from .validate import choice, finite_array, nonnegative_float, positive_float, positive_int
+
+EXPANSIONS = ("first", "second", "switch")
+
+
+@dataclass
+class SolverOptions:
+    """Options of :func:`solve`.
+
+    Attributes:
+        expansion: "first" (Phi, B only), "second" (with Theta, Gamma, Xi) or "switch" (first
+            until J_i / J_0 < switch_ratio, then second; the paper's proposal).
+        switch_ratio: sigma of the switch rule, in (0, 1).
+        tol: stop when |J_i - J_(i-1)| <= tol.
+        grad_tol: stop when ||dJ/dU||_2 <= grad_tol.
+        max_iter: maximum number of accepted iterations.
+        reg_init, reg_min, reg_max: Q_uu regularisation lambda (start, floor, ceiling).
+        reg_increase: factor on lambda when Q_uu is not positive definite (paper: 1.9).
+        step_factor: line-search factor h (paper: 1/3); min_step: smallest gamma tried.
+        verbose: print the per-iteration table.
+        record_controls: keep the controls of every iterate in the result.
+        backend: derivative backend, "analytic" (fast) or "pinocchio" (reference).
+    """
+
+    expansion: str = "switch"
+    switch_ratio: float = 0.1
+    tol: float = 1e-8
+    grad_tol: float = 1e-10
+    max_iter: int = 200
+    reg_init: float = 0.0
+    reg_min: float = 1e-8
+    reg_max: float = 1e10
+    reg_increase: float = 1.9
+    step_factor: float = 1.0 / 3.0
+    min_step: float = 1e-10
+    verbose: bool = True
+    record_controls: bool = False
+    backend: str = "analytic"
+    stream: TextIO | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self.expansion = choice(self.expansion, "expansion", EXPANSIONS)
+        self.switch_ratio = positive_float(self.switch_ratio, "switch_ratio")
+        if not self.switch_ratio < 1.0:
+            from .validate import InputError
+
+            raise InputError("switch_ratio", f"expected a number in (0, 1), got {self.switch_ratio}")
+        self.tol = nonnegative_float(self.tol, "tol")
+        self.grad_tol = nonnegative_float(self.grad_tol, "grad_tol")
+        self.max_iter = positive_int(self.max_iter, "max_iter")
+        self.reg_init = nonnegative_float(self.reg_init, "reg_init")
+        self.reg_min = positive_float(self.reg_min, "reg_min")
+        self.reg_max = positive_float(self.reg_max, "reg_max")
+        self.reg_increase = positive_float(self.reg_increase, "reg_increase")
+        self.step_factor = positive_float(self.step_factor, "step_factor")
+        self.min_step = positive_float(self.min_step, "min_step")
+        self.backend = choice(self.backend, "backend", ("analytic", "pinocchio"))
+
+
+class _Workspace:
+    """Per-solve buffers (Crocoddyl's 'data'): allocated once, reused every iteration."""
+
+    def __init__(self, H: int, m: int) -> None:
+        self.k = np.zeros((H, m))
+        self.K = np.zeros((H, m, 6))
+        self.grad = np.zeros((H, m))
+        self.quu_eig = np.zeros(H)
+        self.R = np.empty((H + 1, 3, 3))
+        self.Om = np.empty((H + 1, 3))
+        self.U = np.empty((H, m))
+        self.empty_theta = np.zeros((H, 6, 6, 6))
+        self.empty_gamma = np.zeros((H, 6, 6, m))
+        self.empty_xi = np.zeros((H, 6, m, m))
+
+
+class _Linearisation:
+    """Expansion of dynamics and costs at one nominal trajectory."""
+
+    def __init__(self, problem: Problem, R, Om, U, order: int, backend: str) -> None:
+        self.exp = problem.model.expansion(R, Om, U, order=order, backend=backend)
+        self.run, self.term = problem.cost_derivatives(R, Om, U)
+        self.order = order
+
+
+def _backward(lin: _Linearisation, ws: _Workspace, reg: float) -> tuple[int, float, float]:
+    e, r, t = lin.exp, lin.run, lin.term
+    second = lin.order == 2
+    return kernels.backward_pass(
+        e.Phi, e.B, r.lx, r.lu, r.lxx, r.lux, r.luu, t.lx[0], t.lxx[0],
+        e.Theta if second else ws.empty_theta,
+        e.Gamma if second else ws.empty_gamma,
+        e.Xi if second else ws.empty_xi,
+        second, reg, ws.k, ws.K, ws.quu_eig,
+    )
+
+
+def _gradient(lin: _Linearisation, ws: _Workspace) -> np.ndarray:
+    kernels.gradient(lin.exp.Phi, lin.exp.B, lin.run.lx, lin.run.lu, lin.term.lx[0], ws.grad)
+    return ws.grad
+
+
+def cost_gradient(problem: Problem, controls: np.ndarray) -> tuple[float, np.ndarray]:
+    """J(U) and dJ/dU (H, m) by the psi recursion of Lemma lemm:psi (exact, not a DDP step)."""
+    U = problem.check_controls(controls, "controls")
+    R, Om = problem.rollout(U)
+    lin = _Linearisation(problem, R, Om, U, 1, "analytic")
+    ws = _Workspace(problem.horizon, problem.nu)
+    return problem.cost(R, Om, U), _gradient(lin, ws).copy()
+
+
+def _print_header(out: TextIO) -> None:
+    out.write(f"{'iter':>4} {'cost':>16} {'dJ':>11} {'|grad|':>10} {'lambda':>9} {'gamma':>7} {'exp':>6} {'restarts':>8}\n")
+
+
+def _print_row(out: TextIO, it, J, dJ, g, lam, gamma, exp_name, restarts) -> None:
+    dJs = f"{dJ:11.3e}" if dJ is not None else f"{'':>11}"
+    gs = f"{gamma:7.4f}" if gamma is not None else f"{'':>7}"
+    out.write(f"{it:4d} {J:16.10e} {dJs} {g:10.3e} {lam:9.2e} {gs} {exp_name:>6} {restarts:8d}\n")
+    out.flush()
+
+
+def solve(problem: Problem, options: SolverOptions | None = None, initial_controls: np.ndarray | None = None) -> Result:
+    """Solve ``problem`` with geometric DDP (Algorithm 1) and return a :class:`Result`.
+
+    Args:
+        problem: the :class:`Problem` (model, costs, horizon, initial state).
+        options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
+        initial_controls: (H, m) initial guess; zeros by default (as in the paper).
+    """
+    opt = options or SolverOptions()
+    out = opt.stream or sys.stdout
+    H, m = problem.horizon, problem.nu
+    U = np.zeros((H, m)) if initial_controls is None else problem.check_controls(initial_controls)
+    model = problem.model
+    ws = _Workspace(H, m)
+    t_start = time.perf_counter()
+    timings = {"derivatives": 0.0, "backward": 0.0, "forward": 0.0, "final_check": 0.0}
+
+    R, Om = problem.rollout(U)
+    J = problem.cost(R, Om, U)
+    if not np.isfinite(J):
+        raise FloatingPointError("the initial guess gives a non-finite cost: check the initial controls")
+    J0 = J
+    cost_hist, grad_hist, reg_hist, step_hist, exp_hist = [J], [], [], [], []
+    ctrl_hist = [U.copy()] if opt.record_controls else None
+    use_second = opt.expansion == "second"
+    lam = opt.reg_init
+    status, message, converged = STATUS_MAX_ITER, f"reached max_iter = {opt.max_iter}", False
+    lin = None
+    if opt.verbose:
+        _print_header(out)
+
+    it = 0
+    while it < opt.max_iter:
+        if opt.expansion == "switch" and not use_second and J0 > 0 and J / J0 < opt.switch_ratio:
+            use_second = True
+        order = 2 if use_second else 1
+        t0 = time.perf_counter()
+        lin = _Linearisation(problem, R, Om, U, order, opt.backend)
+        g = _gradient(lin, ws)
+        gnorm = float(np.linalg.norm(g))
+        timings["derivatives"] += time.perf_counter() - t0
+        if len(grad_hist) == len(cost_hist) - 1:
+            grad_hist.append(gnorm)
+        if it == 0 and opt.verbose:
+            _print_row(out, 0, J, None, gnorm, lam, None, "", 0)
+        if gnorm <= opt.grad_tol:
+            status, message, converged = STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= grad_tol", True
+            break
+
+        # Backward pass, restarted with a larger lambda while Q_uu is not positive definite.
+        t0 = time.perf_counter()
+        restarts = 0
+        while True:
+            failed, d1, d2 = _backward(lin, ws, lam)
+            if failed < 0:
+                break
+            restarts += 1
+            lam = max(lam * opt.reg_increase, opt.reg_min)
+            if lam > opt.reg_max:
+                break
+        timings["backward"] += time.perf_counter() - t0
+        if lam > opt.reg_max:
+            status, message = STATUS_MAX_REG, f"Q_uu not positive definite with lambda up to {opt.reg_max:.1e}"
+            break
+
+        # Forward pass with line search (Algorithm 1, inner repeat).
+        t0 = time.perf_counter()
+        gamma, accepted = 1.0, False
+        while gamma >= opt.min_step:
+            ok = kernels.satellite_rollout(
+                problem.R0, problem.Omega0, R, Om, U, ws.k, ws.K, gamma, True,
+                model.inertia, model.inertia_inv, model.actuation, model.dt, model.semi_implicit,
+                ws.R, ws.Om, ws.U,
+            )
+            J_new = problem.cost(ws.R, ws.Om, ws.U) if ok else np.inf
+            if np.isfinite(J_new) and J_new <= J:
+                accepted = True
+                break
+            gamma *= opt.step_factor
+        timings["forward"] += time.perf_counter() - t0
+        if not accepted:
+            # No descent along this direction: be more conservative and redo the iteration.
+            lam = max(lam * 10.0, opt.reg_min)
+            if lam > opt.reg_max:
+                status, message = STATUS_NO_DESCENT, "no gamma >= min_step decreased J, even with maximal regularisation"
+                break
+            continue
+
+        dJ = J_new - J
+        R, Om, U = ws.R.copy(), ws.Om.copy(), ws.U.copy()
+        J = J_new
+        it += 1
+        cost_hist.append(J)
+        reg_hist.append(lam)
+        step_hist.append(gamma)
+        exp_hist.append("second" if use_second else "first")
+        if ctrl_hist is not None:
+            ctrl_hist.append(U.copy())
+        if opt.verbose:
+            # the gradient column is filled at the next linearisation; print the previous one here
+            _print_row(out, it, J, dJ, gnorm, lam, gamma, exp_hist[-1], restarts)
+        if gamma >= 0.5:
+            lam = lam / 10.0 if lam / 10.0 >= opt.reg_min else 0.0
+        if abs(dJ) <= opt.tol:
+            status, message, converged = STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True
+            break
+
+    # Final check at the returned iterate: exact second-order expansion, lambda = 0.
+    t0 = time.perf_counter()
+    lin_final = _Linearisation(problem, R, Om, U, 2, opt.backend)
+    g = _gradient(lin_final, ws)
+    gnorm = float(np.linalg.norm(g))
+    if len(grad_hist) < len(cost_hist):
+        grad_hist.append(gnorm)
+    failed, _, _ = _backward(lin_final, ws, 0.0)
+    is_min = failed < 0
+    if not is_min:
+        # gains for the user still need a factorisable Q_uu
+        lam_f = opt.reg_min
+        while _backward(lin_final, ws, lam_f)[0] >= 0 and lam_f < opt.reg_max:
+            lam_f *= opt.reg_increase
+    timings["final_check"] = time.perf_counter() - t0
+    if converged and not is_min:
+        converged = False
+        status = STATUS_SADDLE
+        message = (f"stationary (||dJ/dU|| = {gnorm:.3e}) but Q_uu is not positive definite at node {failed} "
+                   "with the exact second-order expansion: the reduced Hessian is indefinite")
+    elif status == STATUS_CONVERGED_COST and gnorm > max(opt.grad_tol, 1e-6 * max(1.0, abs(J))):
+        message += f"; note ||dJ/dU|| = {gnorm:.3e} at the final iterate"
+    solve_time = time.perf_counter() - t_start
+    if opt.verbose:
+        out.write(f"{status} ({message}); J = {J:.12e}, ||grad|| = {gnorm:.3e}, {it} iterations, {solve_time*1e3:.1f} ms\n")
+
+    return Result(
+        times=np.arange(H + 1) * model.dt,
+        rotations=R,
+        angular_velocities=Om,
+        controls=U,
+        feedforward=ws.k.copy(),
+        feedback=ws.K.copy(),
+        target_rotation=_target_rotation(problem),
+        target_angular_velocity=_target_rate(problem),
+        cost=float(J),
+        iterations=it,
+        converged=converged,
+        status=status,
+        message=message,
+        cost_history=np.array(cost_hist),
+        grad_norm_history=np.array(grad_hist),
+        reg_history=np.array(reg_hist),
+        step_history=np.array(step_hist),
+        expansion_history=exp_hist,
+        solve_time_s=solve_time,
+        timings=timings,
+        expansion=opt.expansion,
+        integrator=model.integrator,
+        dt=model.dt,
+        control_history=np.array(ctrl_hist) if ctrl_hist is not None else None,
+    )
+
+
+def _target_rotation(problem: Problem) -> np.ndarray:
+    for t in problem.terminal.terms:
+        if hasattr(t, "R_d"):
+            return t.R_d.copy()
+    return np.eye(3)
+
+
+def _target_rate(problem: Problem) -> np.ndarray:
+    for t in problem.terminal.terms:
+        if hasattr(t, "Omega_d"):
+            return t.Omega_d.copy()
+    return np.zeros(3)
