@@ -27,6 +27,7 @@ and the file.
 from __future__ import annotations
 
 import dataclasses
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -263,13 +264,32 @@ def load_scene(path: str | Path) -> SceneSpec:
     except OSError as exc:
         raise InputError("scene file", f"expected a readable TOML file, got {src!r} ({exc.strerror})") from None
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
+        text = raw.decode("utf-8")
+        data = tomllib.loads(text)
     except UnicodeDecodeError as exc:
         raise InputError("scene file", f"expected UTF-8 text, got invalid bytes at offset {exc.start}", src) from None
     except tomllib.TOMLDecodeError as exc:
-        # tomllib's message already ends with "(at line L, column C)".
-        raise InputError("scene file", f"malformed TOML: {exc}", src) from None
+        raise InputError("scene file", _toml_error_detail(exc, text), src) from None
     return _parse(data, src, base_dir=p.resolve().parent, default_name=p.stem)
+
+
+def _toml_error_detail(exc: tomllib.TOMLDecodeError, text: str) -> str:
+    """Normalise a tomllib error to "malformed TOML at line L, column C: ...; the line reads ..."."""
+    msg = str(exc)
+    lines = text.splitlines()
+    m = re.search(r"\s*\(at line (\d+), column (\d+)\)$", msg)
+    if m:
+        line, where = int(m.group(1)), f"line {m.group(1)}, column {m.group(2)}"
+        msg = msg[: m.start()]
+    else:
+        # Python 3.11's tomllib reports unterminated constructs only as "at end of document";
+        # point at the last non-blank line, which is where such a construct was left open.
+        msg = re.sub(r"\s*\(at end of document\)$", "", msg)
+        line = max((i + 1 for i, t in enumerate(lines) if t.strip()), default=1)
+        where = f"line {line} (end of file)"
+    shown = lines[line - 1].strip() if 0 < line <= len(lines) else ""
+    tail = f"; the line reads {shown!r}" if shown else ""
+    return f"malformed TOML at {where}: {msg}{tail}"
 
 
 def parse_scene(data: Mapping[str, Any], source: str = "<dict>") -> SceneSpec:
