@@ -102,7 +102,8 @@ class SceneSpec:
         source: path of the scene file, or ``"<dict>"``.
         inertia: (3, 3) body inertia in kg m^2, SPD, physically realisable.
         actuation: (3, m) input-to-body-torque matrix, no zero column.
-        urdf: absolute path of an optional URDF model, or None.
+        urdf: absolute path of an optional URDF model, or None (must exist; a relative path
+            given directly to the constructor resolves against the current directory).
         R0: (3, 3) initial attitude (body to world).
         Omega0: (3,) initial body angular velocity in rad/s.
         Rd: (3, 3) target attitude.
@@ -328,8 +329,8 @@ class _Reader:
     def err(self, param: str, detail: str) -> InputError:
         return InputError(param, detail, self.source)
 
-    def check(self, param: str, fn: Any, *args: Any, **kw: Any) -> Any:
-        """Run validator ``fn(value, param, ...)`` and attach the file name to its error."""
+    def check(self, fn: Any, *args: Any, **kw: Any) -> Any:
+        """Run validator ``fn(*args, **kw)`` and attach the file name to its error."""
         try:
             return fn(*args, **kw)
         except InputError as e:
@@ -394,9 +395,9 @@ class _Reader:
         path = f"[{section}].{form}"
         val = table[form]
         if form == "rotation":
-            return self.check(path, v.rotation_matrix, val, path)
+            return self.check(v.rotation_matrix, val, path)
         if form == "quaternion":
-            return self.check(path, v.quaternion_to_rotation, val, path)
+            return self.check(v.quaternion_to_rotation, val, path)
         return self.euler(val, path)
 
     def euler(self, val: Any, path: str) -> np.ndarray:
@@ -411,8 +412,8 @@ class _Reader:
             axis, deg = item
             if isinstance(axis, str):
                 axis = axis.lower()  # "X" and "x" name the same body axis here
-            axis = self.check(ipath, v.choice, axis, f"{ipath} axis", AXES)
-            angle = np.deg2rad(self.check(ipath, v.finite_float, deg, f"{ipath} angle (degrees)"))
+            axis = self.check(v.choice, axis, f"{ipath} axis", AXES)
+            angle = np.deg2rad(self.check(v.finite_float, deg, f"{ipath} angle (degrees)"))
             # Intrinsic composition: each rotation is about the already-rotated body axis,
             # which is right-multiplication: R = Rot_a1(t1) Rot_a2(t2) ...
             R = R @ _axis_rotation(axis, angle)
@@ -436,68 +437,65 @@ def _parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: s
     description = r.string(data, "description", "description", "")
 
     model = r.section("model")
-    inertia = r.check("[model].inertia", v.inertia_matrix, model["inertia"], "[model].inertia")
+    inertia = r.check(v.inertia_matrix, model["inertia"], "[model].inertia")
     if "actuation" in model:
-        act = r.check("[model].actuation", v.actuation_matrix, model["actuation"], "[model].actuation")
+        act = r.check(v.actuation_matrix, model["actuation"], "[model].actuation")
     else:
         act = np.eye(3)
     m = act.shape[1]
     urdf = None
     if "urdf" in model:
-        urdf = r.check("[model].urdf", _check_urdf, model["urdf"], "[model].urdf", base_dir)
+        urdf = r.check(_check_urdf, model["urdf"], "[model].urdf", base_dir)
 
     zero3 = [0.0, 0.0, 0.0]
     initial = r.section("initial")
     R0 = r.attitude(initial, "initial", ("quaternion", "rotation"))
     p = "[initial].angular_velocity"
-    Omega0 = r.check(p, v.finite_array, initial.get("angular_velocity", zero3), p, shape=(3,))
+    Omega0 = r.check(v.finite_array, initial.get("angular_velocity", zero3), p, shape=(3,))
 
     target = r.section("target")
     Rd = r.attitude(target, "target", ("rotation", "quaternion", "euler_intrinsic"))
     p = "[target].angular_velocity"
-    Omegad = r.check(p, v.finite_array, target.get("angular_velocity", zero3), p, shape=(3,))
+    Omegad = r.check(v.finite_array, target.get("angular_velocity", zero3), p, shape=(3,))
 
     horizon = r.section("horizon")
-    H = r.check(
-        "[horizon].tf", v.time_grid, horizon["tf"], horizon["dt"],
-        tf_name="[horizon].tf", dt_name="[horizon].dt",
-    )
+    H = r.check(v.time_grid, horizon["tf"], horizon["dt"], tf_name="[horizon].tf", dt_name="[horizon].dt")
     p = "[horizon].integrator"
-    integrator = r.check(p, v.choice, horizon.get("integrator", DEFAULT_INTEGRATOR), p, INTEGRATORS)
+    integrator = r.check(v.choice, horizon.get("integrator", DEFAULT_INTEGRATOR), p, INTEGRATORS)
 
     cost = r.section("cost")
 
     def weight(key: str, n: int, semidefinite: bool, default: Any = None) -> np.ndarray:
         p = f"[cost].{key}"
-        return r.check(p, v.spd_matrix, cost.get(key, default), p, n, semidefinite=semidefinite)
+        return r.check(v.spd_matrix, cost.get(key, default), p, n, semidefinite=semidefinite)
 
     S_u = weight("control", m, semidefinite=False)
     S_R = weight("attitude", 3, semidefinite=True)
     p = "[cost].attitude_kind"
-    attitude_kind = r.check(p, v.choice, cost.get("attitude_kind", DEFAULT_ATTITUDE_KIND), p, ATTITUDE_KINDS)
+    attitude_kind = r.check(v.choice, cost.get("attitude_kind", DEFAULT_ATTITUDE_KIND), p, ATTITUDE_KINDS)
     S_Omega = weight("angular_velocity", 3, semidefinite=True)
     running_S_R = weight("running_attitude", 3, semidefinite=True, default=0.0)
     running_S_Omega = weight("running_angular_velocity", 3, semidefinite=True, default=0.0)
 
     solver = r.section("solver")
     p = "[solver].expansion"
-    expansion = r.check(p, v.choice, solver.get("expansion", DEFAULT_EXPANSION), p, EXPANSIONS)
+    expansion = r.check(v.choice, solver.get("expansion", DEFAULT_EXPANSION), p, EXPANSIONS)
     p = "[solver].switch_ratio"
     switch_ratio = r.check(
-        p, v.bounded_float, solver.get("switch_ratio", DEFAULT_SWITCH_RATIO), p, 0.0, 1.0, False, False
+        v.bounded_float, solver.get("switch_ratio", DEFAULT_SWITCH_RATIO), p, 0.0, 1.0, False, False
     )
     p = "[solver].tol"
-    tol = r.check(p, v.nonnegative_float, solver.get("tol", DEFAULT_TOL), p)
+    tol = r.check(v.nonnegative_float, solver.get("tol", DEFAULT_TOL), p)
     p = "[solver].grad_tol"
-    grad_tol = r.check(p, v.nonnegative_float, solver.get("grad_tol", DEFAULT_GRAD_TOL), p)
+    grad_tol = r.check(v.nonnegative_float, solver.get("grad_tol", DEFAULT_GRAD_TOL), p)
     p = "[solver].max_iter"
-    max_iter = r.check(p, v.positive_int, solver.get("max_iter", DEFAULT_MAX_ITER), p)
+    max_iter = r.check(v.positive_int, solver.get("max_iter", DEFAULT_MAX_ITER), p)
     p = "[solver].second_order"
-    second_order = r.check(p, v.choice, solver.get("second_order", DEFAULT_SECOND_ORDER), p, SECOND_ORDER)
+    second_order = r.check(v.choice, solver.get("second_order", DEFAULT_SECOND_ORDER), p, SECOND_ORDER)
     U0 = None
     if "initial_controls" in solver:
         p = "[solver].initial_controls"
-        U0 = r.check(p, v.finite_array, solver["initial_controls"], p, shape=(H, m))
+        U0 = r.check(v.finite_array, solver["initial_controls"], p, shape=(H, m))
 
     return SceneSpec(
         name=name,
