@@ -398,3 +398,47 @@ def test_time_grid_rejects_non_multiple(tf, dt):
 def test_time_grid_custom_names():
     with raises("tf"):
         v.time_grid(1.0, 0.3, tf_name="tf", dt_name="dt")
+
+
+# ------------------------------------------------------------------ properties (hypothesis)
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+from hypothesis.extra.numpy import arrays  # noqa: E402
+
+_reals = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.float64, 4, elements=_reals).filter(lambda q: np.linalg.norm(q) > 1e-3))
+def test_property_any_normalised_quaternion_gives_a_valid_rotation(q):
+    q = q / np.linalg.norm(q)
+    R = v.quaternion_to_rotation(q)
+    np.testing.assert_array_equal(v.rotation_matrix(R, "R", tol=1e-13), R)
+    # q and -q are the same rotation.
+    np.testing.assert_allclose(v.quaternion_to_rotation(-q), R, atol=1e-15)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.float64, (3, 3), elements=_reals))
+def test_property_gram_plus_identity_is_spd_and_returned_exactly(A):
+    S = A @ A.T + np.eye(3)
+    S = 0.5 * (S + S.T)
+    np.testing.assert_array_equal(v.spd_matrix(S, "S", 3), S)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.float64, 3, elements=st.floats(1e-3, 1e3)))
+def test_property_inertia_accepts_iff_triangle_inequality(moments):
+    a, b, c = np.sort(moments)
+    if c <= a + b:
+        np.testing.assert_array_equal(v.inertia_matrix(moments), np.diag(moments))
+    elif c > (a + b) * (1 + 1e-6):
+        with raises("inertia", "triangle"):
+            v.inertia_matrix(moments)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 100000), st.sampled_from([1e-4, 1e-3, 0.01, 0.02, 0.05, 0.1, 0.25]))
+def test_property_time_grid_recovers_step_count(H, dt):
+    assert v.time_grid(H * dt, dt) == H
