@@ -526,3 +526,26 @@ def _parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: s
         second_order=second_order,
         initial_controls=U0,
     )
+
+
+def build_problem(spec: SceneSpec):
+    """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0)."""
+    from .problem import satellite_problem
+
+    return satellite_problem(
+        inertia=spec.inertia, actuation=spec.actuation, dt=spec.dt, horizon=spec.horizon,
+        R0=spec.R0, Omega0=spec.Omega0, R_d=spec.Rd, Omega_d=spec.Omegad,
+        S_u=spec.S_u, S_R=spec.S_R, S_Omega=spec.S_Omega, attitude_kind=spec.attitude_kind,
+        running_S_R=spec.running_S_R, running_S_Omega=spec.running_S_Omega,
+        integrator=spec.integrator, second_order=spec.second_order, urdf=spec.urdf,
+    )
+
+
+def solver_options(spec: SceneSpec, **overrides: Any):
+    """The scene's ``[solver]`` table as :class:`geoddp.solver.SolverOptions`."""
+    from .solver import SolverOptions
+
+    kw = dict(expansion=spec.expansion, switch_ratio=spec.switch_ratio, tol=spec.tol,
+              grad_tol=spec.grad_tol, max_iter=spec.max_iter)
+    kw.update(overrides)
+    return SolverOptions(**kw)

@@ -151,13 +151,12 @@ def cost_gradient(problem: Problem, controls: np.ndarray) -> tuple[float, np.nda
 
 
 def _print_header(out: TextIO) -> None:
-    out.write(f"{'iter':>4} {'cost':>16} {'dJ':>11} {'|grad|':>10} {'lambda':>9} {'gamma':>7} {'exp':>6} {'restarts':>8}\n")
+    # One row per iteration: the nominal iterate's J and gradient, then the step taken from it.
+    out.write(f"{'iter':>4} {'cost':>20} {'|grad|':>10} {'dJ':>11} {'lambda':>9} {'gamma':>7} {'exp':>6} {'restarts':>8}\n")
 
 
-def _print_row(out: TextIO, it, J, dJ, g, lam, gamma, exp_name, restarts) -> None:
-    dJs = f"{dJ:11.3e}" if dJ is not None else f"{'':>11}"
-    gs = f"{gamma:7.4f}" if gamma is not None else f"{'':>7}"
-    out.write(f"{it:4d} {J:16.10e} {dJs} {g:10.3e} {lam:9.2e} {gs} {exp_name:>6} {restarts:8d}\n")
+def _print_row(out: TextIO, it, J, g, dJ, lam, gamma, exp_name, restarts) -> None:
+    out.write(f"{it:4d} {J:20.14e} {g:10.3e} {dJ:11.3e} {lam:9.2e} {gamma:7.4f} {exp_name:>6} {restarts:8d}\n")
     out.flush()
 
 
@@ -204,8 +203,6 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         timings["derivatives"] += time.perf_counter() - t0
         if len(grad_hist) == len(cost_hist) - 1:
             grad_hist.append(gnorm)
-        if it == 0 and opt.verbose:
-            _print_row(out, 0, J, None, gnorm, lam, None, "", 0)
         if gnorm <= opt.grad_tol:
             status, message, converged = STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= grad_tol", True
             break
@@ -250,6 +247,8 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
             continue
 
         dJ = J_new - J
+        if opt.verbose:
+            _print_row(out, it, J, gnorm, dJ, lam, gamma, "second" if use_second else "first", restarts)
         R, Om, U = ws.R.copy(), ws.Om.copy(), ws.U.copy()
         J = J_new
         it += 1
@@ -259,9 +258,6 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         exp_hist.append("second" if use_second else "first")
         if ctrl_hist is not None:
             ctrl_hist.append(U.copy())
-        if opt.verbose:
-            # the gradient column is filled at the next linearisation; print the previous one here
-            _print_row(out, it, J, dJ, gnorm, lam, gamma, exp_hist[-1], restarts)
         if gamma >= 0.5:
             lam = lam / 10.0 if lam / 10.0 >= opt.reg_min else 0.0
         if abs(dJ) <= opt.tol:

@@ -1,0 +1,28 @@
+"""The few-lines entry point: scene file (or SceneSpec) in, :class:`Result` out."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .result import Result
+from .scene import SceneSpec, build_problem, load_scene, solver_options
+from .solver import solve
+
+
+def solve_scene(scene: str | Path | SceneSpec, *, verbose: bool = True, **options: Any) -> Result:
+    """Load (if a path), build and solve a scene.
+
+    Keyword options override the scene's ``[solver]`` table (for example ``expansion="second"``,
+    ``record_controls=True``, ``verbose=False``).
+    """
+    spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
+    scene_keys = {"expansion", "switch_ratio", "tol", "grad_tol", "max_iter"}
+    spec = spec.with_overrides(**{k: v for k, v in options.items() if k in scene_keys})
+    rest = {k: v for k, v in options.items() if k not in scene_keys}
+    problem = build_problem(spec)
+    init = None if spec.initial_controls is None else np.array(spec.initial_controls)
+    result = solve(problem, solver_options(spec, verbose=verbose, **rest), initial_controls=init)
+    result.extra["scene"] = spec.name
+    return result

@@ -1,0 +1,111 @@
+"""Command line: ``geoddp run SCENE`` and ``geoddp compare SCENE``.
+
+Exit codes: 0 converged, 1 stopped without converging, 2 bad input (message, no traceback).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .validate import InputError
+
+EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="geoddp", description="Differential Dynamic Programming on Lie groups")
+    sub = p.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="solve a scene and write its results")
+    run.add_argument("scene", type=Path, help="scene file (TOML)")
+    run.add_argument("--expansion", choices=["first", "second", "switch"], help="override [solver].expansion")
+    run.add_argument("--json", type=Path, help="write the result as JSON here")
+    run.add_argument("--html", type=Path, help="write a self-contained animated HTML replay here")
+    run.add_argument("--plots", type=Path, help="write PNG figures into this directory")
+    run.add_argument("--view", action="store_true", help="replay in a live meshcat viewer (loopback)")
+    run.add_argument("--quiet", action="store_true", help="no iteration table")
+    cmp_ = sub.add_parser("compare", help="solve a scene with each expansion and compare convergence")
+    cmp_.add_argument("scene", type=Path)
+    cmp_.add_argument("--json", type=Path, help="write a summary JSON here")
+    cmp_.add_argument("--plots", type=Path, help="write convergence figures into this directory")
+    cmp_.add_argument("--quiet", action="store_true")
+    return p
+
+
+def _summary_row(name: str, r) -> str:
+    return (f"| {name:8s} | {r.iterations:5d} | {r.cost:.12f} | {r.grad_norm:9.2e} | "
+            f"{r.attitude_error_deg:8.4f} | {r.solve_time_s * 1e3:9.1f} | {r.status} |")
+
+
+def _run(args) -> int:
+    from .api import solve_scene
+
+    overrides = {"expansion": args.expansion} if args.expansion else {}
+    result = solve_scene(args.scene, verbose=not args.quiet, **overrides)
+    print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
+          f"attitude error = {result.attitude_error_deg:.4f} deg  |Omega_H - Omega_d| = "
+          f"{result.angular_velocity_error:.3e} rad/s  solve time = {result.solve_time_s:.3f} s")
+    print(f"status: {result.status} ({result.message})")
+    if args.json:
+        print(f"wrote {result.write_json(args.json)}")
+    _visualise(result, args)
+    return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
+
+
+def _visualise(result, args) -> None:
+    if not (getattr(args, "html", None) or getattr(args, "plots", None) or getattr(args, "view", False)):
+        return
+    from . import viz
+
+    if args.plots:
+        for path in viz.plot_trajectory(result, args.plots).values():
+            print(f"wrote {getattr(path, 'path', path)}")
+    if args.html:
+        print(f"wrote {viz.export_html(result, args.html)}")
+    if args.view:
+        try:
+            viz.replay(result, open_browser=False)
+            input("Replaying in meshcat; press Enter to quit.\n") if sys.stdin.isatty() else None
+        except viz.ViewerUnavailable as exc:
+            print(f"viewer unavailable: {exc}" + (" (the static HTML was written)" if args.html else
+                                                    " (use --html OUT.html for a static replay)"), file=sys.stderr)
+
+
+def _compare(args) -> int:
+    from .api import solve_scene
+
+    results = {}
+    for exp in ("first", "second", "switch"):
+        results[exp] = solve_scene(args.scene, verbose=False, expansion=exp, record_controls=True)
+    print("| expansion | iters | J* | ||grad|| | att. err (deg) | time (ms) | status |")
+    print("|---|---|---|---|---|---|---|")
+    for name, r in results.items():
+        print(_summary_row(name, r))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps({k: {"cost": r.cost, "iterations": r.iterations, "grad_norm": r.grad_norm,
+                                             "cost_history": r.cost_history.tolist(),
+                                             "grad_norm_history": r.grad_norm_history.tolist(),
+                                             "solve_time_s": r.solve_time_s, "status": r.status}
+                                         for k, r in results.items()}, indent=1))
+        print(f"wrote {args.json}")
+    if args.plots:
+        from . import viz
+
+        for path in viz.plot_convergence(results, args.plots).values():
+            print(f"wrote {getattr(path, 'path', path)}")
+    return EXIT_CONVERGED if all(r.converged for r in results.values()) else EXIT_NOT_CONVERGED
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        return _run(args) if args.command == "run" else _compare(args)
+    except (InputError, FileNotFoundError, IsADirectoryError) as exc:
+        print(f"geoddp: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())
