@@ -108,15 +108,16 @@ def assemble(
         D = SO3.right_jacobian_derivative_batch(omega)
         Dsym = 0.5 * (D + np.swapaxes(D, 2, 3))
         JW = Jr @ W1  # (N, 3, nz)
-        # 1/2 dJr(omega)[rho] rho with rho = dt W1 z
-        G2[:, 0:3] += dt * dt * np.einsum("nap,niab,nbq->nipq", W1, Dsym, W1)
-        # 1/2 [A eta, Jr rho]: bilinear M_i[a, b] = 1/2 dt eps_ipq (A P_eta)[p, a] (Jr W1)[q, b]
+        W1T = np.swapaxes(W1, 1, 2)[:, None]  # (N, 1, nz, 3)
+        # 1/2 dJr(omega)[rho] rho with rho = dt W1 z  -> Hessian dt^2 W1^T Dsym_i W1 per row i
+        G2[:, 0:3] += (dt * dt) * (W1T @ Dsym @ W1[:, None])
+        # 1/2 [A eta, Jr rho]: bilinear M_i = 1/2 dt (A P_eta)^T eps_i (Jr W1), eps_i[p, q] = eps_ipq
         AP = A @ P_eta
-        M = 0.5 * dt * np.einsum("ipq,npa,nqb->niab", _LEVI_CIVITA, AP, JW)
+        M = (0.5 * dt) * (np.swapaxes(AP, 1, 2)[:, None] @ _LEVI_CIVITA[None] @ JW[:, None])
         G2[:, 0:3] += M + np.swapaxes(M, 2, 3)
         if integrator == "semi_implicit":
             # Jr(omega) rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
-            G2[:, 0:3] += dt * np.einsum("nik,nkab->niab", Jr, F2)
+            G2[:, 0:3] += dt * (Jr @ F2.reshape(N, 3, nz * nz)).reshape(N, 3, nz, nz)
     elif second_order == "paper":
         if integrator != "euler":
             raise ValueError(
