@@ -14,12 +14,13 @@ with warnings.catch_warnings():
     warnings.filterwarnings("ignore", message="zmq.eventloop.ioloop is deprecated", category=DeprecationWarning)
     import meshcat  # noqa: F401
 
-from .figures import FigureData, plot_convergence, plot_trajectory
+from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
 
 __all__ = [
     "FigureData",
+    "Figures",
     "ViewerUnavailable",
     "animation_frame_count",
     "build_satellite",

@@ -24,7 +24,7 @@ import zmq
 from meshcat.visualizer import ViewerWindow
 
 from ..result import Result
-from .scene import _validate, build_satellite, build_scene
+from .scene import check_result, build_satellite, build_scene
 
 __all__ = ["ViewerUnavailable", "build_satellite", "replay"]
 
@@ -224,7 +224,7 @@ def replay(
             ``zmq_url`` is invalid. A server started here is stopped before raising.
         ValueError: malformed ``result``, or both ``vis`` and ``zmq_url`` given.
     """
-    _validate(result)  # before any server exists, so bad data never leaks a process
+    check_result(result)  # before any server exists, so bad data never leaks a process
     if vis is not None and zmq_url is not None:
         raise ValueError("give either vis or zmq_url, not both")
     owned = vis is None  # we created the window (and maybe the server): we clean it up

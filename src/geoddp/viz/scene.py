@@ -97,8 +97,13 @@ def build_satellite(vis: meshcat.Visualizer, scale: float = 1.0) -> None:
     _add_body(vis[GHOST], scale * GHOST_INFLATE, opacity=GHOST_OPACITY, color_override=GHOST_COLOR)
 
 
-def _validate(result: Result) -> None:
-    """Shape checks so a malformed Result fails with a message, not inside three.js."""
+def check_result(result: Result) -> None:
+    """Check the fields the viewer reads, so bad data fails here and not inside three.js.
+
+    Raises:
+        ValueError: ``rotations`` not (H+1, 3, 3) for ``times`` (H+1,), non-finite
+            rotations, or ``dt`` not a positive number of seconds.
+    """
     n = result.times.shape[0]
     if result.rotations.shape != (n, 3, 3):
         raise ValueError(f"rotations must be (H+1, 3, 3) = ({n}, 3, 3), got {result.rotations.shape}")
@@ -123,7 +128,7 @@ def trajectory_animation(vis: meshcat.Visualizer, result: Result) -> Animation:
     Returns:
         A ``meshcat.animation.Animation`` with H+1 keyframes on the satellite node.
     """
-    _validate(result)
+    check_result(result)
     anim = Animation(default_framerate=1.0 / float(result.dt))
     node = vis[SATELLITE]
     for k, R in enumerate(result.rotations):
@@ -143,7 +148,7 @@ def animate_result(vis: meshcat.Visualizer, result: Result, play: bool = True) -
     Returns:
         The animation that was sent.
     """
-    _validate(result)
+    check_result(result)
     vis[GHOST].set_transform(_homogeneous(np.asarray(result.target_rotation, dtype=float)))
     vis[SATELLITE].set_transform(_homogeneous(result.rotations[0]))
     anim = trajectory_animation(vis, result)
@@ -174,7 +179,7 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
     Returns:
         The animation (H+1 keyframes at fps = 1/dt).
     """
-    _validate(result)
+    check_result(result)
     set_backdrop(vis)
     build_satellite(vis, scale=scale)
     return animate_result(vis, result, play=play)
