@@ -1,0 +1,31 @@
+"""Visualisation of a solved :class:`geoddp.result.Result`.
+
+Reads Results only; never imports the solver.
+
+- :func:`replay`: live meshcat viewer (loopback server), time-synchronised animation.
+- :func:`export_html`: self-contained static HTML replay (no server, no network).
+- :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures.
+"""
+import warnings
+
+# meshcat 0.3.2 imports zmq.eventloop.ioloop, which pyzmq >= 17 flags as deprecated; that is
+# meshcat's business, not a warning our users can act on.
+with warnings.catch_warnings():
+    warnings.filterwarnings("ignore", message="zmq.eventloop.ioloop is deprecated", category=DeprecationWarning)
+    import meshcat  # noqa: F401
+
+from .figures import FigureData, Figures, plot_convergence, plot_trajectory
+from .html import animation_frame_count, export_html
+from .meshcat_replay import ViewerUnavailable, build_satellite, replay
+
+__all__ = [
+    "FigureData",
+    "Figures",
+    "ViewerUnavailable",
+    "animation_frame_count",
+    "build_satellite",
+    "export_html",
+    "plot_convergence",
+    "plot_trajectory",
+    "replay",
+]

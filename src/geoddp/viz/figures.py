@@ -1,0 +1,262 @@
+"""Matplotlib PNG figures of a trajectory and of solver convergence.
+
+Figures are drawn with the object API on an Agg canvas (no pyplot, no global backend
+switch), so this works headless and never opens windows. Every function returns, next to
+the file paths, the exact arrays it plotted (:class:`FigureData`) so tests can check the
+figures against the Result.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ..result import Result, rotations_to_quaternions
+
+DPI = 120
+QUAT_LABELS = ("$q_x$", "$q_y$", "$q_z$", "$q_w$")
+OMEGA_LABELS = (r"$\Omega_x$", r"$\Omega_y$", r"$\Omega_z$")
+COLORS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "tab:orange", "tab:brown")
+
+
+@dataclass
+class FigureData:
+    """One written figure and the arrays drawn in it.
+
+    Attributes:
+        path: the PNG file.
+        arrays: name -> the array plotted (units in the docstring of the plotting function).
+    """
+
+    path: Path
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+class Figures(dict):
+    """``dict[str, Path]`` (figure name -> PNG path) that also carries ``data``.
+
+    ``data[name]`` is the :class:`FigureData` of that figure.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.data: dict[str, FigureData] = {}
+
+    def add(self, name: str, fig_data: FigureData) -> None:
+        self[name] = fig_data.path
+        self.data[name] = fig_data
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    FigureCanvasAgg(fig)  # attach an Agg canvas: savefig then needs no GUI backend
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    return path
+
+
+def _target_quaternion(result: Result) -> np.ndarray:
+    """q_d (x, y, z, w) with the sign of the final quaternion (q and -q are one attitude)."""
+    qd = rotations_to_quaternions(np.asarray(result.target_rotation, dtype=float)[None])[0]
+    return -qd if np.dot(qd, result.quaternions[-1]) < 0 else qd
+
+
+def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
+    """Quaternion, angular-velocity and control histories of one trajectory.
+
+    Writes in ``out_dir`` (created if needed):
+
+    - ``quaternion.png``: q_x, q_y, q_z, q_w of ``result.quaternions (H+1, 4)`` against
+      ``times (H+1,)`` in s, with the target quaternion drawn as circles at t_f (the
+      paper's Figure 2, left). The target's sign is chosen to match q_H.
+    - ``angular_velocity.png``: Omega (rad/s, body frame) against time, target at t_f.
+    - ``controls.png``: u_k (actuation units) held constant over [t_k, t_{k+1}).
+
+    Args:
+        result: the trajectory.
+        out_dir: output directory.
+
+    Returns:
+        :class:`Figures`: name -> path, with ``.data[name].arrays``:
+        quaternion: ``t (H+1,)``, ``quaternions (H+1, 4)``, ``target_time ()``,
+        ``target_quaternion (4,)``; angular_velocity: ``t``, ``angular_velocities (H+1, 3)``,
+        ``target_time``, ``target_angular_velocity (3,)``; controls: ``edges (H+1,)``,
+        ``controls (H, m)``.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figs = Figures()
+    t = np.asarray(result.times, dtype=float)
+    tf = float(t[-1])
+
+    q = result.quaternions
+    qd = _target_quaternion(result)
+    fig = Figure(figsize=(6.4, 4.0))
+    ax = fig.add_subplot()
+    for i in range(4):
+        ax.plot(t, q[:, i], color=COLORS[i], label=QUAT_LABELS[i])
+        ax.plot([tf], [qd[i]], "o", mfc="none", ms=9, mew=1.5, color=COLORS[i])
+    ax.plot([], [], "o", mfc="none", color="k", label="target $q_d$")  # legend entry only
+    ax.set(xlabel="time [s]", ylabel="quaternion component", title="Attitude")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    figs.add("quaternion", FigureData(
+        _save(fig, out / "quaternion.png"),
+        {"t": t, "quaternions": q, "target_time": np.asarray(tf), "target_quaternion": qd},
+    ))
+
+    w = np.asarray(result.angular_velocities, dtype=float)
+    wd = np.asarray(result.target_angular_velocity, dtype=float)
+    fig = Figure(figsize=(6.4, 4.0))
+    ax = fig.add_subplot()
+    for i in range(3):
+        ax.plot(t, w[:, i], color=COLORS[i], label=OMEGA_LABELS[i])
+        ax.plot([tf], [wd[i]], "o", mfc="none", ms=9, mew=1.5, color=COLORS[i])
+    ax.plot([], [], "o", mfc="none", color="k", label=r"target $\Omega_d$")
+    ax.set(xlabel="time [s]", ylabel="angular velocity [rad/s]", title="Body angular velocity")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    figs.add("angular_velocity", FigureData(
+        _save(fig, out / "angular_velocity.png"),
+        {"t": t, "angular_velocities": w, "target_time": np.asarray(tf), "target_angular_velocity": wd},
+    ))
+
+    u = np.asarray(result.controls, dtype=float)
+    fig = Figure(figsize=(6.4, 4.0))
+    ax = fig.add_subplot()
+    for j in range(u.shape[1]):
+        # Zero-order hold: u_k acts on [t_k, t_{k+1}), which stairs() draws exactly.
+        ax.stairs(u[:, j], t, color=COLORS[j % len(COLORS)], label=f"$u_{j + 1}$", baseline=None)
+    ax.set(xlabel="time [s]", ylabel="control", title="Controls")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    figs.add("controls", FigureData(_save(fig, out / "controls.png"), {"edges": t, "controls": u}))
+    return figs
+
+
+def control_errors(result: Result) -> np.ndarray:
+    """||U_i - U*|| (Frobenius over all H x m entries) per iterate, U* = ``result.controls``.
+
+    Returns:
+        (iterations+1,) errors, from ``control_history (iterations+1, H, m)``.
+
+    Raises:
+        ValueError: the result has no control history.
+    """
+    if result.control_history is None:
+        raise ValueError("this Result has no control_history (record it in the solver)")
+    diff = np.asarray(result.control_history, dtype=float) - np.asarray(result.controls, dtype=float)[None]
+    return np.linalg.norm(diff.reshape(diff.shape[0], -1), axis=1)
+
+
+def plot_convergence(
+    results: dict[str, Result],
+    out_dir: str | Path,
+    reference_cost: float | None = None,
+    reference_label: str = "",
+) -> Figures:
+    """Convergence of several solves (the paper's Figure 3) and their cost histories.
+
+    Writes in ``out_dir``:
+
+    - ``convergence.png``, two panels: left, ||U_i - U*|| against iteration i (log y),
+      U* being that run's final controls; right, ||U_{i+1} - U*|| against ||U_i - U*||
+      (log-log; slope 1 = linear, slope 2 = quadratic convergence), with y = x dotted.
+      Zero errors (the last iterate) cannot sit on a log axis and are not drawn.
+      Runs without ``control_history`` are left out of this figure.
+    - ``cost_history.png``, two panels: left, J_i against iteration; right, J_i - J_min
+      (log y), J_min the smallest cost of all runs. ``reference_cost`` (e.g. another
+      solver's optimum) is a horizontal line in both when given and drawable.
+
+    Args:
+        results: label -> Result (e.g. {"first order": r1, "second order": r2}).
+        out_dir: output directory.
+        reference_cost: cost J of a reference solution, or None.
+        reference_label: legend text for the reference line.
+
+    Returns:
+        :class:`Figures` with ``.data["convergence"].arrays``: ``"<label>/iteration"``,
+        ``"<label>/error"`` (iterations+1,), ``"<label>/error_now"`` and
+        ``"<label>/error_next"`` (the plotted pairs); ``.data["cost_history"].arrays``:
+        ``"<label>/iteration"``, ``"<label>/cost"``, ``"<label>/cost_minus_min"``,
+        ``"j_min"`` and, when given, ``"reference_cost"``.
+
+    Raises:
+        ValueError: ``results`` is empty.
+    """
+    if not results:
+        raise ValueError("plot_convergence needs at least one Result")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figs = Figures()
+
+    conv: dict[str, np.ndarray] = {}
+    fig = Figure(figsize=(11.0, 4.2))
+    ax_it, ax_pair = fig.subplots(1, 2)
+    lo, hi = np.inf, 0.0
+    for n, (label, res) in enumerate(results.items()):
+        if res.control_history is None:
+            continue
+        color = COLORS[n % len(COLORS)]
+        err = control_errors(res)
+        it = np.arange(err.size)
+        keep = err > 0
+        ax_it.semilogy(it[keep], err[keep], "o-", ms=4, color=color, label=label)
+        now, nxt = err[:-1], err[1:]
+        pair = (now > 0) & (nxt > 0)
+        ax_pair.loglog(now[pair], nxt[pair], "o-", ms=4, color=color, label=label)
+        if pair.any():
+            lo = min(lo, now[pair].min(), nxt[pair].min())
+            hi = max(hi, now[pair].max(), nxt[pair].max())
+        conv.update({
+            f"{label}/iteration": it,
+            f"{label}/error": err,
+            f"{label}/error_now": now[pair],
+            f"{label}/error_next": nxt[pair],
+        })
+    if hi > 0:
+        ax_pair.loglog([lo, hi], [lo, hi], ":", color="grey", label="$y = x$")
+    ax_it.set(xlabel="iteration $i$", ylabel=r"$\|U_i - U^*\|$", title="Distance to the solution")
+    ax_pair.set(xlabel=r"$\|U_i - U^*\|$", ylabel=r"$\|U_{i+1} - U^*\|$", title="Rate of convergence")
+    for ax in (ax_it, ax_pair):
+        ax.grid(alpha=0.3, which="both")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="best", fontsize="small")
+    if not conv:
+        ax_it.text(0.5, 0.5, "no run recorded control_history", ha="center", transform=ax_it.transAxes)
+    figs.add("convergence", FigureData(_save(fig, out / "convergence.png"), conv))
+
+    costs: dict[str, np.ndarray] = {}
+    j_min = min(float(np.min(r.cost_history)) for r in results.values())
+    fig = Figure(figsize=(11.0, 4.2))
+    ax_j, ax_dj = fig.subplots(1, 2)
+    for n, (label, res) in enumerate(results.items()):
+        color = COLORS[n % len(COLORS)]
+        J = np.asarray(res.cost_history, dtype=float)
+        it = np.arange(J.size)
+        dJ = J - j_min
+        keep = dJ > 0
+        ax_j.plot(it, J, "o-", ms=4, color=color, label=label)
+        ax_dj.semilogy(it[keep], dJ[keep], "o-", ms=4, color=color, label=label)
+        costs.update({f"{label}/iteration": it, f"{label}/cost": J, f"{label}/cost_minus_min": dJ})
+    costs["j_min"] = np.asarray(j_min)
+    if reference_cost is not None:
+        ref_label = reference_label or "reference"
+        costs["reference_cost"] = np.asarray(float(reference_cost))
+        ax_j.axhline(reference_cost, ls="--", color="k", label=ref_label)
+        if reference_cost - j_min > 0:
+            ax_dj.axhline(reference_cost - j_min, ls="--", color="k", label=ref_label)
+        else:
+            # At or below J_min the reference has no place on a log axis: say so instead.
+            ax_dj.text(0.02, 0.02, f"{ref_label}: J = {reference_cost:.6g} <= J_min",
+                       transform=ax_dj.transAxes, fontsize="small")
+    ax_j.set(xlabel="iteration $i$", ylabel="$J_i$", title="Cost")
+    ax_dj.set(xlabel="iteration $i$", ylabel=r"$J_i - J_{min}$", title=f"Cost above $J_{{min}}$ = {j_min:.6g}")
+    for ax in (ax_j, ax_dj):
+        ax.grid(alpha=0.3, which="both")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="best", fontsize="small")
+    figs.add("cost_history", FigureData(_save(fig, out / "cost_history.png"), costs))
+    return figs
