@@ -176,6 +176,7 @@ class Result:
             "feedback": self.feedback.tolist(),
             "target_rotation": self.target_rotation.tolist(),
             "target_angular_velocity": self.target_angular_velocity.tolist(),
+            "control_history": None if self.control_history is None else self.control_history.tolist(),
         }
 
     def write_json(self, path: str | Path) -> Path:
@@ -213,6 +214,7 @@ class Result:
             expansion=str(d["expansion"]),
             integrator=str(d["integrator"]),
             dt=float(d["dt"]),
+            control_history=None if d.get("control_history") is None else a(d["control_history"], dtype=float),
         )
 
     @classmethod
