@@ -146,3 +146,15 @@ def test_papers_theta_is_only_first_order_accurate(rng):
 def test_paper_expansion_refuses_semi_implicit():
     with pytest.raises(ValueError, match="second_order"):
         Satellite(inertia=INERTIA, actuation=ACTUATION, dt=0.01, integrator="semi_implicit", second_order="paper")
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_compiled_backend_equals_the_numpy_reference(integrator, rng):
+    model = _model(integrator)
+    R, Om, U = _trajectory(model, rng, H=40)
+    for order in (1, 2):
+        a = model.expansion(R, Om, U, order=order, backend="analytic")
+        c = model.expansion(R, Om, U, order=order, backend="compiled")
+        for name in ("Phi", "B") + (("Theta", "Gamma", "Xi") if order == 2 else ()):
+            ref = getattr(a, name)
+            assert np.abs(getattr(c, name) - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max()), name

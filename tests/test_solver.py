@@ -87,11 +87,16 @@ def test_first_order_converges_linearly(paper_solves):
     assert q.max() / q.min() < 5.0, q  # ... that does not go to zero
 
 
-def test_pinocchio_backend_gives_the_same_iterates():
-    p = paper_problem(horizon=60, dt=0.05)
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+def test_all_backends_give_the_same_iterates(integrator):
+    """The compiled fast path against the numpy reference (1e-12) and Pinocchio (1e-8)."""
+    p = paper_problem(horizon=60, dt=0.05, integrator=integrator)
+    c = solve(p, SolverOptions(verbose=False, backend="compiled"))
     a = solve(p, SolverOptions(verbose=False, backend="analytic"))
     b = solve(p, SolverOptions(verbose=False, backend="pinocchio"))
-    assert a.iterations == b.iterations
+    assert c.iterations == a.iterations == b.iterations
+    assert np.allclose(c.cost_history, a.cost_history, rtol=1e-12, atol=0)
+    assert np.abs(c.controls - a.controls).max() <= 1e-12 * np.abs(a.controls).max()
     assert np.allclose(a.cost_history, b.cost_history, rtol=1e-10, atol=0)
     assert np.abs(a.controls - b.controls).max() <= 1e-8 * np.abs(a.controls).max()
 

@@ -410,3 +410,207 @@ def gradient(Phi: np.ndarray, B: np.ndarray, lx: np.ndarray, lu: np.ndarray, lx_
             nxt[i] = s
         for i in range(n):
             psi[i] = nxt[i]
+
+
+# ----------------------------------------------------------------------------- linearisation
+@njit(cache=True)
+def _jr_coefficients(t: float) -> tuple[float, float, float, float]:
+    """a, b, alpha, beta of Jr(x) = I - a hat(x) + b hat(x)^2 and of its derivative
+    (see geoddp.lie: same series and thresholds)."""
+    t2 = t * t
+    if t < 0.25:
+        # a = 1/2 - t^2/24 + t^4/720 - t^6/40320 + t^8/3628800
+        a = 0.5 + t2 * (-1.0 / 24 + t2 * (1.0 / 720 + t2 * (-1.0 / 40320 + t2 * (1.0 / 3628800))))
+        b = 1.0 / 6 + t2 * (-1.0 / 120 + t2 * (1.0 / 5040 + t2 * (-1.0 / 362880 + t2 * (1.0 / 39916800))))
+    else:
+        h = np.sin(0.5 * t) / (0.5 * t)
+        a = 0.5 * h * h
+        b = (t - np.sin(t)) / (t2 * t)
+    if t < 0.5:
+        alpha = -2.0 / 24 + t2 * (4.0 / 720 + t2 * (-6.0 / 40320 + t2 * (8.0 / 3628800 + t2 * (-10.0 / 479001600 + t2 * (12.0 / 87178291200)))))
+        beta = -2.0 / 120 + t2 * (4.0 / 5040 + t2 * (-6.0 / 362880 + t2 * (8.0 / 39916800 + t2 * (-10.0 / 6227020800 + t2 * (12.0 / 1307674368000)))))
+    else:
+        s = np.sin(t)
+        omc = 2.0 * np.sin(0.5 * t) ** 2
+        alpha = s / (t2 * t) - 2.0 * omc / (t2 * t2)
+        beta = omc / (t2 * t2) - 3.0 * (t - s) / (t2 * t2 * t)
+    return a, b, alpha, beta
+
+
+@njit(cache=True)
+def _jr_and_derivative(x: np.ndarray, Jr: np.ndarray, Dsym: np.ndarray) -> None:
+    """Jr(x) (3, 3) and Dsym[i, a, b] = sym_{a,b} d Jr[i, a] / d x_b."""
+    t = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    a, b, alpha, beta = _jr_coefficients(t)
+    K = np.zeros((3, 3))
+    K[0, 1] = -x[2]
+    K[0, 2] = x[1]
+    K[1, 0] = x[2]
+    K[1, 2] = -x[0]
+    K[2, 0] = -x[1]
+    K[2, 1] = x[0]
+    K2 = K @ K
+    for i in range(3):
+        for j in range(3):
+            Jr[i, j] = (1.0 if i == j else 0.0) - a * K[i, j] + b * K2[i, j]
+    D = np.empty((3, 3, 3))
+    E = np.zeros((3, 3))
+    for l in range(3):
+        E[:, :] = 0.0
+        if l == 0:
+            E[1, 2] = -1.0
+            E[2, 1] = 1.0
+        elif l == 1:
+            E[0, 2] = 1.0
+            E[2, 0] = -1.0
+        else:
+            E[0, 1] = -1.0
+            E[1, 0] = 1.0
+        EK = E @ K
+        KE = K @ E
+        for i in range(3):
+            for j in range(3):
+                D[i, j, l] = -alpha * x[l] * K[i, j] - a * E[i, j] + beta * x[l] * K2[i, j] + b * (EK[i, j] + KE[i, j])
+    for i in range(3):
+        for p in range(3):
+            for q in range(3):
+                Dsym[i, p, q] = 0.5 * (D[i, p, q] + D[i, q, p])
+
+
+@njit(cache=True)
+def satellite_linearise(
+    Om: np.ndarray,
+    dt: float,
+    inertia: np.ndarray,
+    inertia_inv: np.ndarray,
+    actuation: np.ndarray,
+    semi_implicit: bool,
+    second_order: bool,
+    Phi: np.ndarray,
+    B: np.ndarray,
+    Theta: np.ndarray,
+    Gamma: np.ndarray,
+    Xi: np.ndarray,
+) -> None:
+    """Compiled twin of ``Satellite.expansion(..., backend="analytic")`` (exact second order).
+
+    Om: (H+1, 3) nominal body rates. Fills Phi (H,6,6), B (H,6,m) and, when second_order,
+    Theta (H,6,6,6), Gamma (H,6,6,m), Xi (H,6,m,m). The formulas are those of
+    :func:`geoddp.integrators.assemble` with the satellite's velocity map
+    Omega+ = Omega + dt I^-1((I Omega) x Omega + H u), which does not depend on R and is linear in u.
+    """
+    H = Phi.shape[0]
+    m = actuation.shape[1]
+    nz = 6 + m
+    Fu = dt * (inertia_inv @ actuation)  # (3, m)
+    # constant second derivative of Omega+ in Omega: T[i, j, l] = dt I^-1((I e_j) x e_l + (I e_l) x e_j)
+    T = np.zeros((3, 3, 3))
+    for j in range(3):
+        for l in range(3):
+            c = np.zeros(3)
+            Ij = inertia[:, j]
+            c[0] = Ij[1] * (1.0 if l == 2 else 0.0) - Ij[2] * (1.0 if l == 1 else 0.0)
+            c[1] = Ij[2] * (1.0 if l == 0 else 0.0) - Ij[0] * (1.0 if l == 2 else 0.0)
+            c[2] = Ij[0] * (1.0 if l == 1 else 0.0) - Ij[1] * (1.0 if l == 0 else 0.0)
+            for i in range(3):
+                T[i, j, l] += dt * (inertia_inv[i, 0] * c[0] + inertia_inv[i, 1] * c[1] + inertia_inv[i, 2] * c[2])
+    for i in range(3):
+        for j in range(3):
+            for l in range(j + 1):
+                s = T[i, j, l] + T[i, l, j]
+                T[i, j, l] = s
+                T[i, l, j] = s
+    Ex = np.empty((3, 3))
+    A = np.empty((3, 3))
+    Jr = np.empty((3, 3))
+    Dsym = np.empty((3, 3, 3))
+    Fx = np.empty((3, 3))
+    W1 = np.zeros((3, nz))  # first-order part of the reconstruction velocity w.r.t. z
+    JW = np.empty((3, nz))
+    w = np.empty(3)
+    for k in range(H):
+        Omk = Om[k]
+        L = inertia @ Omk
+        # Fx = I + dt I^-1 (hat(I Om) - hat(Om) I)
+        G = np.empty((3, 3))
+        for j in range(3):
+            Ij = inertia[:, j]
+            # column j of hat(L) - hat(Om) I  = L x e_j - Om x I e_j
+            ej = np.zeros(3)
+            ej[j] = 1.0
+            G[0, j] = (L[1] * ej[2] - L[2] * ej[1]) - (Omk[1] * Ij[2] - Omk[2] * Ij[1])
+            G[1, j] = (L[2] * ej[0] - L[0] * ej[2]) - (Omk[2] * Ij[0] - Omk[0] * Ij[2])
+            G[2, j] = (L[0] * ej[1] - L[1] * ej[0]) - (Omk[0] * Ij[1] - Omk[1] * Ij[0])
+        Fx[:, :] = dt * (inertia_inv @ G)
+        for i in range(3):
+            Fx[i, i] += 1.0
+        for i in range(3):
+            w[i] = dt * (Om[k + 1, i] if semi_implicit else Omk[i])
+        so3_exp(w[0], w[1], w[2], Ex)
+        for i in range(3):
+            for j in range(3):
+                A[i, j] = Ex[j, i]
+        _jr_and_derivative(w, Jr, Dsym)
+        W1[:, :] = 0.0
+        if semi_implicit:
+            for i in range(3):
+                for j in range(3):
+                    W1[i, 3 + j] = Fx[i, j]
+                for a in range(m):
+                    W1[i, 6 + a] = Fu[i, a]
+        else:
+            for i in range(3):
+                W1[i, 3 + i] = 1.0
+        for i in range(3):
+            for b in range(nz):
+                JW[i, b] = Jr[i, 0] * W1[0, b] + Jr[i, 1] * W1[1, b] + Jr[i, 2] * W1[2, b]
+        # first order
+        for i in range(3):
+            for j in range(3):
+                Phi[k, i, j] = A[i, j] + dt * JW[i, j]
+                Phi[k, i, 3 + j] = dt * JW[i, 3 + j]
+                Phi[k, 3 + i, j] = 0.0
+                Phi[k, 3 + i, 3 + j] = Fx[i, j]
+            for a in range(m):
+                B[k, i, a] = dt * JW[i, 6 + a]
+                B[k, 3 + i, a] = Fu[i, a]
+        if not second_order:
+            continue
+        Th = Theta[k]
+        Ga = Gamma[k]
+        X = Xi[k]
+        Th[:, :, :] = 0.0
+        Ga[:, :, :] = 0.0
+        X[:, :, :] = 0.0
+        for i in range(3):
+            # dt^2 W1^T Dsym_i W1 (+ dt (Jr T)_i in the Omega block for semi-implicit)
+            DW = np.empty((3, nz))
+            for p in range(3):
+                for b in range(nz):
+                    DW[p, b] = Dsym[i, p, 0] * W1[0, b] + Dsym[i, p, 1] * W1[1, b] + Dsym[i, p, 2] * W1[2, b]
+            for a in range(3, nz):
+                for b in range(3, nz):
+                    s = dt * dt * (W1[0, a] * DW[0, b] + W1[1, a] * DW[1, b] + W1[2, a] * DW[2, b])
+                    if semi_implicit and a < 6 and b < 6:
+                        s += dt * (Jr[i, 0] * T[0, a - 3, b - 3] + Jr[i, 1] * T[1, a - 3, b - 3] + Jr[i, 2] * T[2, a - 3, b - 3])
+                    if a < 6 and b < 6:
+                        Th[i, a, b] += s
+                    elif a < 6:
+                        Ga[i, a, b - 6] += s
+                    elif b >= 6:
+                        X[i, a - 6, b - 6] += s
+            # 1/2 [A eta, Jr rho]: M[a, b] = 1/2 dt ((A e_a) x (JW e_b))_i, a in eta, b in z
+            i1 = (i + 1) % 3
+            i2 = (i + 2) % 3
+            for a in range(3):
+                for b in range(3, nz):
+                    mab = 0.5 * dt * (A[i1, a] * JW[i2, b] - A[i2, a] * JW[i1, b])
+                    if b < 6:
+                        Th[i, a, b] += mab
+                        Th[i, b, a] += mab
+                    else:
+                        Ga[i, a, b - 6] += mab
+        for i in range(3):
+            for a in range(3):
+                for b in range(3):
+                    Th[3 + i, 3 + a, 3 + b] = T[i, a, b]

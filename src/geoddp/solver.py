@@ -61,7 +61,8 @@ class SolverOptions:
         step_factor: line-search factor h (paper: 1/3); min_step: smallest gamma tried.
         verbose: print the per-iteration table.
         record_controls: keep the controls of every iterate in the result.
-        backend: derivative backend, "analytic" (fast) or "pinocchio" (reference).
+        backend: derivative backend: "compiled" (numba, default), "analytic" (numpy reference)
+            or "pinocchio" (per-node Pinocchio calls, the source of truth).
     """
 
     expansion: str = "switch"
@@ -77,7 +78,7 @@ class SolverOptions:
     min_step: float = 1e-10
     verbose: bool = True
     record_controls: bool = False
-    backend: str = "analytic"
+    backend: str = "compiled"
     stream: TextIO | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -96,7 +97,7 @@ class SolverOptions:
         self.reg_increase = positive_float(self.reg_increase, "reg_increase")
         self.step_factor = positive_float(self.step_factor, "step_factor")
         self.min_step = positive_float(self.min_step, "min_step")
-        self.backend = choice(self.backend, "backend", ("analytic", "pinocchio"))
+        self.backend = choice(self.backend, "backend", ("compiled", "analytic", "pinocchio"))
 
 
 class _Workspace:
@@ -145,7 +146,7 @@ def cost_gradient(problem: Problem, controls: np.ndarray) -> tuple[float, np.nda
     """J(U) and dJ/dU (H, m) by the psi recursion of Lemma lemm:psi (exact, not a DDP step)."""
     U = problem.check_controls(controls, "controls")
     R, Om = problem.rollout(U)
-    lin = _Linearisation(problem, R, Om, U, 1, "analytic")
+    lin = _Linearisation(problem, R, Om, U, 1, "compiled")
     ws = _Workspace(problem.horizon, problem.nu)
     return problem.cost(R, Om, U), _gradient(lin, ws).copy()
 

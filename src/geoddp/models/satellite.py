@@ -5,8 +5,11 @@ inertia I, an actuation matrix H (3 x m) mapping inputs to body torques, the tim
 integrator. Dynamics: Omega+ = Omega + dt I^-1((I Omega) x Omega + H u) (= Omega + dt aba), with
 R+ = R exp(dt Omega) (explicit Euler, paper eq. disceqs) or R+ = R exp(dt Omega+) (semi-implicit).
 
-Derivatives along a trajectory come from one of two backends that tests hold equal:
-* ``"analytic"``: closed forms, vectorised over the horizon (the fast path);
+Derivatives along a trajectory come from one of three backends that tests hold equal:
+* ``"compiled"``: the closed forms in one numba loop (:func:`geoddp.kernels.satellite_linearise`),
+  the default and the fast path;
+* ``"analytic"``: the same closed forms vectorised in numpy through the generic TSO(3) assembly of
+  :mod:`geoddp.integrators` (the readable reference);
 * ``"pinocchio"``: per node, ``computeABADerivatives`` for the first order and central finite
   differences of those analytic first derivatives for the second order (the pip wheel has no
   second-order ABA derivatives), ``dIntegrate`` for the reconstruction.
@@ -25,7 +28,7 @@ from .. import kernels
 from ..validate import actuation_matrix, choice, finite_array, inertia_matrix, positive_float
 
 DEFAULT_URDF = Path(__file__).resolve().parents[3] / "models" / "satellite.urdf"
-BACKENDS = ("analytic", "pinocchio")
+BACKENDS = ("compiled", "analytic", "pinocchio")
 
 
 def _build_pinocchio_model(inertia: np.ndarray, urdf: Path | None) -> pin.Model:
@@ -202,18 +205,35 @@ class Satellite:
         return F1, F2
 
     def expansion(
-        self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int = 1, backend: str = "analytic"
+        self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int = 1, backend: str = "compiled"
     ) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
 
         R (H+1, 3, 3), Omega (H+1, 3), controls (H, m). See :mod:`geoddp.integrators`.
         """
         H = controls.shape[0]
+        backend = choice(backend, "backend", BACKENDS)
+        if backend == "compiled" and self.second_order == "exact":
+            return self._expansion_compiled(Omega, H, order)
+        if backend == "compiled":
+            backend = "analytic"  # the paper's Theta exists only as the numpy reference
         F1, F2 = self.velocity_derivatives(R[:H], Omega[:H], controls, order, backend)
         w = integ.reconstruction_velocity(Omega[:H], Omega[1 : H + 1], self.integrator)
         if backend == "pinocchio":
             return self._expansion_pinocchio(R, Omega, controls, F1, F2, w)
         return integ.assemble(self.dt, w, F1, F2, self.integrator, self.second_order)
+
+    def _expansion_compiled(self, Omega: np.ndarray, H: int, order: int) -> integ.Expansion:
+        m = self.nu
+        e = integ.Expansion(Phi=np.empty((H, 6, 6)), B=np.empty((H, 6, m)))
+        if order >= 2:
+            e.Theta, e.Gamma, e.Xi = np.empty((H, 6, 6, 6)), np.empty((H, 6, 6, m)), np.empty((H, 6, m, m))
+            th, ga, xi = e.Theta, e.Gamma, e.Xi
+        else:
+            th, ga, xi = np.empty((0, 6, 6, 6)), np.empty((0, 6, 6, m)), np.empty((0, 6, m, m))
+        kernels.satellite_linearise(np.ascontiguousarray(Omega, dtype=float), self.dt, self.inertia, self.inertia_inv,
+                                    self.actuation, self.semi_implicit, order >= 2, e.Phi, e.B, th, ga, xi)
+        return e
 
     def _expansion_pinocchio(self, R, Omega, controls, F1, F2, w):
         """Reconstruction blocks from pin.dIntegrate: d/dq = Ad_exp(-dt w), d/dv = Jexp3(dt w)."""
