@@ -438,25 +438,33 @@ def _jr_coefficients(t: float) -> tuple[float, float, float, float]:
 
 
 @njit(cache=True)
-def _jr_and_derivative(x: np.ndarray, Jr: np.ndarray, Dsym: np.ndarray) -> None:
-    """Jr(x) (3, 3) and Dsym[i, a, b] = sym_{a,b} d Jr[i, a] / d x_b."""
+def _jr_and_derivative(
+    x: np.ndarray, Jr: np.ndarray, Dsym: np.ndarray, K: np.ndarray, K2: np.ndarray, E: np.ndarray,
+    EK: np.ndarray, KE: np.ndarray, D: np.ndarray, derivative: bool,
+) -> None:
+    """Jr(x) (3, 3) and Dsym[i, a, b] = sym_{a,b} d Jr[i, a] / d x_b.
+
+    K, K2, E, EK, KE (3, 3) and D (3, 3, 3) are scratch buffers (no allocation per node).
+    """
     t = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
     a, b, alpha, beta = _jr_coefficients(t)
-    K = np.zeros((3, 3))
+    K[0, 0] = K[1, 1] = K[2, 2] = 0.0
     K[0, 1] = -x[2]
     K[0, 2] = x[1]
     K[1, 0] = x[2]
     K[1, 2] = -x[0]
     K[2, 0] = -x[1]
     K[2, 1] = x[0]
-    K2 = K @ K
+    _matmul33(K, K, K2)
     for i in range(3):
         for j in range(3):
             Jr[i, j] = (1.0 if i == j else 0.0) - a * K[i, j] + b * K2[i, j]
-    D = np.empty((3, 3, 3))
-    E = np.zeros((3, 3))
+    if not derivative:
+        return
     for l in range(3):
-        E[:, :] = 0.0
+        for i in range(3):
+            for j in range(3):
+                E[i, j] = 0.0
         if l == 0:
             E[1, 2] = -1.0
             E[2, 1] = 1.0
@@ -466,8 +474,8 @@ def _jr_and_derivative(x: np.ndarray, Jr: np.ndarray, Dsym: np.ndarray) -> None:
         else:
             E[0, 1] = -1.0
             E[1, 0] = 1.0
-        EK = E @ K
-        KE = K @ E
+        _matmul33(E, K, EK)
+        _matmul33(K, E, KE)
         for i in range(3):
             for j in range(3):
                 D[i, j, l] = -alpha * x[l] * K[i, j] - a * E[i, j] + beta * x[l] * K2[i, j] + b * (EK[i, j] + KE[i, j])
@@ -528,21 +536,28 @@ def satellite_linearise(
     W1 = np.zeros((3, nz))  # first-order part of the reconstruction velocity w.r.t. z
     JW = np.empty((3, nz))
     w = np.empty(3)
+    L = np.empty(3)
+    G = np.empty((3, 3))
+    ej = np.empty(3)
+    DW = np.empty((3, nz))
+    K, K2, E, EK, KE = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    D = np.empty((3, 3, 3))
     for k in range(H):
         Omk = Om[k]
-        L = inertia @ Omk
-        # Fx = I + dt I^-1 (hat(I Om) - hat(Om) I)
-        G = np.empty((3, 3))
-        for j in range(3):
-            Ij = inertia[:, j]
-            # column j of hat(L) - hat(Om) I  = L x e_j - Om x I e_j
-            ej = np.zeros(3)
-            ej[j] = 1.0
-            G[0, j] = (L[1] * ej[2] - L[2] * ej[1]) - (Omk[1] * Ij[2] - Omk[2] * Ij[1])
-            G[1, j] = (L[2] * ej[0] - L[0] * ej[2]) - (Omk[2] * Ij[0] - Omk[0] * Ij[2])
-            G[2, j] = (L[0] * ej[1] - L[1] * ej[0]) - (Omk[0] * Ij[1] - Omk[1] * Ij[0])
-        Fx[:, :] = dt * (inertia_inv @ G)
         for i in range(3):
+            L[i] = inertia[i, 0] * Omk[0] + inertia[i, 1] * Omk[1] + inertia[i, 2] * Omk[2]
+        # Fx = I + dt I^-1 (hat(I Om) - hat(Om) I)
+        for j in range(3):
+            # column j of hat(L) - hat(Om) I  = L x e_j - Om x I e_j
+            ej[0] = ej[1] = ej[2] = 0.0
+            ej[j] = 1.0
+            G[0, j] = (L[1] * ej[2] - L[2] * ej[1]) - (Omk[1] * inertia[2, j] - Omk[2] * inertia[1, j])
+            G[1, j] = (L[2] * ej[0] - L[0] * ej[2]) - (Omk[2] * inertia[0, j] - Omk[0] * inertia[2, j])
+            G[2, j] = (L[0] * ej[1] - L[1] * ej[0]) - (Omk[0] * inertia[1, j] - Omk[1] * inertia[0, j])
+        _matmul33(inertia_inv, G, Fx)
+        for i in range(3):
+            for j in range(3):
+                Fx[i, j] *= dt
             Fx[i, i] += 1.0
         for i in range(3):
             w[i] = dt * (Om[k + 1, i] if semi_implicit else Omk[i])
@@ -550,7 +565,7 @@ def satellite_linearise(
         for i in range(3):
             for j in range(3):
                 A[i, j] = Ex[j, i]
-        _jr_and_derivative(w, Jr, Dsym)
+        _jr_and_derivative(w, Jr, Dsym, K, K2, E, EK, KE, D, second_order)
         W1[:, :] = 0.0
         if semi_implicit:
             for i in range(3):
@@ -584,7 +599,6 @@ def satellite_linearise(
         X[:, :, :] = 0.0
         for i in range(3):
             # dt^2 W1^T Dsym_i W1 (+ dt (Jr T)_i in the Omega block for semi-implicit)
-            DW = np.empty((3, nz))
             for p in range(3):
                 for b in range(nz):
                     DW[p, b] = Dsym[i, p, 0] * W1[0, b] + Dsym[i, p, 1] * W1[1, b] + Dsym[i, p, 2] * W1[2, b]
