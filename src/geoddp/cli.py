@@ -90,10 +90,18 @@ def _compare(args) -> int:
                                              "solve_time_s": r.solve_time_s, "status": r.status}
                                          for k, r in results.items()}, indent=1))
         print(f"wrote {args.json}")
+    from .reference import lbfgs
+    from .scene import build_problem, load_scene
+
+    ref = lbfgs(build_problem(load_scene(args.scene)))
+    print(f"| L-BFGS (scipy, exact gradient) | {ref.iterations:5d} | {ref.cost:.12f} | {ref.grad_norm:9.2e} | | "
+          f"{ref.time_history[-1] * 1e3:9.1f} | {ref.message} |")
     if args.plots:
         from . import viz
 
-        for path in viz.plot_convergence(results, args.plots).values():
+        figs = viz.plot_convergence(results, args.plots, reference_cost=ref.cost, reference_label="L-BFGS (scipy)",
+                                    reference_history=ref.cost_history)
+        for path in figs.values():
             print(f"wrote {getattr(path, 'path', path)}")
     return EXIT_CONVERGED if all(r.converged for r in results.values()) else EXIT_NOT_CONVERGED
 

@@ -175,6 +175,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
     U = np.zeros((H, m)) if initial_controls is None else problem.check_controls(initial_controls)
     model = problem.model
     ws = _Workspace(H, m)
+    kernels.warm_up()
     t_start = time.perf_counter()
     timings = {"derivatives": 0.0, "backward": 0.0, "forward": 0.0, "final_check": 0.0}
 

@@ -156,6 +156,7 @@ def plot_convergence(
     out_dir: str | Path,
     reference_cost: float | None = None,
     reference_label: str = "",
+    reference_history: np.ndarray | None = None,
 ) -> Figures:
     """Convergence of several solves (the paper's Figure 3) and their cost histories.
 
@@ -175,6 +176,8 @@ def plot_convergence(
         out_dir: output directory.
         reference_cost: cost J of a reference solution, or None.
         reference_label: legend text for the reference line.
+        reference_history: (n,) cost per iteration of an off-the-shelf solver, drawn as a
+            dashed curve in both cost panels (stored as ``"reference/cost"``).
 
     Returns:
         :class:`Figures` with ``.data["convergence"].arrays``: ``"<label>/iteration"``,
@@ -230,6 +233,8 @@ def plot_convergence(
 
     costs: dict[str, np.ndarray] = {}
     j_min = min(float(np.min(r.cost_history)) for r in results.values())
+    if reference_history is not None:
+        j_min = min(j_min, float(np.min(reference_history)))
     fig = Figure(figsize=(11.0, 4.2))
     ax_j, ax_dj = fig.subplots(1, 2)
     for n, (label, res) in enumerate(results.items()):
@@ -242,8 +247,16 @@ def plot_convergence(
         ax_dj.semilogy(it[keep], dJ[keep], "o-", ms=4, color=color, label=label)
         costs.update({f"{label}/iteration": it, f"{label}/cost": J, f"{label}/cost_minus_min": dJ})
     costs["j_min"] = np.asarray(j_min)
+    if reference_history is not None:
+        Jr = np.asarray(reference_history, dtype=float)
+        itr = np.arange(Jr.size)
+        keep = Jr - j_min > 0
+        ref_curve = (reference_label or "reference") + " per iteration"
+        ax_j.plot(itr, Jr, "--", color="k", label=ref_curve)
+        ax_dj.semilogy(itr[keep], (Jr - j_min)[keep], "--", color="k", label=ref_curve)
+        costs["reference/cost"] = Jr
     if reference_cost is not None:
-        ref_label = reference_label or "reference"
+        ref_label = (reference_label or "reference") + (" final" if reference_history is not None else "")
         costs["reference_cost"] = np.asarray(float(reference_cost))
         ax_j.axhline(reference_cost, ls="--", color="k", label=ref_label)
         if reference_cost - j_min > 0:
