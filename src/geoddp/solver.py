@@ -111,9 +111,10 @@ class _Workspace:
         self.R = np.empty((H + 1, 3, 3))
         self.Om = np.empty((H + 1, 3))
         self.U = np.empty((H, m))
-        self.empty_theta = np.zeros((H, 6, 6, 6))
-        self.empty_gamma = np.zeros((H, 6, 6, m))
-        self.empty_xi = np.zeros((H, 6, m, m))
+        # placeholders for first-order passes: the kernel never indexes them (memory stays O(H))
+        self.empty_theta = np.zeros((0, 6, 6, 6))
+        self.empty_gamma = np.zeros((0, 6, 6, m))
+        self.empty_xi = np.zeros((0, 6, m, m))
 
 
 class _Linearisation:
