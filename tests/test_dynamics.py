@@ -158,3 +158,30 @@ def test_compiled_backend_equals_the_numpy_reference(integrator, rng):
         for name in ("Phi", "B") + (("Theta", "Gamma", "Xi") if order == 2 else ()):
             ref = getattr(a, name)
             assert np.abs(getattr(c, name) - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max()), name
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_both_euler_schemes_are_first_order(integrator):
+    """Terminal error against a DOP853 solution of the continuous dynamics has slope 1 in dt."""
+    from scipy.integrate import solve_ivp
+
+    tf = 1.0
+    torque = lambda t: np.array([np.sin(3 * t), 0.5 * np.cos(2 * t), 1.0 - t])  # smooth, m = 3
+    Om0 = np.array([0.3, -0.2, 0.5])
+
+    def rhs(t, y):
+        R, Om = y[:9].reshape(3, 3), y[9:]
+        W = np.array([[0, -Om[2], Om[1]], [Om[2], 0, -Om[0]], [-Om[1], Om[0], 0]])
+        return np.concatenate([(R @ W).ravel(), np.linalg.solve(INERTIA, np.cross(INERTIA @ Om, Om) + torque(t))])
+
+    ref = solve_ivp(rhs, (0, tf), np.concatenate([np.eye(3).ravel(), Om0]), method="DOP853", rtol=1e-12, atol=1e-13).y[:, -1]
+    errs = []
+    dts = [0.02, 0.01, 0.005, 0.0025]
+    for dt in dts:
+        model = Satellite(inertia=INERTIA, actuation=np.eye(3), dt=dt, integrator=integrator)
+        H = int(round(tf / dt))
+        U = np.array([torque(k * dt) for k in range(H)])
+        R, Om = model.rollout(np.eye(3), Om0, U)
+        errs.append(np.linalg.norm(pin.log3(ref[:9].reshape(3, 3).T @ R[-1])) + np.linalg.norm(Om[-1] - ref[9:]))
+    slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
+    assert 0.9 < slope < 1.1, (slope, errs)
