@@ -132,3 +132,36 @@ def test_long_horizon_H30000_rollout_stays_orthonormal():
     assert np.all(np.isfinite(R)) and np.all(np.isfinite(Om))
     assert np.max(np.linalg.norm(Om, axis=1)) > 1.0  # it really tumbles (many full turns)
     assert _orthonormality_error(R) <= ORTHO_TOL
+
+
+def test_negative_curvature_matches_the_true_cost_at_the_saddle():
+    """The escape direction's predicted curvature (eigenvalue of the numpy-mirrored Q_uu) agrees
+    with the true J along the escape curve: J(alpha) - J(0) ~ alpha^2 / 2 * eigenvalue."""
+    from geoddp import kernels
+    from geoddp.solver import _backward, _Linearisation, _node_quu, _Workspace
+
+    problem = build_problem(load_scene(HARD / "target_180deg_x.toml"))
+    H, m = problem.horizon, problem.nu
+    U = np.zeros((H, m))
+    R, Om = problem.rollout(U)
+    J0 = problem.cost(R, Om, U)
+    ws = _Workspace(H, m)
+    lin = _Linearisation(problem, R, Om, U, 2, "analytic")
+    node, _, _ = _backward(lin, ws, 0.0)
+    assert node >= 0
+    w, V = np.linalg.eigh(_node_quu(lin, node))
+    assert w[0] < 0.0
+    for k in (node + 1, H - 1):  # the kernel factorised every later node: the mirror must agree
+        assert np.linalg.eigvalsh(_node_quu(lin, k))[0] > 0.0
+    K = ws.K.copy()
+    K[: node + 1] = 0.0
+    kff = np.zeros((H, m))
+    model = problem.model
+    Rn, Omn, Un = np.empty_like(R), np.empty_like(Om), np.empty_like(U)
+    for alpha in (1e-2, 3e-3):
+        kff[node] = -alpha * V[:, 0]
+        kernels.satellite_rollout(problem.R0, problem.Omega0, R, Om, U, kff, K, 1.0, True, model.inertia,
+                                  model.inertia_inv, model.actuation, model.dt, model.semi_implicit, Rn, Omn, Un)
+        dJ = problem.cost(Rn, Omn, Un) - J0
+        assert dJ < 0.0
+        assert abs(dJ - 0.5 * alpha**2 * w[0]) <= 1e-2 * abs(0.5 * alpha**2 * w[0]), (alpha, dJ, w[0])
