@@ -82,14 +82,18 @@ class Result:
         cost_history: (iterations+1,) J at the initial guess and after each accepted iteration.
         grad_norm_history: (iterations+1,) ||dJ/dU|| at the same iterates.
         reg_history: (iterations,) Q_uu regularisation lambda used by each iteration.
-        step_history: (iterations,) line-search gamma accepted by each iteration.
-        expansion_history: (iterations,) "first" or "second" per iteration.
+        step_history: (iterations,) line-search gamma accepted by each iteration (for a saddle
+            escape, the step length |alpha| along the negative-curvature direction).
+        expansion_history: (iterations,) "first" or "second" per iteration (a saddle escape, which
+            uses the exact second-order check, is recorded as "second").
         control_history: (iterations+1, H, m) controls per iterate (only when recorded).
         solve_time_s: wall time of the solve in seconds.
         timings: breakdown in seconds (derivatives, backward, forward, ...).
         expansion: the expansion option used (first | second | switch).
         integrator: the integrator used (euler | semi_implicit).
         dt: time step in seconds.
+        extra: free-form additions; the solver puts ``"saddle_escapes"`` here (a list of dicts with
+            iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle.
     """
 
     times: np.ndarray

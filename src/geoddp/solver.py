@@ -152,6 +152,80 @@ def cost_gradient(problem: Problem, controls: np.ndarray) -> tuple[float, np.nda
     return problem.cost(R, Om, U), _gradient(lin, ws).copy()
 
 
+# Saddle escape (see the module docstring). Not options: they only matter on degenerate problems.
+_MAX_ESCAPES = 10
+_ESCAPE_ALPHAS = 10.0 ** np.arange(2.0, -7.0, -1.0)  # times max(1, max|u|): step lengths tried
+
+
+def _upper_sym(A: np.ndarray) -> np.ndarray:
+    # kernels.backward_pass reads only the upper triangle of its symmetric blocks; mirror that.
+    return np.triu(A) + np.triu(A, 1).T
+
+
+def _node_quu(lin: _Linearisation, node: int) -> np.ndarray:
+    """Q_uu (lambda = 0) at ``node``: numpy mirror of kernels.backward_pass from H-1 down to node.
+
+    Only used on the (rare) saddle path, where the compiled pass stops at the failing node without
+    returning its Q_uu. Nodes > node factorised there, so the recursion is well defined.
+    """
+    e, r, t = lin.exp, lin.run, lin.term
+    second = lin.order == 2
+    Vx, Vxx = t.lx[0].copy(), _upper_sym(t.lxx[0])
+    for k in range(e.Phi.shape[0] - 1, node - 1, -1):
+        P, Bk = e.Phi[k], e.B[k]
+        Qx = r.lx[k] + P.T @ Vx
+        Qu = r.lu[k] + Bk.T @ Vx
+        Qxx = r.lxx[k] + P.T @ Vxx @ P
+        Qux = r.lux[k] + Bk.T @ Vxx @ P
+        Quu = r.luu[k] + Bk.T @ Vxx @ Bk
+        if second:
+            Qxx = Qxx + np.einsum("i,iab->ab", Vx, e.Theta[k])
+            Qux = Qux + np.einsum("i,iac->ca", Vx, e.Gamma[k])
+            Quu = Quu + np.einsum("i,iab->ab", Vx, e.Xi[k])
+        Qxx, Quu = _upper_sym(Qxx), _upper_sym(Quu)
+        if k == node:
+            return Quu
+        kk = np.linalg.solve(Quu, Qu)
+        KK = np.linalg.solve(Quu, Qux)
+        Vx = Qx - Qux.T @ kk
+        Vxx = _upper_sym(Qxx - Qux.T @ KK)
+    raise AssertionError("unreachable")
+
+
+def _escape_saddle(problem: Problem, lin2: _Linearisation, node: int, ws: _Workspace, R, Om, U, J: float):
+    """One step along negative curvature from a point whose exact Q_uu fails at ``node``.
+
+    ``ws.K[node+1:]`` must hold the lambda = 0 gains of the exact pass that failed at ``node``.
+    Returns (R, Om, U, J, info) with J < the given J, or None if no trial decreased J.
+    """
+    Quu = _node_quu(lin2, node)
+    w, V = np.linalg.eigh(Quu)
+    if not w[0] < 0.0:  # singular but not indefinite: no negative curvature to follow
+        return None
+    v = V[:, 0] * (1.0 if V[np.argmax(np.abs(V[:, 0])), 0] > 0 else -1.0)  # deterministic sign
+    model = problem.model
+    H, m = U.shape
+    kff = np.zeros((H, m))
+    K = ws.K.copy()
+    K[: node + 1] = 0.0  # states up to node are unchanged (zeta = 0); stale gains must not matter
+    Rn, Omn, Un = np.empty_like(R), np.empty_like(Om), np.empty_like(U)
+    scale = max(1.0, float(np.max(np.abs(U))))
+    best = None
+    for alpha in _ESCAPE_ALPHAS * scale:
+        for sgn in (1.0, -1.0):
+            kff[node] = -sgn * alpha * v  # the rollout applies u_k = u_bar_k - gamma k_k - K_k zeta_k
+            ok = kernels.satellite_rollout(
+                problem.R0, problem.Omega0, R, Om, U, kff, K, 1.0, True,
+                model.inertia, model.inertia_inv, model.actuation, model.dt, model.semi_implicit,
+                Rn, Omn, Un,
+            )
+            Jn = problem.cost(Rn, Omn, Un) if ok else np.inf
+            if np.isfinite(Jn) and Jn < J and (best is None or Jn < best[3]):
+                best = (Rn.copy(), Omn.copy(), Un.copy(), Jn,
+                        {"node": int(node), "eigenvalue": float(w[0]), "alpha": float(sgn * alpha)})
+    return best
+
+
 def _print_header(out: TextIO) -> None:
     # One row per iteration: the nominal iterate's J and gradient, then the step taken from it.
     out.write(f"{'iter':>4} {'cost':>20} {'|grad|':>10} {'dJ':>11} {'lambda':>9} {'gamma':>7} {'exp':>6} {'restarts':>8}\n")
@@ -191,8 +265,38 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
     lam = opt.reg_init
     status, message, converged = STATUS_MAX_ITER, f"reached max_iter = {opt.max_iter}", False
     lin = None
+    escapes: list[dict] = []  # saddle escapes taken (module docstring, "Saddle escape")
+    checked = None  # exact (order 2) linearisation at the current iterate, if the check ran there
     if opt.verbose:
         _print_header(out)
+
+    def check_and_escape(R, Om, U, J):
+        # A stopping test passed at (R, Om, U): run the final check's exact lambda = 0 pass now and,
+        # if Q_uu is indefinite somewhere, look for a negative-curvature step. Returns
+        # (lin2, step or None); lin2 is reused by the final check when the solve stops here.
+        t0 = time.perf_counter()
+        lin2 = _Linearisation(problem, R, Om, U, 2, opt.backend)
+        failed, _, _ = _backward(lin2, ws, 0.0)
+        step = None
+        if failed >= 0 and len(escapes) < _MAX_ESCAPES:
+            step = _escape_saddle(problem, lin2, failed, ws, R, Om, U, J)
+        timings["final_check"] += time.perf_counter() - t0
+        return lin2, step
+
+    def take_escape(step, J, gnorm, lam):
+        # Record an escape step as an accepted iteration (step_history holds |alpha|).
+        R, Om, U, J_new, info = step
+        info.update(iteration=it, cost_before=float(J), cost_after=float(J_new))
+        escapes.append(info)
+        if opt.verbose:
+            _print_row(out, it, J, gnorm, J_new - J, lam, abs(info["alpha"]), "escape", 0)
+        cost_hist.append(J_new)
+        reg_hist.append(lam)
+        step_hist.append(abs(info["alpha"]))
+        exp_hist.append("second")
+        if ctrl_hist is not None:
+            ctrl_hist.append(U.copy())
+        return R, Om, U, J_new
 
     it = 0
     while it < opt.max_iter:
@@ -207,6 +311,12 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         if len(grad_hist) == len(cost_hist) - 1:
             grad_hist.append(gnorm)
         if gnorm <= opt.grad_tol:
+            checked, step = check_and_escape(R, Om, U, J)
+            if step is not None:
+                R, Om, U, J = take_escape(step, J, gnorm, lam)
+                checked = None
+                it += 1
+                continue
             status, message, converged = STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= grad_tol", True
             break
 
@@ -264,12 +374,19 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         if gamma >= 0.5:
             lam = lam / 10.0 if lam / 10.0 >= opt.reg_min else 0.0
         if abs(dJ) <= opt.tol:
+            checked, step = check_and_escape(R, Om, U, J)
+            if step is not None and it < opt.max_iter:
+                grad_hist.append(float(np.linalg.norm(_gradient(checked, ws))))
+                R, Om, U, J = take_escape(step, J, grad_hist[-1], lam)
+                checked = None
+                it += 1
+                continue
             status, message, converged = STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True
             break
 
     # Final check at the returned iterate: exact second-order expansion, lambda = 0.
     t0 = time.perf_counter()
-    lin_final = _Linearisation(problem, R, Om, U, 2, opt.backend)
+    lin_final = checked if checked is not None else _Linearisation(problem, R, Om, U, 2, opt.backend)
     g = _gradient(lin_final, ws)
     gnorm = float(np.linalg.norm(g))
     if len(grad_hist) < len(cost_hist):
@@ -281,13 +398,15 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         lam_f = opt.reg_min
         while _backward(lin_final, ws, lam_f)[0] >= 0 and lam_f < opt.reg_max:
             lam_f *= opt.reg_increase
-    timings["final_check"] = time.perf_counter() - t0
+    timings["final_check"] += time.perf_counter() - t0
     if converged and not is_min:
         converged = False
         status = STATUS_SADDLE
         message = (f"stationary (||dJ/dU|| = {gnorm:.3e}) but Q_uu is not positive definite at node {failed} "
                    "with the exact second-order expansion: the reduced Hessian is indefinite")
-    elif status == STATUS_CONVERGED_COST and gnorm > max(opt.grad_tol, 1e-6 * max(1.0, abs(J))):
+    if escapes:
+        message += f"; escaped {len(escapes)} saddle point(s) along negative curvature"
+    if status == STATUS_CONVERGED_COST and converged and gnorm > max(opt.grad_tol, 1e-6 * max(1.0, abs(J))):
         message += f"; note ||dJ/dU|| = {gnorm:.3e} at the final iterate"
     solve_time = time.perf_counter() - t_start
     if opt.verbose:
@@ -318,6 +437,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         integrator=model.integrator,
         dt=model.dt,
         control_history=np.array(ctrl_hist) if ctrl_hist is not None else None,
+        extra={"saddle_escapes": escapes} if escapes else {},
     )
 
 

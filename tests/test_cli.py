@@ -1,0 +1,191 @@
+"""Issue 5, bad input via the CLI: ``geoddp.cli.main`` run in-process on scene files in tmp_path.
+
+Every bad scene must give exit code 2 and one line on stderr naming the offending parameter, with
+no traceback. A good scene gives 0 and a complete JSON; a run capped at max_iter = 1 gives 1.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from geoddp.cli import EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, main
+
+# The paper's problem on a coarse grid (H = 30) so that the good runs take milliseconds.
+GOOD = """\
+name = "cli_test"
+
+[model]
+inertia = [10.0, 11.1, 13.0]
+actuation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+
+[initial]
+quaternion = [0.0, 0.0, 0.0, 1.0]
+angular_velocity = [0.0, 0.0, 0.0]
+
+[target]
+euler_intrinsic = [["x", 30.0], ["z", 70.0]]
+angular_velocity = [0.0, 0.0, 0.0]
+
+[horizon]
+tf = 3.0
+dt = 0.1
+integrator = "euler"
+
+[cost]
+control = 0.1
+attitude = 1e4
+attitude_kind = "chordal"
+angular_velocity = 1e4
+
+[solver]
+expansion = "switch"
+tol = 1e-8
+max_iter = 200
+"""
+H, M = 30, 3
+
+
+def _sub(old: str, new: str) -> str:
+    assert GOOD.count(old) == 1, old
+    return GOOD.replace(old, new)
+
+
+QUAT = "quaternion = [0.0, 0.0, 0.0, 1.0]"
+INERTIA = "inertia = [10.0, 11.1, 13.0]"
+ACT = "actuation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]"
+OMEGA0 = "[initial]\nquaternion = [0.0, 0.0, 0.0, 1.0]\nangular_velocity = [0.0, 0.0, 0.0]"
+
+# id -> (scene text, parameter that the message must name)
+BAD = {
+    "rotation_not_orthonormal": (
+        _sub(QUAT, "rotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.1, 1.0]]"), "[initial].rotation"),
+    "rotation_det_minus_1": (
+        _sub(QUAT, "rotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]"), "[initial].rotation"),
+    "target_rotation_scaled": (
+        _sub('euler_intrinsic = [["x", 30.0], ["z", 70.0]]',
+             "rotation = [[1.1, 0.0, 0.0], [0.0, 1.1, 0.0], [0.0, 0.0, 1.1]]"), "[target].rotation"),
+    "quaternion_norm_1p1": (_sub(QUAT, "quaternion = [0.0, 0.0, 0.0, 1.1]"), "[initial].quaternion"),
+    "quaternion_3_entries": (_sub(QUAT, "quaternion = [0.0, 0.0, 1.0]"), "[initial].quaternion"),
+    "inertia_shape": (_sub(INERTIA, "inertia = [10.0, 11.1]"), "[model].inertia"),
+    "inertia_shape_2x3": (_sub(INERTIA, "inertia = [[10.0, 0.0, 0.0], [0.0, 11.1, 0.0]]"), "[model].inertia"),
+    "actuation_shape": (_sub(ACT, "actuation = [[1.0, 0.0], [0.0, 1.0]]"), "[model].actuation"),
+    "actuation_zero_column": (
+        _sub(ACT, "actuation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]]"), "[model].actuation"),
+    "weight_shape_attitude": (_sub("attitude = 1e4", "attitude = [1.0, 2.0]"), "[cost].attitude"),
+    "weight_shape_control": (
+        _sub("control = 0.1", "control = [[0.1, 0.0], [0.0, 0.1]]"), "[cost].control"),
+    "initial_controls_shape": (
+        _sub("max_iter = 200", "max_iter = 200\ninitial_controls = [[0.0, 0.0, 0.0]]"), "[solver].initial_controls"),
+    "initial_controls_nan": (
+        _sub("max_iter = 200", "max_iter = 200\ninitial_controls = " + str([[0.0, 0.0, 0.0]] * (H - 1) + [["nan"]])
+             .replace("'nan'", "nan, 0.0, 0.0")), "[solver].initial_controls"),
+    "nan_angular_velocity": (
+        _sub(OMEGA0, OMEGA0.replace("angular_velocity = [0.0, 0.0, 0.0]", "angular_velocity = [nan, 0.0, 0.0]")),
+        "[initial].angular_velocity"),
+    "nan_quaternion": (_sub(QUAT, "quaternion = [0.0, 0.0, nan, 1.0]"), "[initial].quaternion"),
+    "nan_weight": (_sub("control = 0.1", "control = nan"), "[cost].control"),
+    "inf_inertia": (_sub(INERTIA, "inertia = [inf, 11.1, 13.0]"), "[model].inertia"),
+    "inf_weight": (_sub("angular_velocity = 1e4", "angular_velocity = inf"), "[cost].angular_velocity"),
+    "inf_tf": (_sub("tf = 3.0", "tf = inf"), "[horizon].tf"),
+    "dt_zero": (_sub("dt = 0.1", "dt = 0.0"), "[horizon].dt"),
+    "dt_negative": (_sub("dt = 0.1", "dt = -0.1"), "[horizon].dt"),
+    "tf_not_multiple_of_dt": (_sub("tf = 3.0", "tf = 3.05"), "[horizon].tf"),
+    "inertia_not_spd": (
+        _sub(INERTIA, "inertia = [[10.0, 20.0, 0.0], [20.0, 10.0, 0.0], [0.0, 0.0, 13.0]]"), "[model].inertia"),
+    "inertia_negative": (_sub(INERTIA, "inertia = [10.0, -11.1, 13.0]"), "[model].inertia"),
+    "inertia_triangle_inequality": (_sub(INERTIA, "inertia = [1.0, 1.0, 10.0]"), "[model].inertia"),
+    "control_weight_not_spd": (_sub("control = 0.1", "control = -0.1"), "[cost].control"),
+    "control_weight_zero": (_sub("control = 0.1", "control = 0.0"), "[cost].control"),
+    "attitude_weight_indefinite": (
+        _sub("attitude = 1e4", "attitude = [[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]"), "[cost].attitude"),
+    "attitude_weight_not_symmetric": (
+        _sub("attitude = 1e4", "attitude = [[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]"), "[cost].attitude"),
+    "unknown_expansion": (_sub('expansion = "switch"', 'expansion = "third"'), "[solver].expansion"),
+    "unknown_integrator": (_sub('integrator = "euler"', 'integrator = "rk4"'), "[horizon].integrator"),
+    "unknown_attitude_kind": (_sub('attitude_kind = "chordal"', 'attitude_kind = "quat"'), "[cost].attitude_kind"),
+    "negative_tol": (_sub("tol = 1e-8", "tol = -1e-8"), "[solver].tol"),
+    "max_iter_zero": (_sub("max_iter = 200", "max_iter = 0"), "[solver].max_iter"),
+    "max_iter_float": (_sub("max_iter = 200", "max_iter = 2.5"), "[solver].max_iter"),
+    "malformed_toml": (_sub("tf = 3.0", "tf = 3.0.0"), "scene file"),
+    "malformed_toml_unclosed": (_sub("dt = 0.1", "dt = [0.1"), "scene file"),
+    "misspelled_key": (_sub(INERTIA, "inertai = [10.0, 11.1, 13.0]"), "[model].inertai"),
+    "misspelled_section": (_sub("[horizon]", "[horizion]"), "[horizion]"),
+    "missing_key": (_sub("dt = 0.1\n", ""), "[horizon].dt"),
+    "string_for_number": (_sub("tf = 3.0", 'tf = "3.0"'), "[horizon].tf"),
+}
+
+
+def _run(capsys, argv):
+    code = main(argv)
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_scene_exits_2_with_one_line_naming_the_parameter(tmp_path, capsys, case):
+    text, param = BAD[case]
+    path = tmp_path / f"{case}.toml"
+    path.write_text(text)
+    code, out, err = _run(capsys, ["run", str(path), "--quiet", "--json", str(tmp_path / "out.json")])
+    assert code == EXIT_BAD_INPUT, (code, out, err)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("geoddp: error: "), err
+    assert param in lines[0], (param, lines[0])
+    assert "Traceback" not in err and "Traceback" not in out
+    assert not (tmp_path / "out.json").exists()
+
+
+def test_missing_scene_file_exits_2(tmp_path, capsys):
+    code, out, err = _run(capsys, ["run", str(tmp_path / "nope.toml"), "--quiet"])
+    assert code == EXIT_BAD_INPUT
+    assert len(err.strip().splitlines()) == 1 and "scene file" in err and "Traceback" not in err
+
+
+def test_good_scene_exits_0_and_writes_the_json(tmp_path, capsys):
+    path = tmp_path / "good.toml"
+    path.write_text(GOOD)
+    out_json = tmp_path / "sub" / "result.json"
+    code, out, err = _run(capsys, ["run", str(path), "--quiet", "--json", str(out_json)])
+    assert code == EXIT_CONVERGED, (out, err)
+    assert err == ""
+    d = json.loads(out_json.read_text())
+    keys = ("cost", "iterations", "converged", "status", "cost_history", "grad_norm_history",
+            "attitude_error_deg", "angular_velocity_error", "solve_time_s", "controls", "quaternions",
+            "angular_velocities")
+    for k in keys:
+        assert k in d, k
+    assert d["converged"] is True and d["status"].startswith("converged")
+    assert isinstance(d["iterations"], int) and d["iterations"] >= 1
+    assert len(d["cost_history"]) == len(d["grad_norm_history"]) == d["iterations"] + 1
+    assert d["cost"] == d["cost_history"][-1]
+    assert np.asarray(d["controls"]).shape == (H, M)
+    q = np.asarray(d["quaternions"])
+    assert q.shape == (H + 1, 4)
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-12)
+    assert np.asarray(d["angular_velocities"]).shape == (H + 1, 3)
+    for k in ("cost", "attitude_error_deg", "angular_velocity_error", "solve_time_s"):
+        assert np.isfinite(d[k]), k
+    assert np.all(np.diff(d["cost_history"]) <= 0.0)
+
+
+def test_underactuated_json_has_m_columns(tmp_path, capsys):
+    path = tmp_path / "two_inputs.toml"
+    path.write_text(_sub(ACT, "actuation = [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]"))
+    out_json = tmp_path / "r.json"
+    code, out, err = _run(capsys, ["run", str(path), "--quiet", "--json", str(out_json)])
+    assert code in (EXIT_CONVERGED, EXIT_NOT_CONVERGED), err
+    assert np.asarray(json.loads(out_json.read_text())["controls"]).shape == (H, 2)
+
+
+def test_max_iter_1_exits_1(tmp_path, capsys):
+    path = tmp_path / "capped.toml"
+    path.write_text(_sub("max_iter = 200", "max_iter = 1"))
+    out_json = tmp_path / "capped.json"
+    code, out, err = _run(capsys, ["run", str(path), "--quiet", "--json", str(out_json)])
+    assert code == EXIT_NOT_CONVERGED, (out, err)
+    assert err == ""
+    d = json.loads(out_json.read_text())
+    assert d["converged"] is False and d["iterations"] == 1 and "max_iter" in d["status"]
