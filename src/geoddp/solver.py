@@ -51,8 +51,13 @@ class SolverOptions:
 
     Attributes:
         expansion: "first" (Phi, B only), "second" (with Theta, Gamma, Xi) or "switch" (first
-            until J_i / J_0 < switch_ratio, then second; the paper's proposal).
+            until J_i / J_0 < switch_ratio, then second; the paper's proposal), or after
+            ``switch_after`` first-order iterations, whichever comes first.
         switch_ratio: sigma of the switch rule, in (0, 1).
+        switch_after: also switch after this many first-order iterations. The paper's test alone
+            never fires when the optimum keeps most of the initial cost (a tumbling start,
+            1:1000 inertia, an underactuated body), where first order then grinds on at a
+            linear rate for tens of iterations.
         tol: stop when |J_i - J_(i-1)| <= tol.
         grad_tol: stop when ||dJ/dU||_2 <= grad_tol.
         max_iter: maximum number of accepted iterations.
@@ -67,6 +72,7 @@ class SolverOptions:
 
     expansion: str = "switch"
     switch_ratio: float = 0.1
+    switch_after: int = 5
     tol: float = 1e-8
     grad_tol: float = 1e-10
     max_iter: int = 200
@@ -88,6 +94,7 @@ class SolverOptions:
             from .validate import InputError
 
             raise InputError("switch_ratio", f"expected a number in (0, 1), got {self.switch_ratio}")
+        self.switch_after = positive_int(self.switch_after, "switch_after")
         self.tol = nonnegative_float(self.tol, "tol")
         self.grad_tol = nonnegative_float(self.grad_tol, "grad_tol")
         self.max_iter = positive_int(self.max_iter, "max_iter")
@@ -300,7 +307,9 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
 
     it = 0
     while it < opt.max_iter:
-        if opt.expansion == "switch" and not use_second and J0 > 0 and J / J0 < opt.switch_ratio:
+        if opt.expansion == "switch" and not use_second and (
+            (J0 > 0 and J / J0 < opt.switch_ratio) or it >= opt.switch_after
+        ):
             use_second = True
         order = 2 if use_second else 1
         t0 = time.perf_counter()
@@ -332,6 +341,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
             if lam > opt.reg_max:
                 break
         timings["backward"] += time.perf_counter() - t0
+        lam_used, quu_min = lam, float(ws.quu_eig.min())
         if lam > opt.reg_max:
             status, message = STATUS_MAX_REG, f"Q_uu not positive definite with lambda up to {opt.reg_max:.1e}"
             break
@@ -373,7 +383,15 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
             ctrl_hist.append(U.copy())
         if gamma >= 0.5:
             lam = lam / 10.0 if lam / 10.0 >= opt.reg_min else 0.0
-        if abs(dJ) <= opt.tol:
+        # A small |dJ| after a damped step says nothing about optimality. The cost test counts
+        # only after an undamped Newton-like step: gamma = 1 (or a model decrease below tol) and
+        # lambda negligible against Q_uu (with S_u = 1e-8, lambda = 0.03 would dominate Q_uu and
+        # shrink every step to a gradient step with a tiny dJ, far from the optimum).
+        full_step_decrease = d1 - 0.5 * d2
+        undamped = (gamma == 1.0 or abs(full_step_decrease) <= opt.tol) and lam_used <= 1e-3 * quu_min
+        # ... unless J no longer changes beyond round-off: no step can make progress then.
+        at_roundoff = abs(dJ) <= 4.0 * np.finfo(float).eps * abs(J)
+        if abs(dJ) <= opt.tol and (undamped or at_roundoff):
             checked, step = check_and_escape(R, Om, U, J)
             if step is not None and it < opt.max_iter:
                 grad_hist.append(float(np.linalg.norm(_gradient(checked, ws))))
