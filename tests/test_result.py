@@ -21,3 +21,9 @@ def test_json_round_trip(paper_solves, tmp_path):
     for name in ("rotations", "angular_velocities", "controls", "feedback", "cost_history", "control_history"):
         assert np.array_equal(getattr(back, name), getattr(r, name)), name
     assert back.cost == r.cost and back.status == r.status and back.iterations == r.iterations
+
+
+def test_time_history_is_monotone_and_one_per_iterate(paper_solves):
+    for r in paper_solves.values():
+        assert r.time_history.shape == r.cost_history.shape
+        assert np.all(np.diff(r.time_history) > 0) and r.time_history[-1] <= r.solve_time_s

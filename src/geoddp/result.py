@@ -87,6 +87,8 @@ class Result:
         expansion_history: (iterations,) "first" or "second" per iteration (a saddle escape, which
             uses the exact second-order check, is recorded as "second").
         control_history: (iterations+1, H, m) controls per iterate (only when recorded).
+        time_history: (iterations+1,) wall time in seconds from the start of the solve at which
+            each iterate of cost_history was reached (0 for the initial guess).
         solve_time_s: wall time of the solve in seconds.
         timings: breakdown in seconds (derivatives, backward, forward, ...).
         expansion: the expansion option used (first | second | switch).
@@ -120,6 +122,7 @@ class Result:
     integrator: str
     dt: float
     control_history: np.ndarray | None = None
+    time_history: np.ndarray | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -181,6 +184,7 @@ class Result:
             "target_rotation": self.target_rotation.tolist(),
             "target_angular_velocity": self.target_angular_velocity.tolist(),
             "control_history": None if self.control_history is None else self.control_history.tolist(),
+            "time_history": None if self.time_history is None else self.time_history.tolist(),
         }
 
     def write_json(self, path: str | Path) -> Path:
@@ -219,6 +223,7 @@ class Result:
             integrator=str(d["integrator"]),
             dt=float(d["dt"]),
             control_history=None if d.get("control_history") is None else a(d["control_history"], dtype=float),
+            time_history=None if d.get("time_history") is None else a(d["time_history"], dtype=float),
         )
 
     @classmethod

@@ -267,6 +267,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         raise FloatingPointError("the initial guess gives a non-finite cost: check the initial controls")
     J0 = J
     cost_hist, grad_hist, reg_hist, step_hist, exp_hist = [J], [], [], [], []
+    time_hist = [time.perf_counter() - t_start]
     ctrl_hist = [U.copy()] if opt.record_controls else None
     use_second = opt.expansion == "second"
     lam = opt.reg_init
@@ -298,6 +299,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         if opt.verbose:
             _print_row(out, it, J, gnorm, J_new - J, lam, abs(info["alpha"]), "escape", 0)
         cost_hist.append(J_new)
+        time_hist.append(time.perf_counter() - t_start)
         reg_hist.append(lam)
         step_hist.append(abs(info["alpha"]))
         exp_hist.append("second")
@@ -376,6 +378,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         J = J_new
         it += 1
         cost_hist.append(J)
+        time_hist.append(time.perf_counter() - t_start)
         reg_hist.append(lam)
         step_hist.append(gamma)
         exp_hist.append("second" if use_second else "first")
@@ -455,6 +458,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         integrator=model.integrator,
         dt=model.dt,
         control_history=np.array(ctrl_hist) if ctrl_hist is not None else None,
+        time_history=np.array(time_hist),
         extra={"saddle_escapes": escapes} if escapes else {},
     )
 
