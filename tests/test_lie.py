@@ -100,3 +100,14 @@ def test_tso3_retract_local_round_trip(rng):
     z = 0.3 * rng.normal(size=6)
     R2, Om2 = TSO3.retract(R, Om, z)
     assert np.allclose(TSO3.local(R, Om, R2, Om2), z, atol=1e-13)
+
+
+def test_log_batch_is_accurate_near_pi(rng):
+    """Round trip exp(log(R)) = R to 1e-14 from 150 to 180 degrees, and log(exp(x)) = x."""
+    for angle in np.linspace(np.radians(150), np.pi - 1e-9, 40):
+        ax = rng.normal(size=3)
+        x = angle * ax / np.linalg.norm(ax)
+        R = pin.exp3(x)
+        v = SO3.log_batch(R[None])[0]
+        assert np.abs(v - x).max() < 1e-12
+        assert np.abs(pin.exp3(v) - R).max() < 1e-14

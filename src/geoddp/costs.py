@@ -119,8 +119,7 @@ class AttitudeGeodesic(CostTerm):
 
     def residual(self, R: np.ndarray) -> np.ndarray:
         """(N, 3) r = log(R_d^T R)."""
-        E = np.einsum("ji,njk->nik", self.R_d, R)
-        return np.array([SO3.log(e) for e in E]).reshape(-1, 3)
+        return SO3.log_batch(np.einsum("ji,njk->nik", self.R_d, R))
 
     def value(self, R, Omega, U):
         r = self.residual(R)
