@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
 from .lie import SO3, vee
 from .validate import finite_array, rotation_matrix, spd_matrix
 
@@ -126,13 +127,13 @@ class AttitudeGeodesic(CostTerm):
         return 0.5 * np.einsum("ni,ij,nj->n", r, self.W, r)
 
     def accumulate(self, R, Omega, U, d):
-        r = self.residual(R)
-        Wr = r @ self.W
-        d.l += 0.5 * np.einsum("ni,ni->n", r, Wr)
-        Ji = SO3.right_jacobian_inv_batch(r)
-        d.lx[:, 0:3] += np.einsum("nki,nk->ni", Ji, Wr)
-        T = SO3.log_second_order_batch(r)
-        d.lxx[:, 0:3, 0:3] += np.einsum("nki,kl,nlj->nij", Ji, self.W, Ji) + np.einsum("nk,nkij->nij", Wr, T)
+        # compiled: a numpy version of these few 3x3 products costs ~0.35 ms of call overhead
+        E = np.ascontiguousarray(np.einsum("ji,njk->nik", self.R_d, R))
+        g = np.zeros((E.shape[0], 3))
+        Hs = np.zeros((E.shape[0], 3, 3))
+        kernels.geodesic_attitude_derivatives(E, self.W, d.l, g, Hs)
+        d.lx[:, 0:3] += g
+        d.lxx[:, 0:3, 0:3] += 0.5 * (Hs + np.swapaxes(Hs, 1, 2))
 
 
 class AngularVelocityQuadratic(CostTerm):
