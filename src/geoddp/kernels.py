@@ -193,7 +193,7 @@ def satellite_rollout(
 
 
 # ----------------------------------------------------------------------------- backward pass
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cholesky_inplace(A: np.ndarray) -> bool:
     """Lower Cholesky factor of a small SPD matrix, in place. False if not positive definite."""
     n = A.shape[0]
@@ -215,7 +215,7 @@ def _cholesky_inplace(A: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cholesky_solve(L: np.ndarray, b: np.ndarray) -> None:
     """Solve (L L^T) x = b in place, b (n,) or (n, k)."""
     n = L.shape[0]
@@ -244,7 +244,7 @@ def _cholesky_solve(L: np.ndarray, b: np.ndarray) -> None:
                 b[i, c] = s / L[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def backward_pass(
     Phi: np.ndarray,
     B: np.ndarray,
@@ -493,7 +493,7 @@ def _jr_and_derivative(
                 Dsym[i, p, q] = 0.5 * (D[i, p, q] + D[i, q, p])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def satellite_linearise(
     Om: np.ndarray,
     dt: float,
