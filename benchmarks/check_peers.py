@@ -1,0 +1,83 @@
+"""Convention checks for benchmarks/peers.py (run in the bench venv).
+
+1. pin 4.0.0 + crocoddyl 3.2.1 ABI sanity: frame placement after forwardKinematics.
+2. numpy exp3/log3 against pinocchio.exp3/log3.
+3. crocoddyl rollout of random controls == numpy semi-implicit Euler rollout (1e-12).
+4. crocoddyl's total cost == peers.cost (1e-10 relative) with the S_u/dt weight.
+5. crocoddyl's ResidualModelFrameRotation == log3(Rd^T R).
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import peers  # noqa: E402
+
+
+def main() -> int:
+    import crocoddyl
+    import pinocchio as pin
+
+    rng = np.random.default_rng(0)
+    p = peers.satellite_params()
+    problem, model, fid = peers.build_crocoddyl_problem(p)
+    data = model.createData()
+
+    # 1. frame placement
+    q = pin.randomConfiguration(model)
+    pin.forwardKinematics(model, data, q)
+    pin.updateFramePlacements(model, data)
+    err1 = np.abs(data.oMf[fid].rotation - peers._quat_xyzw_to_R(q)).max()
+    print(f"[1] frame placement vs quaternion(x,y,z,w) -> R: {err1:.2e}")
+    assert err1 < 1e-14
+
+    # 2. exp3 / log3
+    e2 = 0.0
+    for scale in (1e-9, 1e-5, 1e-3, 0.1, 1.0, 3.0, np.pi - 1e-6):
+        for _ in range(20):
+            w = rng.standard_normal(3)
+            w *= scale / np.linalg.norm(w)
+            R = peers.exp3(w)
+            e2 = max(e2, np.abs(R - pin.exp3(w)).max(), np.abs(peers.log3(R) - pin.log3(R)).max())
+    print(f"[2] exp3/log3 vs pinocchio: {e2:.2e}")
+    assert e2 < 1e-9
+
+    # 3. dynamics
+    N = p["horizon"]
+    U = rng.standard_normal((N, 3)) * 20.0
+    xs = problem.rollout(list(U))
+    Rn, Wn = peers.rollout(p, U)
+    Rc = np.array([peers._quat_xyzw_to_R(x[:4]) for x in xs])
+    Wc = np.array(xs)[:, 4:]
+    err3 = max(np.abs(Rc - Rn).max(), np.abs(Wc - Wn).max())
+    print(f"[3] crocoddyl vs numpy rollout, random u (|Omega_N|={np.linalg.norm(Wn[-1]):.2f}): {err3:.2e}")
+    assert err3 < 1e-12
+
+    # 4. cost
+    Jc = problem.calc(xs, list(U))
+    Jn = peers.cost(p, U)
+    print(f"[4] crocoddyl cost {Jc:.15g} vs numpy {Jn:.15g}: rel {abs(Jc - Jn) / abs(Jn):.2e}")
+    assert abs(Jc - Jn) <= 1e-10 * abs(Jn)
+
+    # 5. frame-rotation residual convention
+    state = crocoddyl.StateMultibody(model)
+    res = crocoddyl.ResidualModelFrameRotation(state, fid, p["Rd"], 3)
+    rd = res.createData(crocoddyl.DataCollectorMultibody(data))
+    x = np.concatenate([pin.randomConfiguration(model), np.zeros(3)])
+    pin.forwardKinematics(model, data, x[:4])
+    pin.updateFramePlacements(model, data)
+    res.calc(rd, x, np.zeros(3))
+    R = peers._quat_xyzw_to_R(x[:4])
+    err5 = np.abs(rd.r - peers.log3(p["Rd"].T @ R)).max()
+    print(f"[5] FrameRotation residual vs log3(Rd^T R): {err5:.2e} (vs log3(R^T Rd): "
+          f"{np.abs(rd.r - peers.log3(R.T @ p['Rd'])).max():.2e})")
+    assert err5 < 1e-12
+    print("all checks passed")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
