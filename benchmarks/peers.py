@@ -296,7 +296,7 @@ def _make_matrix_actuation(crocoddyl: Any, state: Any, H: np.ndarray) -> Any:
 # of the Q-function over the horizon), checked after computeDirection.  The
 # value below was chosen empirically (see README_peers.md) so that the final
 # cost is within 1e-8 (absolute) of the optimum for N = 300 and N = 3000.
-CROCODDYL_TH_STOP = 1e-12
+CROCODDYL_TH_STOP = 1e-8
 
 
 def solve_crocoddyl(
@@ -361,7 +361,9 @@ def solve_crocoddyl(
         "solver": f"crocoddyl-{solver}",
         "cost": cost(params, U),
         "cost_solver": float(s.cost),
-        "iterations": int(s.iter),
+        # s.iter is the 0-based index of the last iteration when converged and
+        # == max_iter otherwise; we report the number of backward/forward passes.
+        "iterations": int(s.iter) + 1 if converged else int(s.iter),
         "time_s": t,
         "controls": U,
         "rotations": R,
@@ -483,16 +485,26 @@ def solve_ipopt(
     max_iter: int = 3000,
     record_history: bool = True,
     print_level: int = 0,
+    lbfgs_history: int = 6,
+    expand: bool = True,
 ) -> dict[str, Any]:
     """Solve by direct multiple shooting with CasADi + IPOPT (MUMPS).
 
     ``hessian="exact"`` uses the exact Lagrangian Hessian; ``"lbfgs"`` sets
-    ``hessian_approximation=limited-memory``.  ``tol`` is IPOPT's ``tol``
-    (also used for ``constr_viol_tol``/``dual_inf_tol`` scaled as documented in
-    README_peers.md).  Returns the same keys as ``solve_crocoddyl``; ``cost`` is
-    re-evaluated by ``cost`` on a numpy rollout of IPOPT's controls, ``cost_solver``
-    is IPOPT's objective, ``time_s`` is the wall time of the solver call only.
-    History entries are IPOPT's objective (at possibly infeasible iterates).
+    ``hessian_approximation=limited-memory`` with ``limited_memory_max_history =
+    lbfgs_history`` (IPOPT's default is 6).  ``tol`` is IPOPT's ``tol`` (scaled
+    NLP error); ``constr_viol_tol`` is 1e-10, ``mu_strategy`` adaptive, and the
+    "acceptable" early exit is not used on purpose (``acceptable_iter=0``; IPOPT
+    still returns ``Solved_To_Acceptable_Level`` when it stalls at an acceptable
+    point).  ``expand=True`` turns CasADi's MX graph into SX (about 2x faster
+    derivative evaluation, paid for at construction time, which is not timed).
+
+    Returns the same keys as ``solve_crocoddyl``; ``cost`` is re-evaluated by
+    ``cost`` on a numpy rollout of IPOPT's controls, ``cost_solver`` is IPOPT's
+    objective at its (possibly slightly infeasible) solution, ``time_s`` is the
+    wall time of the solver call only (IPOPT plus CasADi function evaluations).
+    History entries are IPOPT's objective at each iterate (possibly infeasible),
+    entry 0 being the initial guess.
     """
     import casadi as ca
 
@@ -506,10 +518,14 @@ def solve_ipopt(
         "ipopt.max_iter": max_iter,
         "ipopt.print_level": print_level,
         "ipopt.mu_strategy": "adaptive",
+        # No early "acceptable" exit: both variants must reach ``tol`` or max_iter.
+        "ipopt.acceptable_iter": 0,
         "print_time": False,
+        "expand": expand,
     }
     if hessian == "lbfgs":
         opts["ipopt.hessian_approximation"] = "limited-memory"
+        opts["ipopt.limited_memory_max_history"] = int(lbfgs_history)
     elif hessian != "exact":
         raise ValueError(f"unknown hessian option {hessian!r}")
     if record_history:
@@ -557,12 +573,11 @@ def solve_ipopt(
     U = extract(np.array(sol["x"]).ravel())
     R, W = rollout(params, U)
     return {
-        "solver": f"ipopt-{hessian}",
+        "solver": f"ipopt-{hessian}" + (f"-m{lbfgs_history}" if hessian == "lbfgs" else ""),
         "cost": cost_of_trajectory(params, U, R[-1], W[-1]),
         "cost_solver": float(sol["f"]),
         "iterations": int(st["iter_count"]),
         "time_s": t,
-        "time_ipopt_s": float(st.get("t_wall_total", float("nan"))),
         "controls": U,
         "rotations": R,
         "omegas": W,
@@ -570,3 +585,117 @@ def solve_ipopt(
         "cost_history": cost_hist,
         "time_history": time_hist,
     }
+
+
+# ----------------------------------------------------------------------------
+# Benchmark table
+# ----------------------------------------------------------------------------
+
+SolverSpec = tuple[str, Callable[..., dict[str, Any]], dict[str, Any]]
+
+
+def default_solvers(horizon: int) -> list[SolverSpec]:
+    """The peer solvers of the table: (label, function, keyword arguments)."""
+    lbfgs_cap = 3000 if horizon <= 300 else 1000
+    return [
+        ("crocoddyl FDDP", solve_crocoddyl, {"solver": "fddp"}),
+        ("crocoddyl DDP", solve_crocoddyl, {"solver": "ddp"}),
+        ("IPOPT exact Hessian", solve_ipopt, {"hessian": "exact"}),
+        ("IPOPT L-BFGS (m=6, default)", solve_ipopt, {"hessian": "lbfgs", "max_iter": lbfgs_cap}),
+        ("IPOPT L-BFGS (m=20)", solve_ipopt, {"hessian": "lbfgs", "lbfgs_history": 20, "max_iter": lbfgs_cap}),
+    ]
+
+
+def benchmark(
+    params: dict[str, Any], runs: int = 5, solvers: list[SolverSpec] | None = None
+) -> list[dict[str, Any]]:
+    """Run each solver ``runs`` times, interleaved, and collect medians.
+
+    Timed runs use ``record_history=False``; one extra untimed run per solver
+    records the cost/time history.  Returns one row per solver with the keys of
+    the solver result plus ``label``, ``times`` (all timed runs) and
+    ``median_time_s``.
+    """
+    specs = solvers if solvers is not None else default_solvers(params["horizon"])
+    results: dict[str, dict[str, Any]] = {}
+    times: dict[str, list[float]] = {lab: [] for lab, _, _ in specs}
+    for lab, fn, kw in specs:  # warm-up + history run (untimed)
+        results[lab] = fn(params, record_history=True, **kw)
+    for _ in range(runs):
+        for lab, fn, kw in specs:
+            r = fn(params, record_history=False, **kw)
+            times[lab].append(r["time_s"])
+            if r["iterations"] != results[lab]["iterations"] or r["cost"] != results[lab]["cost"]:
+                print(f"warning: {lab} is not deterministic", file=sys.stderr)
+    rows = []
+    for lab, _, _ in specs:
+        row = dict(results[lab])
+        row["label"] = lab
+        row["times"] = times[lab]
+        row["median_time_s"] = statistics.median(times[lab])
+        rows.append(row)
+    return rows
+
+
+def markdown_table(rows: list[dict[str, Any]]) -> str:
+    """Markdown table: solver, status, iterations, J, |J - J_best|, times."""
+    Jbest = min(r["cost"] for r in rows)
+    out = [
+        "| solver | status | iterations | J (rollout) | abs(J - J_best) | median time [s] | time / iteration [ms] |",
+        "|---|---|---:|---:|---:|---:|---:|",
+    ]
+    for r in rows:
+        it = max(r["iterations"], 1)
+        out.append(
+            f"| {r['label']} | {r['status']} | {r['iterations']} | {r['cost']:.12f} | "
+            f"{abs(r['cost'] - Jbest):.1e} | {r['median_time_s']:.4f} | {1e3 * r['median_time_s'] / it:.3f} |"
+        )
+    spread = (max(r["cost"] for r in rows) - Jbest) / abs(Jbest)
+    out.append("")
+    out.append(f"J_best = {Jbest:.12f}; max relative spread over solvers = {spread:.1e}")
+    return "\n".join(out)
+
+
+def _main(argv: list[str] | None = None) -> int:
+    import argparse
+    import json
+    import platform
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--horizons", type=int, nargs="+", default=[300, 3000])
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument(
+        "--fixed-tf",
+        action="store_true",
+        help="keep tf = 3 s and set dt = 3/N (default: keep dt = 0.01, tf = 0.01 N)",
+    )
+    ap.add_argument("--json", type=str, default=None, help="write rows (with histories) to this file")
+    args = ap.parse_args(argv)
+
+    import casadi
+    import crocoddyl
+    import pinocchio
+
+    print(
+        f"crocoddyl {crocoddyl.__version__}, pin {pinocchio.__version__}, casadi {casadi.__version__}, "
+        f"numpy {np.__version__}, python {platform.python_version()}, {platform.machine()}"
+    )
+    dump: dict[str, Any] = {}
+    for N in args.horizons:
+        p = satellite_params(horizon=N, dt=3.0 / N) if args.fixed_tf else satellite_params(horizon=N)
+        print(f"\n### N = {N}, dt = {p['dt']:g}, tf = {p['dt'] * N:g} s, {args.runs} interleaved runs\n")
+        rows = benchmark(p, runs=args.runs)
+        print(markdown_table(rows), flush=True)
+        dump[str(N)] = [
+            {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in r.items()
+             if k not in ("rotations", "omegas", "controls")}
+            for r in rows
+        ]
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(dump, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())
