@@ -24,6 +24,7 @@ def main() -> int:
     import pinocchio as pin
 
     rng = np.random.default_rng(0)
+    pin.seed(0)
     p = peers.satellite_params()
     problem, model, fid = peers.build_crocoddyl_problem(p)
     data = model.createData()
@@ -86,7 +87,31 @@ def main() -> int:
     print(f"[6] FDDP optimum: J={rf['cost']:.12f} ({rf['iterations']} it), crocoddyl cost rel diff {rel6:.1e}, "
           f"trajectory vs numpy rollout {e6:.1e}")
     assert rel6 < 1e-10 and e6 < 1e-12
+    # crocoddyl's per-iteration cost is the rollout cost of that iterate's controls
+    import crocoddyl as _c
+    problem6, _, _ = peers.build_crocoddyl_problem(p)
+    sv = _c.SolverFDDP(problem6)
+    sv.th_stop = peers.CROCODDYL_TH_STOP
+    us_it: list[np.ndarray] = []
+    cs_it: list[float] = []
+
+    class _Keep(_c.CallbackAbstract):
+        def __init__(self) -> None:
+            _c.CallbackAbstract.__init__(self)
+
+        def __call__(self, s: object) -> None:
+            us_it.append(np.array(s.us))
+            cs_it.append(float(s.cost))
+
+    sv.setCallbacks([_Keep()])
+    us0 = [np.zeros(3)] * p["horizon"]
+    sv.solve(problem6.rollout(us0), us0, 100, True)
+    e6b = max(abs(c - peers.cost(p, u)) / c for c, u in zip(cs_it, us_it))
+    print(f"[6b] FDDP per-iteration cost vs rollout cost of its controls: max rel {e6b:.1e} over {len(cs_it)} iterations")
+    assert e6b < 1e-12
     ri = peers.solve_ipopt(p, "exact")
+    h = ri["cost_history_rollout"]
+    print(f"     IPOPT history: objective {ri['cost_history'][1]:.4g} vs rollout J {h[1]:.4g} at iteration 1")
     rel7 = abs(ri["cost"] - rf["cost"]) / rf["cost"]
     print(f"[7] IPOPT exact: J={ri['cost']:.12f} ({ri['iterations']} it, {ri['status']}), "
           f"objective - rollout J = {ri['cost_solver'] - ri['cost']:.1e}, rel diff to FDDP {rel7:.1e}")

@@ -321,7 +321,8 @@ def solve_crocoddyl(
     ``time_s`` (wall time of ``solve`` only), ``controls`` (N, m), ``rotations``
     (N+1, 3, 3), ``omegas`` (N+1, 3), ``status`` ("converged" or "max_iter"),
     ``cost_history`` and ``time_history`` (per iteration, from a callback; entry 0
-    is the initial guess at t = 0), ``stop`` (final stopping value), ``solver``.
+    is the initial guess at t = 0), ``cost_history_rollout`` (the same list: the
+    iterates are rollouts), ``stop`` (final stopping value), ``nthreads``, ``solver``.
     """
     import crocoddyl
 
@@ -380,6 +381,9 @@ def solve_crocoddyl(
         "nthreads": int(problem.nthreads),
         "cost_history": cost_hist,
         "time_history": time_hist,
+        # From the feasible zero-control warm start DDP/FDDP iterates have no
+        # gaps, so crocoddyl's cost is already the rollout cost.
+        "cost_history_rollout": list(cost_hist),
     }
 
 
@@ -511,14 +515,17 @@ def solve_ipopt(
     ``cost`` on a numpy rollout of IPOPT's controls, ``cost_solver`` is IPOPT's
     objective at its (possibly slightly infeasible) solution, ``time_s`` is the
     wall time of the solver call only (IPOPT plus CasADi function evaluations).
-    History entries are IPOPT's objective at each iterate (possibly infeasible),
-    entry 0 being the initial guess.
+    ``cost_history`` entries are IPOPT's objective at each iterate (possibly
+    infeasible), entry 0 being the initial guess; ``cost_history_rollout`` is
+    J of a numpy rollout of each iterate's controls (evaluated after the solve,
+    so not included in ``time_s``/``time_history``).
     """
     import casadi as ca
 
     nlp, bounds, extract = build_ipopt_nlp(params)
     cost_hist: list[float] = []
     time_hist: list[float] = []
+    iterates: list[np.ndarray] = []
     t_start = [0.0]
     opts: dict[str, Any] = {
         "ipopt.tol": tol,
@@ -569,6 +576,7 @@ def solve_ipopt(
             def eval(self, arg: list[Any]) -> list[Any]:
                 time_hist.append(time.perf_counter() - t_start[0])
                 cost_hist.append(float(arg[ca.nlpsol_out().index("f")]))
+                iterates.append(extract(np.array(arg[ca.nlpsol_out().index("x")]).ravel()))
                 return [0]
 
         cb = _Iter(nlp["x"].numel(), nlp["g"].numel())
@@ -592,6 +600,9 @@ def solve_ipopt(
         "status": str(st["return_status"]),
         "cost_history": cost_hist,
         "time_history": time_hist,
+        # J of a numpy rollout of the controls of each iterate (computed after
+        # the timed call): comparable with a shooting method's cost history.
+        "cost_history_rollout": [cost(params, Uk) for Uk in iterates],
     }
 
 
