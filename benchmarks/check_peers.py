@@ -1,7 +1,8 @@
 """Convention checks for benchmarks/peers.py (run in the bench venv).
 
 1. pin 4.0.0 + crocoddyl 3.2.1 ABI sanity: frame placement after forwardKinematics.
-2. numpy exp3/log3 against pinocchio.exp3/log3.
+2. numpy exp3/log3 against pinocchio.exp3/log3; the CasADi versions used by
+   the IPOPT transcription too (with finite Jacobians at 0).
 3. crocoddyl rollout of random controls == numpy semi-implicit Euler rollout (1e-12).
 4. crocoddyl's total cost == peers.cost (1e-10 relative) with the S_u/dt weight.
 5. crocoddyl's ResidualModelFrameRotation == log3(Rd^T R).
@@ -47,6 +48,27 @@ def main() -> int:
             e2 = max(e2, np.abs(R - pin.exp3(w)).max(), np.abs(peers.log3(R) - pin.log3(R)).max())
     print(f"[2] exp3/log3 vs pinocchio: {e2:.2e}")
     assert e2 < 1e-9
+
+    # 2b. CasADi exp3/log3 (IPOPT's transcription) vs pinocchio, and finite
+    #     derivatives at the small-angle branches.
+    import casadi as ca
+
+    w_ = ca.SX.sym("w", 3)
+    M_ = ca.SX.sym("M", 3, 3)
+    fexp = ca.Function("e", [w_], [peers._cs_exp3(ca, w_), ca.jacobian(peers._cs_exp3(ca, w_), w_)])
+    flog = ca.Function("l", [M_], [peers._cs_log3(ca, M_), ca.jacobian(peers._cs_log3(ca, M_), M_)])
+    e2b = 0.0
+    for scale in (0.0, 1e-9, 1e-5, 1e-3, 0.1, 1.0, 3.0):
+        for _ in range(10):
+            w = rng.standard_normal(3)
+            w *= scale / np.linalg.norm(w)
+            E, dE = fexp(w)
+            R = pin.exp3(w)
+            L, dL = flog(R)
+            assert np.all(np.isfinite(np.array(dE))) and np.all(np.isfinite(np.array(dL)))
+            e2b = max(e2b, np.abs(np.array(E) - R).max(), np.abs(np.array(L).ravel() - pin.log3(R)).max())
+    print(f"[2b] CasADi exp3/log3 vs pinocchio (angles 0..3 rad): {e2b:.2e}; Jacobians finite")
+    assert e2b < 1e-12
 
     # 3. dynamics
     N = p["horizon"]

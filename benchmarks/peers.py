@@ -417,12 +417,14 @@ def _cs_log3(ca: Any, M: Any) -> Any:
 
     r = atan2(|s|, c) / |s| * s, s = vee(M - M^T)/2, c = (tr M - 1)/2.  Equals
     pinocchio.log3 for rotations with angle < pi.  Small-|s| branch uses
-    atan(x)/x = 1 - x^2/3 + x^4/5 (x = |s|/c, valid for c > 0).
+    atan(x)/x = 1 - x^2/3 + x^4/5 (x = |s|/c, valid for c > 0).  At exactly
+    theta = pi the log is not smooth (nor unique) and this form divides by 0;
+    the satellite problem's iterates stay far from it (|theta| ~ 75 deg at start).
     """
     s = 0.5 * ca.vertcat(M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1])
     c = 0.5 * (M[0, 0] + M[1, 1] + M[2, 2] - 1)
     n2 = ca.dot(s, s)
-    small = n2 < 1e-10
+    small = ca.logic_and(n2 < 1e-10, c > 0)  # near theta = 0 only; near pi keep atan2
     n2s = ca.if_else(small, 1.0, n2)
     n = ca.sqrt(n2s)
     x2 = n2 / (c * c)
