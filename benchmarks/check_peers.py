@@ -8,6 +8,7 @@
 5. crocoddyl's ResidualModelFrameRotation == log3(Rd^T R).
 6. crocoddyl FDDP optimum: its cost and trajectory equal the numpy ones.
 7. IPOPT (exact Hessian) reaches the same J* to 1e-9 relative.
+8. A general actuation matrix H (Python actuation model) gives the same dynamics and cost.
 """
 from __future__ import annotations
 
@@ -128,8 +129,9 @@ def main() -> int:
     sv.setCallbacks([_Keep()])
     us0 = [np.zeros(3)] * p["horizon"]
     sv.solve(problem6.rollout(us0), us0, 100, True)
-    e6b = max(abs(c - peers.cost(p, u)) / c for c, u in zip(cs_it, us_it))
-    print(f"[6b] FDDP per-iteration cost vs rollout cost of its controls: max rel {e6b:.1e} over {len(cs_it)} iterations")
+    e6b = max(abs(c - peers.cost(p, u)) / c for c, u in zip(cs_it, us_it, strict=True))
+    print(f"[6b] FDDP per-iteration cost vs rollout cost of its controls: max rel {e6b:.1e} "
+          f"over {len(cs_it)} iterations")
     assert e6b < 1e-12
     ri = peers.solve_ipopt(p, "exact")
     h = ri["cost_history_rollout"]
@@ -138,6 +140,17 @@ def main() -> int:
     print(f"[7] IPOPT exact: J={ri['cost']:.12f} ({ri['iterations']} it, {ri['status']}), "
           f"objective - rollout J = {ri['cost_solver'] - ri['cost']:.1e}, rel diff to FDDP {rel7:.1e}")
     assert rel7 < 1e-9
+    # 8. a general actuation matrix H (3x2) goes through the Python actuation model
+    H = np.array([[1.0, 0.2], [0.0, 1.0], [0.3, 0.5]])
+    pH = peers.satellite_params(actuation=H, S_u=0.1 * np.eye(2))
+    probH, _, _ = peers.build_crocoddyl_problem(pH)
+    UH = rng.standard_normal((pH["horizon"], 2)) * 20.0
+    xsH = probH.rollout(list(UH))
+    _, WH = peers.rollout(pH, UH)
+    e8 = np.abs(np.array(xsH)[:, 4:] - WH).max()
+    rel8 = abs(probH.calc(xsH, list(UH)) - peers.cost(pH, UH)) / peers.cost(pH, UH)
+    print(f"[8] general H (3x2): rollout {e8:.1e}, cost rel {rel8:.1e}")
+    assert e8 < 1e-12 and rel8 < 1e-10
     print("all checks passed")
     return 0
 

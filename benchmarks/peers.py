@@ -575,7 +575,7 @@ def solve_ipopt(
                     return ca.Sparsity.dense(self.ng)
                 return ca.Sparsity(0, 0)
 
-            def eval(self, arg: list[Any]) -> list[Any]:
+            def eval(self, arg: Any) -> list[Any]:
                 time_hist.append(time.perf_counter() - t_start[0])
                 cost_hist.append(float(arg[ca.nlpsol_out().index("f")]))
                 iterates.append(extract(np.array(arg[ca.nlpsol_out().index("x")]).ravel()))
@@ -671,14 +671,16 @@ def markdown_table(rows: list[dict[str, Any]]) -> str:
     """Markdown table: solver, status, iterations, J, |J - J_best|, times."""
     Jbest = min(r["cost"] for r in rows)
     out = [
-        "| solver | status | iterations | J (rollout) | abs(J - J_best) | median time [s] (runs) | min time [s] | time / iteration [ms] |",
+        "| solver | status | iterations | J (rollout) | abs(J - J_best) "
+        "| median time [s] (runs) | min time [s] | time / iteration [ms] |",
         "|---|---|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         it = max(r["iterations"], 1)
         out.append(
             f"| {r['label']} | {r['status']} | {r['iterations']} | {r['cost']:.12f} | "
-            f"{abs(r['cost'] - Jbest):.1e} | {r['median_time_s']:.4f} ({len(r['times'])}) | {min(r['times']):.4f} | {1e3 * r['median_time_s'] / it:.3f} |"
+            f"{abs(r['cost'] - Jbest):.1e} | {r['median_time_s']:.4f} ({len(r['times'])}) | "
+            f"{min(r['times']):.4f} | {1e3 * r['median_time_s'] / it:.3f} |"
         )
     ok = [r for r in rows if r["status"] in ("converged", "Solve_Succeeded")]
     spread = (max(r["cost"] for r in ok) - Jbest) / abs(Jbest) if ok else float("nan")
@@ -714,8 +716,9 @@ def _main(argv: list[str] | None = None) -> int:
     import crocoddyl
     import pinocchio
 
+    casadi_version = getattr(casadi, "__version__", "?")
     print(
-        f"crocoddyl {crocoddyl.__version__}, pin {pinocchio.__version__}, casadi {casadi.__version__}, "
+        f"crocoddyl {crocoddyl.__version__}, pin {pinocchio.__version__}, casadi {casadi_version}, "
         f"numpy {np.__version__}, python {platform.python_version()}, {platform.machine()}"
     )
     dump: dict[str, Any] = {}
