@@ -279,13 +279,17 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
     if opt.verbose:
         _print_header(out)
 
-    def check_and_escape(R, Om, U, J):
+    def check_and_escape(R, Om, U, J, lin2=None):
         # A stopping test passed at (R, Om, U): run the final check's exact lambda = 0 pass now and,
         # if Q_uu is indefinite somewhere, look for a negative-curvature step. Returns
         # (lin2, step or None); lin2 is reused by the final check when the solve stops here.
+        # A caller that has just run that very pass (order 2, lambda = 0, success) hands in lin2.
         t0 = time.perf_counter()
-        lin2 = _Linearisation(problem, R, Om, U, 2, opt.backend)
-        failed, _, _ = _backward(lin2, ws, 0.0)
+        if lin2 is None:
+            lin2 = _Linearisation(problem, R, Om, U, 2, opt.backend)
+            failed, _, _ = _backward(lin2, ws, 0.0)
+        else:
+            failed = -1
         check_failed["node"] = failed
         step = None
         if failed >= 0 and len(escapes) < _MAX_ESCAPES:
@@ -355,7 +359,8 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         # shrinking gamma through a dozen rollouts.
         roundoff = 4.0 * np.finfo(float).eps * abs(J)
         if abs(d1 - 0.5 * d2) <= roundoff and lam_used <= 1e-3 * quu_min:
-            checked, step = check_and_escape(R, Om, U, J)
+            just_done = lin if (lin.order == 2 and lam_used == 0.0) else None
+            checked, step = check_and_escape(R, Om, U, J, just_done)
             if step is not None:
                 R, Om, U, J = take_escape(step, J, gnorm, lam)
                 checked = None
