@@ -120,8 +120,8 @@ def plot_speed_vs_error(rows: list[dict], J_best: float, out: Path) -> Path:
     for r in rows:
         last = r["last"]
         th, ch = last.get("time_history"), last.get("cost_history")
-        if th is None or ch is None or len(th) != len(ch):
-            continue
+        if th is None or ch is None or len(ch) < 2 or len(th) != len(ch):
+            continue  # timed-only runs record no history
         err = np.asarray(ch, dtype=float) - J_best
         keep = err > 0
         a.loglog(np.maximum(np.asarray(th)[keep], 1e-5) * 1e3, err[keep], "o-", ms=3, label=r["name"])
