@@ -185,3 +185,12 @@ def test_both_euler_schemes_are_first_order(integrator):
         errs.append(np.linalg.norm(pin.log3(ref[:9].reshape(3, 3).T @ R[-1])) + np.linalg.norm(Om[-1] - ref[9:]))
     slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
     assert 0.9 < slope < 1.1, (slope, errs)
+
+
+def test_satellite_model_comes_from_the_urdf_with_the_scene_inertia():
+    model = Satellite(inertia=INERTIA, actuation=ACTUATION, dt=0.01)
+    assert model.urdf == DEFAULT_URDF
+    pm = model.pin_model
+    assert pm.nq == 4 and pm.nv == 3 and np.all(pm.gravity.vector == 0.0)
+    assert np.allclose(pm.inertias[1].inertia, INERTIA) and np.allclose(pm.inertias[1].lever, 0.0)
+    assert pm.inertias[1].mass == 100.0  # from the URDF

@@ -58,7 +58,9 @@ class Satellite:
         dt: time step, s.
         integrator: "euler" (paper) or "semi_implicit" (Crocoddyl).
         second_order: "exact" (default) or "paper" expansion of the reconstruction.
-        urdf: optional URDF of one rigid body (its inertia is replaced by ``inertia``).
+        urdf: URDF of one rigid body (its inertia is replaced by ``inertia``). By default
+            ``models/satellite.urdf`` of the repository; without it (an installed wheel has no
+            ``models/``), the same one-body model is built in code.
     """
 
     inertia: np.ndarray
@@ -78,6 +80,8 @@ class Satellite:
         self.second_order = choice(self.second_order, "second_order", integ.SECOND_ORDER_KINDS)
         if self.second_order == "paper" and self.integrator != "euler":
             raise ValueError("second_order: 'paper' is derived for integrator 'euler' only")
+        if self.urdf is None and DEFAULT_URDF.is_file():
+            self.urdf = DEFAULT_URDF
         if self.urdf is not None:
             self.urdf = Path(self.urdf)
             if not self.urdf.is_file():
