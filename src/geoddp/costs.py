@@ -23,8 +23,8 @@ from .validate import finite_array, rotation_matrix, spd_matrix
 
 @dataclass
 class CostDerivatives:
-    """Cost value and derivatives at N nodes: l (N,), lx (N,6), lu (N,m), lxx (N,6,6),
-    lux (N,m,6), luu (N,m,m). m = 0 for terminal costs."""
+    """Cost value and derivatives at N nodes: l (N,), lx (N,nx), lu (N,m), lxx (N,nx,nx),
+    lux (N,m,nx), luu (N,m,m); nx = 6 on TSO(3), 2 nv for a multibody. m = 0 for terminal costs."""
 
     l: np.ndarray
     lx: np.ndarray
@@ -34,9 +34,10 @@ class CostDerivatives:
     luu: np.ndarray
 
     @classmethod
-    def zeros(cls, N: int, m: int) -> "CostDerivatives":
-        return cls(np.zeros(N), np.zeros((N, 6)), np.zeros((N, m)), np.zeros((N, 6, 6)),
-                   np.zeros((N, m, 6)), np.zeros((N, m, m)))
+    def zeros(cls, N: int, m: int, nx: int = 6) -> "CostDerivatives":
+        """Zero value and derivatives for N nodes, m inputs and an nx-dimensional tangent state."""
+        return cls(np.zeros(N), np.zeros((N, nx)), np.zeros((N, m)), np.zeros((N, nx, nx)),
+                   np.zeros((N, m, nx)), np.zeros((N, m, m)))
 
 
 class CostTerm:
