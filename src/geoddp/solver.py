@@ -313,6 +313,21 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
             ctrl_hist.append(U.copy())
         return R, Om, U, J_new
 
+    def escaped(R, Om, U, J, lin2=None):
+        # A stopping test passed at (R, Om, U): run the exact check and, at a saddle, take an escape
+        # step as an iteration. Returns (R, Om, U, J, True) after an escape, else the same iterate
+        # and False (the caller stops; ``checked`` then holds the check's linearisation).
+        nonlocal checked, it
+        checked, step = check_and_escape(R, Om, U, J, lin2)
+        if step is None or it >= opt.max_iter:
+            return R, Om, U, J, False
+        if len(grad_hist) < len(cost_hist):  # the gradient of an iterate reached by a step
+            grad_hist.append(float(np.linalg.norm(_gradient(checked, ws))))
+        R, Om, U, J = take_escape(step, J, grad_hist[-1], lam)
+        checked = None
+        it += 1
+        return R, Om, U, J, True
+
     it = 0
     while it < opt.max_iter:
         if opt.expansion == "switch" and not use_second and (
@@ -328,11 +343,8 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         if len(grad_hist) == len(cost_hist) - 1:
             grad_hist.append(gnorm)
         if gnorm <= opt.grad_tol:
-            checked, step = check_and_escape(R, Om, U, J)
-            if step is not None:
-                R, Om, U, J = take_escape(step, J, gnorm, lam)
-                checked = None
-                it += 1
+            R, Om, U, J, esc = escaped(R, Om, U, J)
+            if esc:
                 continue
             status, message, converged = STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= grad_tol", True
             break
@@ -360,11 +372,8 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         roundoff = 4.0 * np.finfo(float).eps * abs(J)
         if abs(d1 - 0.5 * d2) <= roundoff and lam_used <= 1e-3 * quu_min:
             just_done = lin if (lin.order == 2 and lam_used == 0.0) else None
-            checked, step = check_and_escape(R, Om, U, J, just_done)
-            if step is not None:
-                R, Om, U, J = take_escape(step, J, gnorm, lam)
-                checked = None
-                it += 1
+            R, Om, U, J, esc = escaped(R, Om, U, J, just_done)
+            if esc:
                 continue
             status, converged = STATUS_CONVERGED_COST, True
             message = f"predicted decrease {abs(d1 - 0.5 * d2):.1e} below the round-off of J"
@@ -417,12 +426,8 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         # ... unless J no longer changes beyond round-off: no step can make progress then.
         at_roundoff = abs(dJ) <= 4.0 * np.finfo(float).eps * abs(J)
         if abs(dJ) <= opt.tol and (undamped or at_roundoff):
-            checked, step = check_and_escape(R, Om, U, J)
-            if step is not None and it < opt.max_iter:
-                grad_hist.append(float(np.linalg.norm(_gradient(checked, ws))))
-                R, Om, U, J = take_escape(step, J, grad_hist[-1], lam)
-                checked = None
-                it += 1
+            R, Om, U, J, esc = escaped(R, Om, U, J)
+            if esc:
                 continue
             status, message, converged = STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True
             break
