@@ -13,7 +13,6 @@ integrator_error.png).
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np

@@ -84,7 +84,6 @@ def assemble(
     """
     N, _, nz = F1.shape
     n = 6
-    m = nz - n
     omega = dt * w_bar
     A = np.swapaxes(SO3.exp_batch(omega), 1, 2)  # Ad_{exp(-omega)} = exp(omega)^T
     Jr = SO3.right_jacobian_batch(omega)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
 from .costs import (
     AngularVelocityQuadratic,
     AttitudeChordal,
@@ -60,6 +61,22 @@ class Problem:
     def rollout(self, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(H, m) controls -> R (H+1, 3, 3), Omega (H+1, 3)."""
         return self.model.rollout(self.R0, self.Omega0, controls)
+
+    def rollout_closed_loop(
+        self, R_bar: np.ndarray, Omega_bar: np.ndarray, u_bar: np.ndarray, k_ff: np.ndarray, K_fb: np.ndarray,
+        gamma: float, R_out: np.ndarray, Omega_out: np.ndarray, u_out: np.ndarray,
+    ) -> bool:
+        """Forward pass of Algorithm 1: u_k = u_bar_k - gamma k_k - K_k zeta_k (eq. dustar), zeta_k =
+        (log(R_bar_k^T R_k), Omega_k - Omega_bar_k), from the initial state.
+
+        Nominal R_bar (H+1,3,3), Omega_bar (H+1,3), u_bar (H,m); gains k_ff (H,m), K_fb (H,m,6);
+        results into R_out, Omega_out, u_out. Returns False if the state became non-finite.
+        """
+        m = self.model
+        return kernels.satellite_rollout(
+            self.R0, self.Omega0, R_bar, Omega_bar, u_bar, k_ff, K_fb, gamma, True,
+            m.inertia, m.inertia_inv, m.actuation, m.dt, m.semi_implicit, R_out, Omega_out, u_out,
+        )
 
     def cost(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray) -> float:
         """Total cost J of a trajectory (paper eq. J)."""

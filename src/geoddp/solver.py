@@ -40,7 +40,7 @@ from .result import (
     STATUS_SADDLE,
     Result,
 )
-from .validate import choice, finite_array, nonnegative_float, positive_float, positive_int
+from .validate import choice, nonnegative_float, positive_float, positive_int
 
 EXPANSIONS = ("first", "second", "switch")
 
@@ -210,7 +210,6 @@ def _escape_saddle(problem: Problem, lin2: _Linearisation, node: int, ws: _Works
     if not w[0] < 0.0:  # singular but not indefinite: no negative curvature to follow
         return None
     v = V[:, 0] * (1.0 if V[np.argmax(np.abs(V[:, 0])), 0] > 0 else -1.0)  # deterministic sign
-    model = problem.model
     H, m = U.shape
     kff = np.zeros((H, m))
     K = ws.K.copy()
@@ -221,11 +220,7 @@ def _escape_saddle(problem: Problem, lin2: _Linearisation, node: int, ws: _Works
     for alpha in _ESCAPE_ALPHAS * scale:
         for sgn in (1.0, -1.0):
             kff[node] = -sgn * alpha * v  # the rollout applies u_k = u_bar_k - gamma k_k - K_k zeta_k
-            ok = kernels.satellite_rollout(
-                problem.R0, problem.Omega0, R, Om, U, kff, K, 1.0, True,
-                model.inertia, model.inertia_inv, model.actuation, model.dt, model.semi_implicit,
-                Rn, Omn, Un,
-            )
+            ok = problem.rollout_closed_loop(R, Om, U, kff, K, 1.0, Rn, Omn, Un)
             Jn = problem.cost(Rn, Omn, Un) if ok else np.inf
             if np.isfinite(Jn) and Jn < J and (best is None or Jn < best[3]):
                 best = (Rn.copy(), Omn.copy(), Un.copy(), Jn,
@@ -383,11 +378,7 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         t0 = time.perf_counter()
         gamma, accepted = 1.0, False
         while gamma >= opt.min_step:
-            ok = kernels.satellite_rollout(
-                problem.R0, problem.Omega0, R, Om, U, ws.k, ws.K, gamma, True,
-                model.inertia, model.inertia_inv, model.actuation, model.dt, model.semi_implicit,
-                ws.R, ws.Om, ws.U,
-            )
+            ok = problem.rollout_closed_loop(R, Om, U, ws.k, ws.K, gamma, ws.R, ws.Om, ws.U)
             J_new = problem.cost(ws.R, ws.Om, ws.U) if ok else np.inf
             if np.isfinite(J_new) and J_new <= J:
                 accepted = True

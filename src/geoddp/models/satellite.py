@@ -25,7 +25,7 @@ import pinocchio as pin
 from .. import integrators as integ
 from ..lie import hat
 from .. import kernels
-from ..validate import actuation_matrix, choice, finite_array, inertia_matrix, positive_float
+from ..validate import actuation_matrix, choice, inertia_matrix, positive_float
 
 DEFAULT_URDF = Path(__file__).resolve().parents[3] / "models" / "satellite.urdf"
 BACKENDS = ("compiled", "analytic", "pinocchio")
