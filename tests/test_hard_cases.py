@@ -145,7 +145,7 @@ def test_negative_curvature_matches_the_true_cost_at_the_saddle():
     U = np.zeros((H, m))
     R, Om = problem.rollout(U)
     J0 = problem.cost(R, Om, U)
-    ws = _Workspace(H, m)
+    ws = _Workspace(problem, R, Om)
     lin = _Linearisation(problem, R, Om, U, 2, "analytic")
     node, _, _ = _backward(lin, ws, 0.0)
     assert node >= 0

@@ -54,6 +54,20 @@ class Problem:
     def nu(self) -> int:
         return self.model.nu
 
+    @property
+    def nx(self) -> int:
+        """Dimension of the tangent state zeta = (eta, dOmega)."""
+        return 6
+
+    def trajectory_fields(self, R: np.ndarray, Omega: np.ndarray) -> dict:
+        """The trajectory and its target as :class:`geoddp.result.Result` fields."""
+        R_d, Omega_d = np.eye(3), np.zeros(3)
+        for t in self.terminal.terms:
+            R_d = getattr(t, "R_d", R_d)
+            Omega_d = getattr(t, "Omega_d", Omega_d)
+        return dict(rotations=R, angular_velocities=Omega, target_rotation=np.array(R_d),
+                    target_angular_velocity=np.array(Omega_d))
+
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
         """Validated (H, m) float64 copy of a control sequence."""
         return finite_array(controls, name, (self.horizon, self.nu))

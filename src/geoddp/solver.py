@@ -110,18 +110,21 @@ class SolverOptions:
 class _Workspace:
     """Per-solve buffers (Crocoddyl's 'data'): allocated once, reused every iteration."""
 
-    def __init__(self, H: int, m: int) -> None:
+    def __init__(self, problem: Problem, X: np.ndarray, Y: np.ndarray) -> None:
+        # A trajectory is a pair of state arrays (X, Y) over H+1 nodes, opaque to the solver:
+        # (R, Omega) on TSO(3), (q, v) for a multibody; nx is the dimension of its tangent space.
+        H, m, nx = problem.horizon, problem.nu, problem.nx
         self.k = np.zeros((H, m))
-        self.K = np.zeros((H, m, 6))
+        self.K = np.zeros((H, m, nx))
         self.grad = np.zeros((H, m))
         self.quu_eig = np.zeros(H)
-        self.R = np.empty((H + 1, 3, 3))
-        self.Om = np.empty((H + 1, 3))
+        self.R = np.empty_like(X)
+        self.Om = np.empty_like(Y)
         self.U = np.empty((H, m))
         # placeholders for first-order passes: the kernel never indexes them (memory stays O(H))
-        self.empty_theta = np.zeros((0, 6, 6, 6))
-        self.empty_gamma = np.zeros((0, 6, 6, m))
-        self.empty_xi = np.zeros((0, 6, m, m))
+        self.empty_theta = np.zeros((0, nx, nx, nx))
+        self.empty_gamma = np.zeros((0, nx, nx, m))
+        self.empty_xi = np.zeros((0, nx, m, m))
 
 
 class _Linearisation:
@@ -155,7 +158,7 @@ def cost_gradient(problem: Problem, controls: np.ndarray) -> tuple[float, np.nda
     U = problem.check_controls(controls, "controls")
     R, Om = problem.rollout(U)
     lin = _Linearisation(problem, R, Om, U, 1, "compiled")
-    ws = _Workspace(problem.horizon, problem.nu)
+    ws = _Workspace(problem, R, Om)
     return problem.cost(R, Om, U), _gradient(lin, ws).copy()
 
 
@@ -251,12 +254,12 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
     H, m = problem.horizon, problem.nu
     U = np.zeros((H, m)) if initial_controls is None else problem.check_controls(initial_controls)
     model = problem.model
-    ws = _Workspace(H, m)
     kernels.warm_up()
     t_start = time.perf_counter()
     timings = {"derivatives": 0.0, "backward": 0.0, "forward": 0.0, "final_check": 0.0}
 
     R, Om = problem.rollout(U)
+    ws = _Workspace(problem, R, Om)
     J = problem.cost(R, Om, U)
     if not np.isfinite(J):
         raise FloatingPointError("the initial guess gives a non-finite cost: check the initial controls")
@@ -454,13 +457,10 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
 
     return Result(
         times=np.arange(H + 1) * model.dt,
-        rotations=R,
-        angular_velocities=Om,
         controls=U,
         feedforward=ws.k.copy(),
         feedback=ws.K.copy(),
-        target_rotation=_target_rotation(problem),
-        target_angular_velocity=_target_rate(problem),
+        **problem.trajectory_fields(R, Om),
         cost=float(J),
         iterations=it,
         converged=converged,
@@ -481,16 +481,3 @@ def solve(problem: Problem, options: SolverOptions | None = None, initial_contro
         extra={"saddle_escapes": escapes} if escapes else {},
     )
 
-
-def _target_rotation(problem: Problem) -> np.ndarray:
-    for t in problem.terminal.terms:
-        if hasattr(t, "R_d"):
-            return t.R_d.copy()
-    return np.eye(3)
-
-
-def _target_rate(problem: Problem) -> np.ndarray:
-    for t in problem.terminal.terms:
-        if hasattr(t, "Omega_d"):
-            return t.Omega_d.copy()
-    return np.zeros(3)
