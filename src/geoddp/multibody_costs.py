@@ -208,7 +208,8 @@ class _ResidualTerm(MultibodyCostTerm):
             w = self.W @ r
             d.l[k] += 0.5 * r @ w
             d.lx[k, :nv] += J.T @ w
-            d.lxx[k, :nv, :nv] += J.T @ self.W @ J
+            G = J.T @ self.W @ J
+            d.lxx[k, :nv, :nv] += 0.5 * (G + G.T)  # exactly symmetric (round-off is not)
             # exactly zero at r = 0: skip the 2 nv kinematics passes there
             if not self.gauss_newton and np.any(w):
                 d.lxx[k, :nv, :nv] += self._second_order(q, k, w)
@@ -266,7 +267,14 @@ class FramePlacement(_FrameTerm):
 
     def _residual(self, q, k, jac):
         oMf, J = self._kinematics(q, jac)
-        E = self._Minv[k if len(self._Minv) > 1 else 0] * oMf
+        kk = k if len(self._Minv) > 1 else 0
+        Rref = self.M_ref[kk, :3, :3]
+        if np.array_equal(oMf.rotation, Rref):
+            # reference orientation reached exactly: R_ref^T R would leave ~1e-16 round-off in
+            # r; the identity makes the cost and its gradient exactly 0 at the reference
+            E = pin.SE3(np.eye(3), Rref.T @ (oMf.translation - self.M_ref[kk, :3, 3]))
+        else:
+            E = self._Minv[kk] * oMf
         r = pin.log6(E).vector
         return r, (pin.Jlog6(E) @ J if jac else None)
 
@@ -294,7 +302,9 @@ class FrameRotation(_FrameTerm):
 
     def _residual(self, q, k, jac):
         oMf, J = self._kinematics(q, jac)
-        E = self.R_ref[k if len(self.R_ref) > 1 else 0].T @ oMf.rotation
+        Rref = self.R_ref[k if len(self.R_ref) > 1 else 0]
+        # exact identity at the reference (see FramePlacement): r and l_x exactly 0 there
+        E = np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation
         r = pin.log3(E)
         # R(q exp(s dq)) = R exp(s J_ang dq): the angular LOCAL rows
         return r, (pin.Jlog3(E) @ J[3:6] if jac else None)
@@ -394,7 +404,8 @@ class StateRegularisation(MultibodyCostTerm):
             J = pin.dDifference(self.model, qr[k], Q[k], pin.ARG1)  # (nv, nv), identity on Euclidean joints
             d.lx[k, :nv] += J.T @ w[k, :nv]
             JW = J.T @ self.W[:nv]  # (nv, 2 nv)
-            d.lxx[k, :nv, :nv] += JW[:, :nv] @ J
+            G = JW[:, :nv] @ J
+            d.lxx[k, :nv, :nv] += 0.5 * (G + G.T)  # exactly symmetric (round-off is not)
             d.lxx[k, :nv, nv:] += JW[:, nv:]
             d.lxx[k, nv:, :nv] += JW[:, nv:].T
             wq = w[k, :nv]
