@@ -1,0 +1,556 @@
+"""Cost terms on the state space of a Pinocchio multibody, with (0)-Hessians.
+
+A multibody state is x = (q, v) with q in the configuration manifold of a ``pin.Model``
+(shape (nq,)) and v in R^nv. Its tangent perturbation is zeta = (dq, dv) in R^(2 nv), and the
+retraction is
+
+    retract(x, zeta) = (pin.integrate(model, q, dq), v + dv),
+
+the product of the joints' group exponentials (SE(3) for a free flyer, SO(3) for a spherical
+joint, U(1) for an unbounded revolute joint, vector spaces otherwise). Every term supplies, on
+N nodes at once (Q (N, nq), V (N, nv), U (N, m) or None for a terminal cost),
+
+    l    (N,)                 cost value (units of the cost: weight units x residual units^2)
+    l_x  (N, 2 nv)            d/ds l(retract(x, s zeta)) = l_x . zeta
+    l_xx (N, 2 nv, 2 nv)      the (0)-Hessian: symmetric part of
+                              d2/ds1 ds2 l(x exp(s1 z1) exp(s2 z2)) at 0
+                              (= second derivative along the curves s -> retract(x, s zeta),
+                              polarised; the Lie bracket term is antisymmetric and drops out)
+    l_u, l_ux, l_uu           Euclidean in u
+
+and adds them into a :class:`geoddp.costs.CostDerivatives` built with ``nx = 2 nv``.
+
+Residual costs l = 1/2 r^T W r with a residual r(q) and Jacobian J_r = dr/d(dq) have
+
+    l_x  = J_r^T W r
+    l_xx = J_r^T W J_r  (Gauss-Newton part)  +  sum_k (W r)_k Hess r_k  (second-order part).
+
+The second-order part is obtained as central differences, along each tangent direction e_j,
+of the map q -> J_r(q)^T w with the weight-residual product w = W r(x) *frozen* at the base
+point, then symmetrised. Freezing w makes the part exactly zero where r = 0, so the exact and
+the Gauss-Newton Hessians coincide there bit for bit, and the difference error scales with
+|W r| instead of with |l_x|. Why differences: the Pinocchio 4.1.0 pip wheel *does* expose
+second-order kinematics (``computeJointKinematicHessians`` / ``getFrameKinematicHessian``,
+the derivative of the joint Jacobians), but no second derivatives of ``log6``, ``log3`` or
+``difference``, which every geodesic residual here needs as well; differencing the analytic
+gradient covers both at once (error O(h^2) with h = 1e-5, measured ~1e-8 relative against
+the 4-point value stencil of the tests). It costs 2 nv extra kinematics passes per node and
+term (~10x the Gauss-Newton cost); ``gauss_newton=True`` skips it.
+
+Time-varying references (tracking). Every reference argument takes either one reference
+(``pin.SE3``, an (3, 3) rotation, a (3,) point, ...) or a stack of N of them, one per node
+(a list of ``pin.SE3`` or an (N, 4, 4) array, (N, 3, 3), (N, 3), (N, nq), (N, m), ...). A
+running cost in geoddp is evaluated on all N = H nodes at once, so node k simply uses
+reference k; evaluating a term with a stack of K references on N != K nodes raises
+:class:`InputError`. There is therefore no separate tracking class: a tracking term *is*
+a term with a per-node reference (see :func:`tracking_costs` for building several at once).
+
+Model/data separation as in Crocoddyl: each term keeps the (shared, read-only) ``pin.Model``
+and creates its own ``pin.Data`` once at construction; nothing allocates a Data per call.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .costs import CostDerivatives
+from .validate import InputError, closest, finite_array, rotation_matrix, spd_matrix
+
+__all__ = [
+    "ControlRegularisation",
+    "FramePlacement",
+    "FrameRotation",
+    "FrameTranslation",
+    "MultibodyCostSum",
+    "MultibodyCostTerm",
+    "StateRegularisation",
+    "tracking_costs",
+]
+
+# Central-difference step for the second-order part (rad or m of tangent motion): balances the
+# O(h^2) truncation of the analytic gradient's difference against eps/h round-off.
+_FD_STEP = 1e-5
+
+
+# --------------------------------------------------------------------------------------
+# validation helpers
+
+
+def _check_model(model: Any, name: str) -> pin.Model:
+    if not isinstance(model, pin.Model):
+        raise InputError(name, f"expected a pinocchio.Model, got {type(model).__name__}")
+    return model
+
+
+def _frame_id(model: pin.Model, frame_name: Any, name: str) -> int:
+    if not isinstance(frame_name, str):
+        raise InputError(name, f"expected a frame name (str), got {type(frame_name).__name__}")
+    if not model.existFrame(frame_name):
+        names = [f.name for f in model.frames]
+        guess = closest(frame_name, names)
+        hint = f"; did you mean {guess!r}?" if guess else ""
+        raise InputError(name, f"expected the name of a frame of model {model.name!r}, got {frame_name!r}{hint}")
+    return int(model.getFrameId(frame_name))
+
+
+def _stack(x: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """One reference of ``shape`` or a per-node stack (K, *shape), returned as (K, *shape)."""
+    A = finite_array(x, name)
+    if A.shape == shape:
+        return A[None]
+    if A.ndim == len(shape) + 1 and A.shape[1:] == shape and A.shape[0] >= 1:
+        return A
+    inner = ", ".join(str(s) for s in shape)
+    raise InputError(name, f"expected shape ({inner}{',' if len(shape) == 1 else ''}) or (N, {inner}), got shape {A.shape}")
+
+
+def _se3_stack(M: Any, name: str) -> np.ndarray:
+    """pin.SE3, (4, 4), a sequence of pin.SE3 or (N, 4, 4) -> (K, 4, 4) homogeneous matrices."""
+    if isinstance(M, pin.SE3):
+        raw: Any = M.homogeneous
+    elif isinstance(M, (list, tuple)) and M and all(isinstance(m, pin.SE3) for m in M):
+        raw = np.array([m.homogeneous for m in M])
+    else:
+        raw = M
+    H = _stack(raw, name, (4, 4))
+    for k, Hk in enumerate(H):
+        where = name if H.shape[0] == 1 else f"{name}[{k}]"
+        if not np.array_equal(Hk[3], [0.0, 0.0, 0.0, 1.0]):
+            raise InputError(where, f"expected a homogeneous transform with last row [0, 0, 0, 1], got {Hk[3]}")
+        rotation_matrix(Hk[:3, :3], f"{where} (rotation)")
+    return H
+
+
+def _pick(ref: np.ndarray, N: int, name: str) -> np.ndarray:
+    """Per-node references (N, ...) from a stack of 1 (broadcast) or N."""
+    if ref.shape[0] == 1:
+        return np.broadcast_to(ref, (N,) + ref.shape[1:])
+    if ref.shape[0] != N:
+        raise InputError(name, f"a per-node reference of {ref.shape[0]} nodes cannot be evaluated on {N} nodes")
+    return ref
+
+
+# --------------------------------------------------------------------------------------
+# base classes
+
+
+class MultibodyCostTerm:
+    """Base class: ``value`` and ``accumulate`` over N nodes of a multibody state.
+
+    Attributes:
+        model: the ``pin.Model`` (None for terms that only see the control).
+        uses_control: True if the term needs U (cannot be part of a terminal cost).
+    """
+
+    uses_control = False
+    model: pin.Model | None = None
+
+    def value(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> np.ndarray:
+        """(N,) cost values at Q (N, nq), V (N, nv), U (N, m) or None."""
+        raise NotImplementedError
+
+    def accumulate(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None, d: CostDerivatives) -> None:
+        """Add this term's value, gradient (N, 2 nv) and (0)-Hessian (N, 2 nv, 2 nv) into ``d``."""
+        raise NotImplementedError
+
+
+class _ResidualTerm(MultibodyCostTerm):
+    """1/2 r(q)^T W r(q) for a residual of the configuration only (subclasses: frame terms)."""
+
+    nr: int = 0
+
+    def __init__(self, model: pin.Model, W: Any, gauss_newton: bool) -> None:
+        cls = type(self).__name__
+        self.model = _check_model(model, f"{cls}.model")
+        self.data = self.model.createData()
+        self.nv = self.model.nv
+        self.W = spd_matrix(W, f"{cls}.W", self.nr, semidefinite=True)
+        if not isinstance(gauss_newton, (bool, np.bool_)):
+            raise InputError(f"{cls}.gauss_newton", f"expected True or False, got {gauss_newton!r}")
+        self.gauss_newton = bool(gauss_newton)
+
+    # subclasses: residual r (nr,) of node k, and with jac=True also J_r (nr, nv)
+    def _residual(self, q: np.ndarray, k: int, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        raise NotImplementedError
+
+    def _check_nodes(self, N: int) -> None:
+        """Raise if a per-node reference does not match N (subclasses)."""
+
+    def residual(self, Q: np.ndarray) -> np.ndarray:
+        """(N, nr) residuals at configurations Q (N, nq)."""
+        self._check_nodes(Q.shape[0])
+        return np.array([self._residual(q, k, False)[0] for k, q in enumerate(Q)]).reshape(Q.shape[0], self.nr)
+
+    def value(self, Q, V, U):
+        r = self.residual(Q)
+        return 0.5 * np.einsum("ni,ij,nj->n", r, self.W, r)
+
+    def _second_order(self, q: np.ndarray, k: int, w: np.ndarray) -> np.ndarray:
+        """(nv, nv) sym(sum_k w_k Hess r_k): central differences of J_r(q)^T w, w frozen."""
+        nv = self.nv
+        H = np.empty((nv, nv))
+        e = np.zeros(nv)
+        for j in range(nv):
+            e[j] = _FD_STEP
+            _, Jp = self._residual(pin.integrate(self.model, q, e), k, True)
+            _, Jm = self._residual(pin.integrate(self.model, q, -e), k, True)
+            e[j] = 0.0
+            H[:, j] = (Jp - Jm).T @ w / (2.0 * _FD_STEP)
+        return 0.5 * (H + H.T)
+
+    def accumulate(self, Q, V, U, d):
+        self._check_nodes(Q.shape[0])
+        nv = self.nv
+        for k, q in enumerate(Q):
+            r, J = self._residual(q, k, True)
+            w = self.W @ r
+            d.l[k] += 0.5 * r @ w
+            d.lx[k, :nv] += J.T @ w
+            G = J.T @ self.W @ J
+            d.lxx[k, :nv, :nv] += 0.5 * (G + G.T)  # exactly symmetric (round-off is not)
+            # exactly zero at r = 0: skip the 2 nv kinematics passes there
+            if not self.gauss_newton and np.any(w):
+                d.lxx[k, :nv, :nv] += self._second_order(q, k, w)
+
+
+class _FrameTerm(_ResidualTerm):
+    def __init__(self, model: pin.Model, frame_name: str, W: Any, gauss_newton: bool) -> None:
+        super().__init__(model, W, gauss_newton)
+        self.frame_name = frame_name
+        self.frame_id = _frame_id(self.model, frame_name, f"{type(self).__name__}.frame_name")
+
+    def _kinematics(self, q: np.ndarray, jac: bool) -> tuple[pin.SE3, np.ndarray | None]:
+        """World placement oMf of the frame and, with jac, its LOCAL Jacobian (6, nv).
+
+        The LOCAL Jacobian is the right-trivialised one: oMf(integrate(q, s dq)) =
+        oMf(q) exp6(s J dq) + O(s^2), [linear; angular] rows (checked by the tests).
+        """
+        if jac:
+            pin.computeJointJacobians(self.model, self.data, q)  # also runs forward kinematics
+            oMf = pin.updateFramePlacement(self.model, self.data, self.frame_id)
+            return oMf, pin.getFrameJacobian(self.model, self.data, self.frame_id, pin.LOCAL)
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, self.frame_id), None
+
+
+# --------------------------------------------------------------------------------------
+# frame terms
+
+
+class FramePlacement(_FrameTerm):
+    """1/2 r^T W r with r = log6(M_ref^-1 oMf(q)) (6,), [linear (m); angular (rad)].
+
+    Args:
+        model: the multibody.
+        frame_name: a frame of ``model``.
+        M_ref: target world placement: ``pin.SE3`` or (4, 4), or per node a list of N
+            ``pin.SE3`` or an (N, 4, 4) array (tracking).
+        W: (6, 6) PSD weight (scalar or length-6 diagonal accepted), [linear; angular] order.
+        gauss_newton: use only J^T W J (no second-order part) in l_xx.
+
+    The log6 has a cut locus at a relative rotation angle of pi (the gradient jumps there).
+    """
+
+    nr = 6
+
+    def __init__(self, model: pin.Model, frame_name: str, M_ref: Any, W: Any = 1.0,
+                 gauss_newton: bool = False) -> None:
+        super().__init__(model, frame_name, W, gauss_newton)
+        self.M_ref = _se3_stack(M_ref, "FramePlacement.M_ref")  # (K, 4, 4)
+        # inverse once: the residual needs M_ref^-1 at every evaluation
+        self._Minv = [pin.SE3(H).inverse() for H in self.M_ref]
+
+    def _check_nodes(self, N):
+        _pick(self.M_ref, N, "FramePlacement.M_ref")
+
+    def _residual(self, q, k, jac):
+        oMf, J = self._kinematics(q, jac)
+        kk = k if len(self._Minv) > 1 else 0
+        Rref = self.M_ref[kk, :3, :3]
+        if np.array_equal(oMf.rotation, Rref):
+            # reference orientation reached exactly: R_ref^T R would leave ~1e-16 round-off in
+            # r; the identity makes the cost and its gradient exactly 0 at the reference
+            E = pin.SE3(np.eye(3), Rref.T @ (oMf.translation - self.M_ref[kk, :3, 3]))
+        else:
+            E = self._Minv[kk] * oMf
+        r = pin.log6(E).vector
+        return r, (pin.Jlog6(E) @ J if jac else None)
+
+
+class FrameRotation(_FrameTerm):
+    """1/2 r^T W r with r = log3(R_ref^T R_frame(q)) (3,) in rad.
+
+    Args:
+        R_ref: target world orientation (3, 3) or per node (N, 3, 3).
+        W: (3, 3) PSD weight (scalar or length-3 diagonal accepted).
+    """
+
+    nr = 3
+
+    def __init__(self, model: pin.Model, frame_name: str, R_ref: Any, W: Any = 1.0,
+                 gauss_newton: bool = False) -> None:
+        super().__init__(model, frame_name, W, gauss_newton)
+        R = _stack(R_ref, "FrameRotation.R_ref", (3, 3))
+        for k, Rk in enumerate(R):
+            rotation_matrix(Rk, "FrameRotation.R_ref" if len(R) == 1 else f"FrameRotation.R_ref[{k}]")
+        self.R_ref = R  # (K, 3, 3)
+
+    def _check_nodes(self, N):
+        _pick(self.R_ref, N, "FrameRotation.R_ref")
+
+    def _residual(self, q, k, jac):
+        oMf, J = self._kinematics(q, jac)
+        Rref = self.R_ref[k if len(self.R_ref) > 1 else 0]
+        # exact identity at the reference (see FramePlacement): r and l_x exactly 0 there
+        E = np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation
+        r = pin.log3(E)
+        # R(q exp(s dq)) = R exp(s J_ang dq): the angular LOCAL rows
+        return r, (pin.Jlog3(E) @ J[3:6] if jac else None)
+
+
+class FrameTranslation(_FrameTerm):
+    """1/2 r^T W r with r = p_frame(q) - p_ref (3,) in m, world frame.
+
+    Args:
+        p_ref: target world position (3,) or per node (N, 3), m.
+        W: (3, 3) PSD weight (scalar or length-3 diagonal accepted).
+    """
+
+    nr = 3
+
+    def __init__(self, model: pin.Model, frame_name: str, p_ref: Any, W: Any = 1.0,
+                 gauss_newton: bool = False) -> None:
+        super().__init__(model, frame_name, W, gauss_newton)
+        self.p_ref = _stack(p_ref, "FrameTranslation.p_ref", (3,))  # (K, 3)
+
+    def _check_nodes(self, N):
+        _pick(self.p_ref, N, "FrameTranslation.p_ref")
+
+    def _residual(self, q, k, jac):
+        oMf, J = self._kinematics(q, jac)
+        r = oMf.translation - self.p_ref[k if len(self.p_ref) > 1 else 0]
+        # the LOCAL linear rows give the velocity in the frame's axes; rotate to the world
+        return r, (oMf.rotation @ J[0:3] if jac else None)
+
+
+# --------------------------------------------------------------------------------------
+# state and control
+
+
+class StateRegularisation(MultibodyCostTerm):
+    """1/2 r^T W r with r = (pin.difference(model, q_ref, q), v - v_ref) (2 nv,).
+
+    Args:
+        model: the multibody.
+        q_ref: (nq,) or per node (N, nq) reference configuration (normalised quaternions).
+        v_ref: (nv,) or per node (N, nv) reference velocity; default 0.
+        W: (2 nv, 2 nv) PSD weight (scalar or length-2nv diagonal accepted), [dq; dv] order.
+        gauss_newton: drop the second-order part of ``difference`` (only non-Euclidean joints
+            have one: free flyer, spherical, planar, unbounded revolute).
+
+    Euclidean joints (nq_j == nv_j: revolute, prismatic, ...) have difference = q - q_ref,
+    so their Hessian is closed-form; the second-order part is differenced only along the
+    tangent directions of the non-Euclidean joints (none for a fixed-base revolute arm).
+    """
+
+    def __init__(self, model: pin.Model, q_ref: Any, v_ref: Any = None, W: Any = 1.0,
+                 gauss_newton: bool = False) -> None:
+        self.model = _check_model(model, "StateRegularisation.model")
+        self.data = self.model.createData()
+        nq, nv = self.model.nq, self.model.nv
+        self.nv = nv
+        self.q_ref = _stack(q_ref, "StateRegularisation.q_ref", (nq,))
+        for k, qk in enumerate(self.q_ref):
+            if not pin.isNormalized(self.model, qk, 1e-9):
+                raise InputError("StateRegularisation.q_ref" + ("" if len(self.q_ref) == 1 else f"[{k}]"),
+                                 "expected a normalised configuration (unit quaternions / unit complex numbers)")
+        self.v_ref = (np.zeros((1, nv)) if v_ref is None
+                      else _stack(v_ref, "StateRegularisation.v_ref", (nv,)))
+        self.W = spd_matrix(W, "StateRegularisation.W", 2 * nv, semidefinite=True)
+        if not isinstance(gauss_newton, (bool, np.bool_)):
+            raise InputError("StateRegularisation.gauss_newton", f"expected True or False, got {gauss_newton!r}")
+        self.gauss_newton = bool(gauss_newton)
+        # tangent indices of the joints whose configuration space is not a vector space
+        self.curved_dofs = np.array(
+            [j.idx_v + i for j in self.model.joints[1:] if j.nq != j.nv for i in range(j.nv)], dtype=int)
+
+    def _check_nodes(self, N: int) -> None:
+        _pick(self.q_ref, N, "StateRegularisation.q_ref")
+        _pick(self.v_ref, N, "StateRegularisation.v_ref")
+
+    def residual(self, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
+        """(N, 2 nv) residuals."""
+        N = Q.shape[0]
+        self._check_nodes(N)
+        qr, vr = _pick(self.q_ref, N, ""), _pick(self.v_ref, N, "")
+        rq = np.array([pin.difference(self.model, qr[k], Q[k]) for k in range(N)]).reshape(N, self.nv)
+        return np.concatenate([rq, V - vr], axis=1)
+
+    def value(self, Q, V, U):
+        r = self.residual(Q, V)
+        return 0.5 * np.einsum("ni,ij,nj->n", r, self.W, r)
+
+    def accumulate(self, Q, V, U, d):
+        N, nv = Q.shape[0], self.nv
+        r = self.residual(Q, V)
+        w = r @ self.W  # (N, 2 nv); W symmetric
+        qr = _pick(self.q_ref, N, "")
+        d.l += 0.5 * np.einsum("ni,ni->n", r, w)
+        d.lx[:, nv:] += w[:, nv:]
+        d.lxx[:, nv:, nv:] += self.W[nv:, nv:]
+        for k in range(N):
+            J = pin.dDifference(self.model, qr[k], Q[k], pin.ARG1)  # (nv, nv), identity on Euclidean joints
+            d.lx[k, :nv] += J.T @ w[k, :nv]
+            JW = J.T @ self.W[:nv]  # (nv, 2 nv)
+            G = JW[:, :nv] @ J
+            d.lxx[k, :nv, :nv] += 0.5 * (G + G.T)  # exactly symmetric (round-off is not)
+            d.lxx[k, :nv, nv:] += JW[:, nv:]
+            d.lxx[k, nv:, :nv] += JW[:, nv:].T
+            wq = w[k, :nv]
+            if not self.gauss_newton and self.curved_dofs.size and np.any(wq):
+                # difference is joint-wise, so its second-order part lives on curved joints only
+                H = np.zeros((nv, nv))
+                e = np.zeros(nv)
+                for j in self.curved_dofs:
+                    e[j] = _FD_STEP
+                    Jp = pin.dDifference(self.model, qr[k], pin.integrate(self.model, Q[k], e), pin.ARG1)
+                    Jm = pin.dDifference(self.model, qr[k], pin.integrate(self.model, Q[k], -e), pin.ARG1)
+                    e[j] = 0.0
+                    H[:, j] = (Jp - Jm).T @ wq / (2.0 * _FD_STEP)
+                d.lxx[k, :nv, :nv] += 0.5 * (H + H.T)
+
+
+class ControlRegularisation(MultibodyCostTerm):
+    """1/2 (u - u_ref)^T W (u - u_ref), u in R^m (units of the inputs, e.g. N m).
+
+    Args:
+        u_ref: (m,) or per node (N, m) reference input; fixes m.
+        W: (m, m) PSD weight (scalar or length-m diagonal accepted).
+
+    Like :class:`geoddp.costs.ControlQuadratic` but with per-node references and PSD weights
+    (the solver's regularisation handles a singular l_uu).
+    """
+
+    uses_control = True
+
+    def __init__(self, u_ref: Any, W: Any = 1.0) -> None:
+        ref = finite_array(u_ref, "ControlRegularisation.u_ref")
+        if ref.ndim not in (1, 2) or ref.shape[-1] < 1:
+            raise InputError("ControlRegularisation.u_ref", f"expected shape (m,) or (N, m), got shape {ref.shape}")
+        self.u_ref = ref.reshape(-1, ref.shape[-1])  # (K, m)
+        self.m = self.u_ref.shape[1]
+        self.W = spd_matrix(W, "ControlRegularisation.W", self.m, semidefinite=True)
+
+    def _e(self, U: np.ndarray | None) -> np.ndarray:
+        if U is None:
+            raise InputError("ControlRegularisation", "a control cost term cannot be evaluated without controls "
+                             "(U = None: a terminal cost)")
+        if U.ndim != 2 or U.shape[1] != self.m:
+            raise InputError("U", f"expected shape (N, {self.m}), got shape {U.shape}")
+        return U - _pick(self.u_ref, U.shape[0], "ControlRegularisation.u_ref")
+
+    def value(self, Q, V, U):
+        e = self._e(U)
+        return 0.5 * np.einsum("ni,ij,nj->n", e, self.W, e)
+
+    def accumulate(self, Q, V, U, d):
+        e = self._e(U)
+        We = e @ self.W
+        d.l += 0.5 * np.einsum("ni,ni->n", e, We)
+        d.lu += We
+        d.luu += self.W
+
+
+# --------------------------------------------------------------------------------------
+# sums and tracking
+
+
+class MultibodyCostSum:
+    """A sum of multibody terms: the running or terminal cost; nx = 2 nv from the model.
+
+    Args:
+        terms: the terms; every term with a model must share nq and nv.
+        model: the model fixing nx (default: the first term's).
+        terminal: if True, refuse control terms at construction (they need U).
+    """
+
+    def __init__(self, terms: Sequence[MultibodyCostTerm], model: pin.Model | None = None,
+                 terminal: bool = False) -> None:
+        self.terms = list(terms)
+        for i, t in enumerate(self.terms):
+            if not isinstance(t, MultibodyCostTerm):
+                raise InputError(f"terms[{i}]", f"expected a MultibodyCostTerm, got {type(t).__name__}")
+        if model is None:
+            model = next((t.model for t in self.terms if t.model is not None), None)
+            if model is None:
+                raise InputError("model", "no term has a model: pass model= to fix the state dimension")
+        self.model = _check_model(model, "model")
+        for i, t in enumerate(self.terms):
+            if t.model is not None and (t.model.nq, t.model.nv) != (model.nq, model.nv):
+                raise InputError(f"terms[{i}]", f"expected a term on a model with (nq, nv) = "
+                                 f"({model.nq}, {model.nv}), got ({t.model.nq}, {t.model.nv})")
+        self.terminal = bool(terminal)
+        if self.terminal:
+            self._refuse_control()
+
+    @property
+    def nx(self) -> int:
+        """Tangent state dimension 2 nv."""
+        return 2 * self.model.nv
+
+    def _refuse_control(self) -> None:
+        for i, t in enumerate(self.terms):
+            if t.uses_control:
+                raise InputError(f"terms[{i}]", f"a control cost term ({type(t).__name__}) cannot be part of a "
+                                 "terminal cost (there is no control at the final node)")
+
+    def _check(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> int:
+        N = Q.shape[0] if Q.ndim == 2 else -1
+        if Q.shape != (N, self.model.nq):
+            raise InputError("Q", f"expected shape (N, {self.model.nq}), got shape {Q.shape}")
+        if V.shape != (N, self.model.nv):
+            raise InputError("V", f"expected shape ({N}, {self.model.nv}), got shape {V.shape}")
+        if U is None:
+            self._refuse_control()
+        elif U.ndim != 2 or U.shape[0] != N:
+            raise InputError("U", f"expected shape ({N}, m), got shape {U.shape}")
+        return N
+
+    def value(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> np.ndarray:
+        """(N,) summed values."""
+        out = np.zeros(self._check(Q, V, U))
+        for t in self.terms:
+            out += t.value(Q, V, U)
+        return out
+
+    def derivatives(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> CostDerivatives:
+        """Summed :class:`CostDerivatives` (nx = 2 nv; m = 0 and empty l_u when U is None)."""
+        N = self._check(Q, V, U)
+        d = CostDerivatives.zeros(N, 0 if U is None else U.shape[1], self.nx)
+        for t in self.terms:
+            t.accumulate(Q, V, U, d)
+        return d
+
+
+def tracking_costs(term_factory: Callable[[Any], MultibodyCostTerm], references: Sequence[Any]) -> MultibodyCostTerm:
+    """Build one tracking term from a factory and N per-node references.
+
+    ``term_factory(ref)`` must build a term from one reference *or* from the stacked
+    references, e.g. ``lambda p: FrameTranslation(model, "tool", p, W)``. The references are
+    stacked (``np.stack``; lists of ``pin.SE3`` are passed as a list) and given to the factory
+    once, so the result is a single term whose node k follows ``references[k]`` -- one
+    vectorised term rather than N single-node terms, which would not fit the N-node API.
+    """
+    refs = list(references)
+    if not refs:
+        raise InputError("references", "expected at least one reference")
+    if all(isinstance(r, pin.SE3) for r in refs):
+        return term_factory(refs)
+    try:
+        stacked = np.stack([np.asarray(r, dtype=float) for r in refs])
+    except (ValueError, TypeError) as exc:
+        raise InputError("references", f"expected references of one common shape ({exc})") from None
+    return term_factory(stacked)
