@@ -11,8 +11,8 @@ with omega = dt w_bar, A = exp(-omega), rho = dt delta w (derived for any Lie gr
 module docstring of :mod:`geoddp.integrators`). The joint groups Pinocchio uses are
 
 * ``"vector"``: R^k with addition (revolute and prismatic joints, translation, SphericalZYX,
-  which Pinocchio integrates additively) and SO(2) (revolute-unbounded joints, (cos, sin)
-  coordinates). Both are commutative: Ad = I, Jr = I, dJr = 0 and the bracket vanishes, so the
+  which Pinocchio integrates additively), and ``"so2"``: revolute-unbounded joints, (cos, sin)
+  coordinates. Both are commutative: Ad = I, Jr = I, dJr = 0 and the bracket vanishes, so the
   reconstruction is exactly linear.
 * ``"so3"``: the spherical joint; quaternion coordinates, body-frame tangent (3,), ad = hat,
   Jr, dJr from :class:`geoddp.lie.SO3`.
@@ -34,16 +34,15 @@ from .lie import SO3, hat
 _VECTOR_SHORTNAMES = frozenset(
     ["JointModelR" + a for a in "XYZ"]
     + ["JointModelP" + a for a in "XYZ"]
-    + ["JointModelRUB" + a for a in "XYZ"]
     + [
         "JointModelRevoluteUnaligned",
         "JointModelPrismaticUnaligned",
-        "JointModelRevoluteUnboundedUnaligned",
         "JointModelTranslation",
         "JointModelSphericalZYX",
     ]
 )
-KINDS = ("vector", "so3", "se3")
+_SO2_SHORTNAMES = frozenset(["JointModelRUB" + a for a in "XYZ"] + ["JointModelRevoluteUnboundedUnaligned"])
+KINDS = ("vector", "so2", "so3", "se3")
 
 # Structure constants C[i, p, q] = [e_p, e_q]_i of each non-commutative joint algebra.
 _SO3_C = np.moveaxis(hat(np.eye(3)), 0, 1)  # hat(e_p) e_q = e_p x e_q; C[i, p, q] = hat(e_p)[i, q]
@@ -56,12 +55,14 @@ _SE3_DJR_STEP = 1e-5
 
 @dataclass(frozen=True)
 class JointGroup:
-    """One joint's Lie group: its name, kind ("vector" | "so3" | "se3") and tangent slice."""
+    """One joint's Lie group: its name, kind (one of :data:`KINDS`), tangent slice and the
+    start of its configuration coordinates (idx_q)."""
 
     name: str
     kind: str
     idx_v: int
     nv: int
+    idx_q: int = -1
 
     @property
     def slice(self) -> slice:
@@ -80,6 +81,8 @@ def joint_groups(model: pin.Model) -> list[JointGroup]:
         short = jm.shortname()
         if short in _VECTOR_SHORTNAMES:
             kind = "vector"
+        elif short in _SO2_SHORTNAMES:
+            kind = "so2"
         elif short == "JointModelSpherical":
             kind = "so3"
         elif short == "JointModelFreeFlyer":
@@ -89,8 +92,24 @@ def joint_groups(model: pin.Model) -> list[JointGroup]:
                 f"joint {model.names[j]!r} of type {short} is not supported "
                 f"(supported: revolute, continuous, prismatic, spherical, free-flyer)"
             )
-        out.append(JointGroup(model.names[j], kind, jm.idx_v, jm.nv))
+        out.append(JointGroup(model.names[j], kind, jm.idx_v, jm.nv, jm.idx_q))
     return out
+
+
+def difference(model: pin.Model, groups: list[JointGroup], q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """log(q0^-1 q1) per joint, (nv,): ``pin.difference`` with exact SO(2) entries.
+
+    Why: Pinocchio 4.1's SO(2) log returns 0 whenever the rounded trace of the relative rotation
+    exceeds 2, i.e. for some angles below ~1e-8 (measured: up to 5e-9 returned as 0), which
+    spoils finite differences. atan2 of the relative (cos, sin) is exact there.
+    """
+    d = pin.difference(model, q0, q1)
+    for g in groups:
+        if g.kind == "so2":
+            c0, s0 = q0[g.idx_q], q0[g.idx_q + 1]
+            c1, s1 = q1[g.idx_q], q1[g.idx_q + 1]
+            d[g.idx_v] = np.arctan2(c0 * s1 - s0 * c1, c0 * c1 + s0 * s1)
+    return d
 
 
 def se3_dJr(x: np.ndarray) -> np.ndarray:

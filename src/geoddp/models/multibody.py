@@ -8,6 +8,8 @@ Dynamics (Pinocchio is the source of truth):
     v+ = v + dt aba(q, v, H u)                      (H: nv x m actuation, generalised forces)
     q+ = integrate(q, dt w),  w = v  (explicit Euler, paper eq. disceq)
                               w = v+ (semi-implicit Euler, Crocoddyl's).
+or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step of :mod:`geoddp.rkmk4`
+(first-order expansion only).
 
 Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
 * velocity update: first order from ``computeABADerivatives`` (ddq_dq, ddq_dv, Minv); second
@@ -29,9 +31,11 @@ import pinocchio as pin
 
 from .. import configuration as cfg
 from .. import integrators as integ
+from .. import rkmk4
 from ..validate import InputError, choice, finite_array, positive_float
 
 ROOTS = ("free_flyer", "spherical", "fixed")
+INTEGRATORS = integ.INTEGRATORS + ("rk4",)
 SECOND_ORDER_KINDS = ("exact",)
 # Central-difference step for the second derivatives of the velocity update: the error is
 # ~h^2 |f'''| / 6 + eps |f'| / h; h = 1e-5 balances them near 1e-10 relative (tested against a
@@ -54,7 +58,8 @@ class Multibody:
             identity (every degree of freedom actuated). For a free-flyer root the first six
             rows are the body wrench [force; torque] in the root body frame.
         dt: time step, s.
-        integrator: "euler" (paper) or "semi_implicit" (Crocoddyl).
+        integrator: "euler" (paper), "semi_implicit" (Crocoddyl) or "rk4" (RKMK4, first-order
+            expansion only).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
     """
@@ -72,7 +77,7 @@ class Multibody:
     def __post_init__(self) -> None:
         self.root = choice(self.root, "root", ROOTS)
         self.dt = positive_float(self.dt, "dt")
-        self.integrator = choice(self.integrator, "integrator", integ.INTEGRATORS)
+        self.integrator = choice(self.integrator, "integrator", INTEGRATORS)
         self.second_order = choice(self.second_order, "second_order", SECOND_ORDER_KINDS)
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
@@ -140,12 +145,17 @@ class Multibody:
         return pin.integrate(self.pin_model, q, zeta[:nv]), v + zeta[nv:]
 
     def local(self, q_bar: np.ndarray, v_bar: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Inverse of :meth:`retract`: zeta = (difference(q_bar, q), v - v_bar), (2 nv,)."""
-        return np.concatenate([pin.difference(self.pin_model, q_bar, q), v - v_bar])
+        """Inverse of :meth:`retract`: zeta = (difference(q_bar, q), v - v_bar), (2 nv,).
+
+        ``pin.difference`` with exact SO(2) entries (:func:`geoddp.configuration.difference`).
+        """
+        return np.concatenate([cfg.difference(self.pin_model, self.groups, q_bar, q), v - v_bar])
 
     # ------------------------------------------------------------------ dynamics
     def _step(self, data: pin.Data, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         model = self.pin_model
+        if self.integrator == "rk4":
+            return rkmk4.step(model, data, q, v, self.actuation @ u, self.dt)
         v_next = v + self.dt * pin.aba(model, data, q, v, self.actuation @ u)
         w = v_next if self.semi_implicit else v
         # No pin.normalize: integrate already renormalises to first order, and normalize moves
@@ -226,6 +236,13 @@ class Multibody:
         nv, m, dt = self.nv, self.nu, self.dt
         n, nz = 2 * nv, 2 * nv + m
         model = self.pin_model
+        if self.integrator == "rk4":
+            if order != 1:
+                raise InputError("order", f"expected 1 for integrator 'rk4' (first-order expansion only), got {order!r}")
+            data = model.createData()
+            G = np.stack([rkmk4.step_jacobian(model, data, self.groups, Q[k], V[k], self.actuation @ U[k], self.actuation, dt)
+                          for k in range(H)])
+            return integ.Expansion(Phi=np.ascontiguousarray(G[:, :, :n]), B=np.ascontiguousarray(G[:, :, n:]))
         F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
         W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
         # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
