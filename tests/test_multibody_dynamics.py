@@ -477,13 +477,34 @@ def test_invalid_inputs_name_the_parameter(kw, param):
     assert info.value.parameter == param
 
 
+def test_dt_is_required_and_states_and_controls_are_checked(rng):
+    with pytest.raises(TypeError, match="dt"):
+        Multibody(URDF)
+    mb = _model()
+    q0, v0 = mb.neutral(), np.zeros(mb.nv)
+    U = np.zeros((3, mb.nu))
+    bad_q = q0.copy()
+    bad_q[3:7] = [0.5, 0.0, 0.0, 0.5]  # non-unit quaternion
+    for args, param in [((bad_q, v0, U), "initial.q"), ((q0[:-1], v0, U), "initial.q"),
+                        ((q0, v0[:-1], U), "initial.v"), ((q0, v0, U[:, :-1]), "controls"),
+                        ((q0, v0, np.full_like(U, np.nan)), "controls")]:
+        with pytest.raises(InputError) as info:
+            mb.rollout(*args)
+        assert info.value.parameter == param
+    Q, V = mb.rollout(q0, v0, U)
+    for args, kw, param in [((Q[:-1], V, U), {}, "Q"), ((Q, V[:, :-1], U), {}, "V"), ((Q, V, U), {"order": 3}, "order")]:
+        with pytest.raises(InputError) as info:
+            mb.expansion(*args, **kw)
+        assert info.value.parameter == param
+
+
 def test_invalid_urdf_is_refused(tmp_path):
     with pytest.raises(InputError, match="urdf"):
-        Multibody(tmp_path / "missing.urdf")
+        Multibody(tmp_path / "missing.urdf", dt=DT)
     bad = tmp_path / "bad.urdf"
     bad.write_text("<robot name='x'><link name='a'/>")
     with pytest.raises(InputError, match="urdf"):
-        Multibody(bad)
+        Multibody(bad, dt=DT)
     planar = tmp_path / "planar.urdf"
     planar.write_text(
         "<robot name='p'><link name='a'/><link name='b'><inertial><mass value='1'/>"
@@ -491,4 +512,4 @@ def test_invalid_urdf_is_refused(tmp_path):
         "<joint name='pl' type='planar'><parent link='a'/><child link='b'/><axis xyz='0 0 1'/></joint></robot>"
     )
     with pytest.raises(InputError, match="pl.*not supported"):
-        Multibody(planar, root="fixed")
+        Multibody(planar, root="fixed", dt=DT)

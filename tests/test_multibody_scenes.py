@@ -104,7 +104,7 @@ def test_quadrotor_urdf_is_one_1p5kg_body():
 
 
 def test_space_manipulator_urdf_is_a_base_and_a_three_joint_arm_with_an_ee_frame():
-    mb = Multibody(MODELS / "space_manipulator.urdf", root="free_flyer", gravity=False)
+    mb = Multibody(MODELS / "space_manipulator.urdf", root="free_flyer", gravity=False, dt=0.05)
     m = mb.pin_model
     assert (m.nq, m.nv) == (10, 9)
     shorts = [m.joints[j].shortname() for j in range(1, m.njoints)]

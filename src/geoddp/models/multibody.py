@@ -67,7 +67,7 @@ class Multibody:
     urdf: str | Path
     root: str = "free_flyer"
     actuation: np.ndarray | None = None
-    dt: float = 0.01
+    dt: float = field(kw_only=True)  # required, by keyword
     integrator: str = "euler"
     gravity: bool = True
     second_order: str = "exact"
@@ -166,9 +166,22 @@ class Multibody:
         """One step: q (nq,), v (nv,) (m/s, rad/s per joint), u (m,) -> (q+, v+)."""
         return self._step(self.pin_model.createData(), q, v, u)
 
+    def check_state(self, q: np.ndarray, v: np.ndarray, name: str = "initial") -> tuple[np.ndarray, np.ndarray]:
+        """Validate a state: q (nq,) with unit quaternions / (cos, sin) pairs, v (nv,)."""
+        q = finite_array(q, f"{name}.q", (self.nq,))
+        v = finite_array(v, f"{name}.v", (self.nv,))
+        if not pin.isNormalized(self.pin_model, q, 1e-9):
+            raise InputError(f"{name}.q", "expected unit quaternions and unit (cos, sin) pairs (use pin.normalize), got a non-normalised configuration")
+        return q, v
+
+    def check_controls(self, controls: np.ndarray, H: int | None = None) -> np.ndarray:
+        """Validate controls (H, m)."""
+        return finite_array(controls, "controls", (H, self.nu))
+
     def rollout(self, q0: np.ndarray, v0: np.ndarray, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Open-loop rollout: q0 (nq,), v0 (nv,), controls (H, m) -> Q (H+1, nq), V (H+1, nv)."""
-        U = np.asarray(controls, dtype=float)
+        q0, v0 = self.check_state(q0, v0)
+        U = self.check_controls(controls)
         H = U.shape[0]
         data = self.pin_model.createData()
         Q = np.empty((H + 1, self.nq))
@@ -231,8 +244,12 @@ class Multibody:
         Theta (H, nx, nx, nx), Gamma (H, nx, nx, m), Xi (H, nx, m, m), nx = 2 nv, with
         zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du^T Xi_i du.
         """
-        U = np.asarray(controls, dtype=float)
+        U = self.check_controls(controls)
         H = U.shape[0]
+        Q = finite_array(Q, "Q", (H + 1, self.nq))
+        V = finite_array(V, "V", (H + 1, self.nv))
+        if order not in (1, 2):
+            raise InputError("order", f"expected 1 or 2, got {order!r}")
         nv, m, dt = self.nv, self.nu, self.dt
         n, nz = 2 * nv, 2 * nv + m
         model = self.pin_model
