@@ -240,7 +240,8 @@ class Multibody:
     def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
 
-        Q (H+1, nq), V (H+1, nv), controls (H, m). Shapes: Phi (H, nx, nx), B (H, nx, m),
+        Q (H+1, nq), V (H+1, nv), controls (H, m), with (Q, V) the rollout of controls (the
+        semi-implicit reconstruction takes V[k+1] as the nominal v+). Shapes: Phi (H, nx, nx), B (H, nx, m),
         Theta (H, nx, nx, nx), Gamma (H, nx, nx, m), Xi (H, nx, m, m), nx = 2 nv, with
         zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du^T Xi_i du.
         """
