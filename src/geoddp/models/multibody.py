@@ -1,0 +1,302 @@
+"""Any Pinocchio multibody model as a DDP model on its state Lie group Q x R^nv.
+
+State x = (q, v): q in R^nq (Pinocchio's configuration coordinates), v in R^nv. Perturbations are
+zeta = (dq, dv) in R^(2 nv) with q = integrate(q_bar, dq), v = v_bar + dv (:meth:`Multibody.retract`
+and :meth:`Multibody.local` are the one place this is defined), so nx = 2 nv.
+
+Dynamics (Pinocchio is the source of truth):
+    v+ = v + dt aba(q, v, H u)                      (H: nv x m actuation, generalised forces)
+    q+ = integrate(q, dt w),  w = v  (explicit Euler, paper eq. disceq)
+                              w = v+ (semi-implicit Euler, Crocoddyl's).
+or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step of :mod:`geoddp.rkmk4`
+(first-order expansion only).
+
+Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
+* velocity update: first order from ``computeABADerivatives`` (ddq_dq, ddq_dv, Minv); second
+  order by central differences of those analytic first derivatives along tangent directions
+  (q through ``integrate``, v and u additively), symmetrised to the (0)-connection Hessian (the
+  pip wheel has no second-order ABA derivatives);
+* reconstruction: first order from ``dIntegrate`` (ARG0 = Ad_exp(-omega), ARG1 = Jr(omega));
+  second order exact per joint group (:mod:`geoddp.configuration`), the TSO(3) formula of
+  :mod:`geoddp.integrators` applied to the product group.
+Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .. import configuration as cfg
+from .. import integrators as integ
+from .. import rkmk4
+from ..validate import InputError, choice, finite_array, positive_float
+
+ROOTS = ("free_flyer", "spherical", "fixed")
+INTEGRATORS = integ.INTEGRATORS + ("rk4",)
+SECOND_ORDER_KINDS = ("exact",)
+# Central-difference step for the second derivatives of the velocity update: the error is
+# ~h^2 |f'''| / 6 + eps |f'| / h; h = 1e-5 balances them near 1e-10 relative (tested against a
+# Richardson-extrapolated difference).
+FD_STEP = 1e-5
+
+
+def _root_joint(root: str):
+    return {"free_flyer": pin.JointModelFreeFlyer(), "spherical": pin.JointModelSpherical(), "fixed": None}[root]
+
+
+@dataclass
+class Multibody:
+    """A Pinocchio model from a URDF with a discrete-time integrator: constants only.
+
+    Attributes:
+        urdf: path of the URDF file.
+        root: root joint: "free_flyer" (SE(3)), "spherical" (SO(3)) or "fixed" (none).
+        actuation: (nv, m) matrix H mapping inputs to generalised forces (N, N m); default
+            identity (every degree of freedom actuated). For a free-flyer root the first six
+            rows are the body wrench [force; torque] in the root body frame.
+        dt: time step, s.
+        integrator: "euler" (paper), "semi_implicit" (Crocoddyl) or "rk4" (RKMK4, first-order
+            expansion only).
+        gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
+        second_order: "exact" (the only kind for multibody models).
+    """
+
+    urdf: str | Path
+    root: str = "free_flyer"
+    actuation: np.ndarray | None = None
+    dt: float = field(kw_only=True)  # required, by keyword
+    integrator: str = "euler"
+    gravity: bool = True
+    second_order: str = "exact"
+    pin_model: pin.Model = field(init=False, repr=False)
+    groups: list = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.root = choice(self.root, "root", ROOTS)
+        self.dt = positive_float(self.dt, "dt")
+        self.integrator = choice(self.integrator, "integrator", INTEGRATORS)
+        self.second_order = choice(self.second_order, "second_order", SECOND_ORDER_KINDS)
+        if not isinstance(self.gravity, (bool, np.bool_)):
+            raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
+        if not isinstance(self.urdf, (str, Path)):
+            raise InputError("urdf", f"expected a path to a URDF file, got {type(self.urdf).__name__}")
+        self.urdf = Path(self.urdf)
+        if not self.urdf.is_file():
+            raise InputError("urdf", f"expected an existing URDF file, got {str(self.urdf)!r} (no such file)")
+        rj = _root_joint(self.root)
+        try:
+            model = pin.buildModelFromUrdf(str(self.urdf)) if rj is None else pin.buildModelFromUrdf(str(self.urdf), rj)
+        except (ValueError, RuntimeError) as exc:
+            raise InputError("urdf", f"expected a valid URDF model, got {str(self.urdf)!r} ({exc})") from None
+        if model.nv == 0:
+            raise InputError("urdf", "expected at least one degree of freedom, got nv = 0 (fixed root, no joints)")
+        if not self.gravity:
+            model.gravity = pin.Motion.Zero()
+        try:
+            self.groups = cfg.joint_groups(model)
+        except ValueError as exc:
+            raise InputError("urdf", str(exc)) from None
+        self.pin_model = model
+        if self.actuation is None:
+            self.actuation = np.eye(model.nv)
+        else:
+            Hm = finite_array(self.actuation, "actuation")
+            if Hm.ndim != 2 or Hm.shape[0] != model.nv or Hm.shape[1] < 1:
+                raise InputError("actuation", f"expected shape ({model.nv}, m) with m >= 1 (nv = {model.nv}), got shape {Hm.shape}")
+            zero = np.flatnonzero(np.linalg.norm(Hm, axis=0) == 0.0)
+            if zero.size:
+                raise InputError("actuation", f"expected every column to be non-zero, got an all-zero column {int(zero[0])}")
+            self.actuation = Hm
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def nq(self) -> int:
+        return int(self.pin_model.nq)
+
+    @property
+    def nv(self) -> int:
+        return int(self.pin_model.nv)
+
+    @property
+    def nx(self) -> int:
+        """Tangent dimension of the state, 2 nv."""
+        return 2 * self.nv
+
+    @property
+    def nu(self) -> int:
+        """Number of inputs m."""
+        return int(self.actuation.shape[1])
+
+    @property
+    def semi_implicit(self) -> bool:
+        return self.integrator == "semi_implicit"
+
+    def neutral(self) -> np.ndarray:
+        """Pinocchio's neutral configuration (nq,)."""
+        return pin.neutral(self.pin_model)
+
+    # ------------------------------------------------------------------ state chart
+    def retract(self, q: np.ndarray, v: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x exp(zeta) = (integrate(q, dq), v + dv); q (nq,), v (nv,), zeta (2 nv,)."""
+        nv = self.nv
+        return pin.integrate(self.pin_model, q, zeta[:nv]), v + zeta[nv:]
+
+    def local(self, q_bar: np.ndarray, v_bar: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`retract`: zeta = (difference(q_bar, q), v - v_bar), (2 nv,).
+
+        ``pin.difference`` with exact SO(2) entries (:func:`geoddp.configuration.difference`).
+        """
+        return np.concatenate([cfg.difference(self.pin_model, self.groups, q_bar, q), v - v_bar])
+
+    # ------------------------------------------------------------------ dynamics
+    def _step(self, data: pin.Data, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        model = self.pin_model
+        if self.integrator == "rk4":
+            return rkmk4.step(model, data, q, v, self.actuation @ u, self.dt)
+        v_next = v + self.dt * pin.aba(model, data, q, v, self.actuation @ u)
+        w = v_next if self.semi_implicit else v
+        # No pin.normalize: integrate already renormalises to first order, and normalize moves
+        # SO(2) coordinates by ~1e-9 (it erased 1e-9 perturbations in finite-difference checks).
+        return pin.integrate(model, q, self.dt * w), v_next
+
+    def step(self, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One step: q (nq,), v (nv,) (m/s, rad/s per joint), u (m,) -> (q+, v+)."""
+        return self._step(self.pin_model.createData(), q, v, u)
+
+    def check_state(self, q: np.ndarray, v: np.ndarray, name: str = "initial") -> tuple[np.ndarray, np.ndarray]:
+        """Validate a state: q (nq,) with unit quaternions / (cos, sin) pairs, v (nv,)."""
+        q = finite_array(q, f"{name}.q", (self.nq,))
+        v = finite_array(v, f"{name}.v", (self.nv,))
+        if not pin.isNormalized(self.pin_model, q, 1e-9):
+            raise InputError(f"{name}.q", "expected unit quaternions and unit (cos, sin) pairs (use pin.normalize), got a non-normalised configuration")
+        return q, v
+
+    def check_controls(self, controls: np.ndarray, H: int | None = None) -> np.ndarray:
+        """Validate controls (H, m)."""
+        return finite_array(controls, "controls", (H, self.nu))
+
+    def rollout(self, q0: np.ndarray, v0: np.ndarray, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Open-loop rollout: q0 (nq,), v0 (nv,), controls (H, m) -> Q (H+1, nq), V (H+1, nv)."""
+        q0, v0 = self.check_state(q0, v0)
+        U = self.check_controls(controls)
+        H = U.shape[0]
+        data = self.pin_model.createData()
+        Q = np.empty((H + 1, self.nq))
+        V = np.empty((H + 1, self.nv))
+        Q[0], V[0] = q0, v0
+        for k in range(H):
+            Q[k + 1], V[k + 1] = self._step(data, Q[k], V[k], U[k])
+        return Q, V
+
+    # ------------------------------------------------------------------ derivatives
+    def _velocity_jacobian(self, data: pin.Data, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """d v+ / d z, (nv, nz), from Pinocchio's analytic ABA derivatives."""
+        nv, dt = self.nv, self.dt
+        pin.computeABADerivatives(self.pin_model, data, q, v, tau)
+        J = np.empty((nv, 2 * nv + self.nu))
+        J[:, :nv] = dt * data.ddq_dq
+        J[:, nv : 2 * nv] = np.eye(nv) + dt * data.ddq_dv
+        Minv = np.triu(data.Minv) + np.triu(data.Minv, 1).T  # Pinocchio fills only the upper part
+        J[:, 2 * nv :] = dt * (Minv @ self.actuation)
+        return J
+
+    def velocity_derivatives(
+        self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1, fd_step: float = FD_STEP
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Derivatives of v+ = f(q, v, u) w.r.t. z = (dq, dv, du) at N nodes.
+
+        Q (N, nq), V (N, nv), controls (N, m) -> F1 (N, nv, nz), F2 (N, nv, nz, nz) or None,
+        nz = 2 nv + m. F2 is the symmetric (0)-Hessian of z -> f(retract(x, zeta), u + du).
+        """
+        model = self.pin_model
+        data = model.createData()
+        Hm, nv = self.actuation, self.nv
+        N = controls.shape[0]
+        nz = 2 * nv + self.nu
+        F1 = np.empty((N, nv, nz))
+        F2 = np.empty((N, nv, nz, nz)) if order >= 2 else None
+        h = fd_step
+        for k in range(N):
+            q, v, tau = Q[k], V[k], Hm @ controls[k]
+            F1[k] = self._velocity_jacobian(data, q, v, tau)
+            if F2 is None:
+                continue
+            Dk = np.empty((nv, nz, nz))
+            for j in range(nz):
+                e = np.zeros(nz)
+                e[j] = h
+                plus = self._velocity_jacobian(data, pin.integrate(model, q, e[:nv]), v + e[nv : 2 * nv], tau + Hm @ e[2 * nv :])
+                minus = self._velocity_jacobian(data, pin.integrate(model, q, -e[:nv]), v - e[nv : 2 * nv], tau - Hm @ e[2 * nv :])
+                Dk[:, :, j] = (plus - minus) / (2.0 * h)
+            # The derivative of the right-trivialised Jacobian along integrate(q, h e_j) differs
+            # from the Hessian of f o retract by an antisymmetric (bracket) term: keep the
+            # symmetric part, the (0)-connection Hessian.
+            F2[k] = 0.5 * (Dk + np.swapaxes(Dk, 1, 2))
+        return F1, F2
+
+    def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1) -> integ.Expansion:
+        """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
+
+        Q (H+1, nq), V (H+1, nv), controls (H, m), with (Q, V) the rollout of controls (the
+        semi-implicit reconstruction takes V[k+1] as the nominal v+). Shapes: Phi (H, nx, nx), B (H, nx, m),
+        Theta (H, nx, nx, nx), Gamma (H, nx, nx, m), Xi (H, nx, m, m), nx = 2 nv, with
+        zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du^T Xi_i du.
+        """
+        U = self.check_controls(controls)
+        H = U.shape[0]
+        Q = finite_array(Q, "Q", (H + 1, self.nq))
+        V = finite_array(V, "V", (H + 1, self.nv))
+        if order not in (1, 2):
+            raise InputError("order", f"expected 1 or 2, got {order!r}")
+        nv, m, dt = self.nv, self.nu, self.dt
+        n, nz = 2 * nv, 2 * nv + m
+        model = self.pin_model
+        if self.integrator == "rk4":
+            if order != 1:
+                raise InputError("order", f"expected 1 for integrator 'rk4' (first-order expansion only), got {order!r}")
+            data = model.createData()
+            G = np.stack([rkmk4.step_jacobian(model, data, self.groups, Q[k], V[k], self.actuation @ U[k], self.actuation, dt)
+                          for k in range(H)])
+            return integ.Expansion(Phi=np.ascontiguousarray(G[:, :, :n]), B=np.ascontiguousarray(G[:, :, n:]))
+        F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
+        W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
+        # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
+        if self.semi_implicit:
+            W1 = F1
+        else:
+            W1 = np.zeros((H, nv, nz))
+            W1[:, :, nv : 2 * nv] = np.eye(nv)
+        G1 = np.empty((H, n, nz))
+        G2 = np.zeros((H, n, nz, nz)) if F2 is not None else None
+        for k in range(H):
+            omega = dt * W[k]
+            A = pin.dIntegrate(model, Q[k], omega, pin.ARG0)  # Ad_exp(-omega), block-diagonal
+            Jr = pin.dIntegrate(model, Q[k], omega, pin.ARG1)  # Jr(omega), block-diagonal
+            JW = Jr @ W1[k]
+            G1[k, :nv] = dt * JW
+            G1[k, :nv, :nv] += A
+            G1[k, nv:] = F1[k]
+            if G2 is None:
+                continue
+            # eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
+            # (geoddp.integrators, module docstring; any Lie group, here the product of joints).
+            D, C = cfg.second_order_tensors(self.groups, nv, omega)
+            Dsym = 0.5 * (D + np.swapaxes(D, 1, 2))
+            G2[k, :nv] = (dt * dt) * np.einsum("ai,pab,bj->pij", W1[k], Dsym, W1[k])
+            # 1/2 [A eta, Jr rho]_p = z^T Mz_p z with eta = z[:nv] and Jr rho = dt JW z.
+            Mz = np.zeros((nv, nz, nz))
+            Mz[:, :nv, :] = (0.5 * dt) * np.einsum("ai,pab,bj->pij", A, C, JW)
+            G2[k, :nv] += Mz + np.swapaxes(Mz, 1, 2)
+            if self.semi_implicit:
+                # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
+                G2[k, :nv] += dt * np.einsum("pa,aij->pij", Jr, F2[k])
+            G2[k, nv:] = F2[k]
+        e = integ.Expansion(Phi=np.ascontiguousarray(G1[:, :, :n]), B=np.ascontiguousarray(G1[:, :, n:]))
+        if G2 is not None:
+            e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
+            e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
+            e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
+        return e
