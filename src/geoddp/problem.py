@@ -92,6 +92,10 @@ class Problem:
             m.inertia, m.inertia_inv, m.actuation, m.dt, m.semi_implicit, R_out, Omega_out, u_out,
         )
 
+    def expansion(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int, backend: str):
+        """The model's expansion along a trajectory (see :meth:`Satellite.expansion`)."""
+        return self.model.expansion(R, Omega, controls, order=order, backend=backend)
+
     def cost(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray) -> float:
         """Total cost J of a trajectory (paper eq. J)."""
         H = self.horizon

@@ -87,6 +87,9 @@ class Result:
         expansion_history: (iterations,) "first" or "second" per iteration (a saddle escape, which
             uses the exact second-order check, is recorded as "second").
         control_history: (iterations+1, H, m) controls per iterate (only when recorded).
+        configurations: (H+1, nq) Pinocchio configurations of a multibody solve (None on TSO(3));
+            then ``rotations``/``angular_velocities`` describe the root body.
+        velocities: (H+1, nv) generalised velocities of a multibody solve (None on TSO(3)).
         time_history: (iterations+1,) wall time in seconds from the start of the solve at which
             each iterate of cost_history was reached (0 for the initial guess).
         solve_time_s: wall time of the solve in seconds.
@@ -123,6 +126,8 @@ class Result:
     dt: float
     control_history: np.ndarray | None = None
     time_history: np.ndarray | None = None
+    configurations: np.ndarray | None = None
+    velocities: np.ndarray | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -185,6 +190,8 @@ class Result:
             "target_angular_velocity": self.target_angular_velocity.tolist(),
             "control_history": None if self.control_history is None else self.control_history.tolist(),
             "time_history": None if self.time_history is None else self.time_history.tolist(),
+            "configurations": None if self.configurations is None else self.configurations.tolist(),
+            "velocities": None if self.velocities is None else self.velocities.tolist(),
         }
 
     def write_json(self, path: str | Path) -> Path:
@@ -224,6 +231,8 @@ class Result:
             dt=float(d["dt"]),
             control_history=None if d.get("control_history") is None else a(d["control_history"], dtype=float),
             time_history=None if d.get("time_history") is None else a(d["time_history"], dtype=float),
+            configurations=None if d.get("configurations") is None else a(d["configurations"], dtype=float),
+            velocities=None if d.get("velocities") is None else a(d["velocities"], dtype=float),
         )
 
     @classmethod

@@ -131,7 +131,7 @@ class _Linearisation:
     """Expansion of dynamics and costs at one nominal trajectory."""
 
     def __init__(self, problem: Problem, R, Om, U, order: int, backend: str) -> None:
-        self.exp = problem.model.expansion(R, Om, U, order=order, backend=backend)
+        self.exp = problem.expansion(R, Om, U, order, backend)
         self.run, self.term = problem.cost_derivatives(R, Om, U)
         self.order = order
 

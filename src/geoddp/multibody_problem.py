@@ -1,0 +1,123 @@
+"""The optimal control problem for a Pinocchio multibody (paper eq. optprob on G = configuration x
+velocities).
+
+It speaks the same protocol as :class:`geoddp.problem.Problem`, so :func:`geoddp.solver.solve`
+solves it unchanged: a trajectory is the pair (Q (H+1, nq), V (H+1, nv)); its tangent
+perturbation is zeta = (dq, dv) with q = integrate(q_bar, dq) (Pinocchio's right/local
+convention), v = v_bar + dv, nx = 2 nv.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from .costs import CostDerivatives
+from .integrators import Expansion
+from .models.multibody import Multibody
+from .multibody_costs import FramePlacement, MultibodyCostSum
+from .validate import InputError, finite_array, positive_int
+
+
+@dataclass
+class MultibodyProblem:
+    """min_U sum_k running(q_k, v_k, u_k) + terminal(q_H, v_H) s.t. the model's dynamics.
+
+    Attributes:
+        model: the :class:`Multibody` (URDF, root joint, actuation, dt, integrator).
+        q0: (nq,) initial configuration; v0: (nv,) initial velocity.
+        horizon: number of control steps H.
+        running: running cost (on k = 0 .. H-1); terminal: terminal cost (on k = H).
+    """
+
+    model: Multibody
+    q0: np.ndarray
+    v0: np.ndarray
+    horizon: int
+    running: MultibodyCostSum
+    terminal: MultibodyCostSum
+    _data: pin.Data = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.q0, self.v0 = self.model.check_state(self.q0, self.v0, "initial")
+        self.horizon = positive_int(self.horizon, "horizon")
+        for name, s in (("running", self.running), ("terminal", self.terminal)):
+            if s.nx != self.model.nx:
+                raise InputError(name, f"expected costs on the model's tangent space (nx = {self.model.nx}), got nx = {s.nx}")
+        self._data = self.model.pin_model.createData()
+
+    @property
+    def nu(self) -> int:
+        return self.model.nu
+
+    @property
+    def nx(self) -> int:
+        """Dimension of the tangent state zeta = (dq, dv): 2 nv."""
+        return self.model.nx
+
+    def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
+        """Validated (H, m) float64 copy of a control sequence."""
+        return finite_array(controls, name, (self.horizon, self.nu))
+
+    def rollout(self, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(H, m) controls -> Q (H+1, nq), V (H+1, nv)."""
+        return self.model.rollout(self.q0, self.v0, controls)
+
+    def rollout_closed_loop(
+        self, Q_bar: np.ndarray, V_bar: np.ndarray, u_bar: np.ndarray, k_ff: np.ndarray, K_fb: np.ndarray,
+        gamma: float, Q_out: np.ndarray, V_out: np.ndarray, u_out: np.ndarray,
+    ) -> bool:
+        """Forward pass of Algorithm 1 (eq. dustar): u_k = u_bar_k - gamma k_k - K_k zeta_k with
+        zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite."""
+        model, data = self.model, self._data
+        Q_out[0], V_out[0] = self.q0, self.v0
+        for k in range(self.horizon):
+            zeta = model.local(Q_bar[k], V_bar[k], Q_out[k], V_out[k])
+            u = u_bar[k] - gamma * k_ff[k] - K_fb[k] @ zeta
+            u_out[k] = u
+            q1, v1 = model._step(data, Q_out[k], V_out[k], u)
+            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
+                return False
+            Q_out[k + 1], V_out[k + 1] = q1, v1
+        return True
+
+    def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int, backend: str) -> Expansion:
+        """Phi, B (and Theta, Gamma, Xi for order 2) along a trajectory; ``backend`` is unused:
+        multibody derivatives always come from Pinocchio (analytic first order, central
+        differences of it for the velocity update's second order)."""
+        return self.model.expansion(Q, V, controls, order=order)
+
+    def cost(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray) -> float:
+        """Total cost J of a trajectory."""
+        H = self.horizon
+        return float(self.running.value(Q[:H], V[:H], controls).sum() + self.terminal.value(Q[H:], V[H:], None)[0])
+
+    def total_cost(self, controls: np.ndarray) -> float:
+        """J(U) by single shooting."""
+        Q, V = self.rollout(controls)
+        return self.cost(Q, V, controls)
+
+    def cost_derivatives(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray) -> tuple[CostDerivatives, CostDerivatives]:
+        """Running derivatives at k < H and terminal derivatives at k = H (N = 1)."""
+        H = self.horizon
+        return self.running.derivatives(Q[:H], V[:H], controls), self.terminal.derivatives(Q[H:], V[H:], None)
+
+    def trajectory_fields(self, Q: np.ndarray, V: np.ndarray) -> dict:
+        """Result fields: the root body's attitude and body rate (identity and zero for a fixed
+        root), the target attitude of a terminal frame-placement term, and the full (Q, V)."""
+        root = self.model.root
+        N = Q.shape[0]
+        if root == "free_flyer":
+            quat, rate = Q[:, 3:7], V[:, 3:6]
+        elif root == "spherical":
+            quat, rate = Q[:, 0:4], V[:, 0:3]
+        else:
+            quat, rate = np.tile([0.0, 0.0, 0.0, 1.0], (N, 1)), np.zeros((N, 3))
+        R = np.array([pin.Quaternion(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix() for q in quat])
+        R_d = np.eye(3)
+        for t in getattr(self.terminal, "terms", []):
+            if isinstance(t, FramePlacement):
+                R_d = np.array(t.M_ref.rotation if hasattr(t.M_ref, "rotation") else np.asarray(t.M_ref)[..., :3, :3]).reshape(-1, 3, 3)[-1]
+        return dict(rotations=R, angular_velocities=np.array(rate), target_rotation=R_d,
+                    target_angular_velocity=np.zeros(3), configurations=Q, velocities=V)
