@@ -189,3 +189,15 @@ def test_max_iter_1_exits_1(tmp_path, capsys):
     assert err == ""
     d = json.loads(out_json.read_text())
     assert d["converged"] is False and d["iterations"] == 1 and "max_iter" in d["status"]
+
+
+def test_multibody_scene_from_the_cli(tmp_path, capsys):
+    from geoddp.cli import main
+
+    out = tmp_path / "quad.json"
+    code = main(["multibody", "quadrotor", "--quiet", "--json", str(out)])
+    assert code == 0, capsys.readouterr()
+    d = json.loads(out.read_text())
+    assert d["converged"] and np.array(d["configurations"]).shape == (151, 7)
+    assert np.array(d["velocities"]).shape == (151, 6) and np.array(d["controls"]).shape == (150, 4)
+    assert np.all(np.diff(d["cost_history"]) <= 0.0)

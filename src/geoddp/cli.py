@@ -25,12 +25,42 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--plots", type=Path, help="write PNG figures into this directory")
     run.add_argument("--view", action="store_true", help="replay in a live meshcat viewer (loopback)")
     run.add_argument("--quiet", action="store_true", help="no iteration table")
+    mb = sub.add_parser("multibody", help="solve one of the built-in multibody scenes (issue 6)")
+    mb.add_argument("scene", choices=sorted(_MULTIBODY_SCENES), help="built-in scene")
+    mb.add_argument("--integrator", choices=["euler", "semi_implicit"], default="semi_implicit")
+    mb.add_argument("--expansion", choices=["first", "second", "switch"], default="switch")
+    mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
+    mb.add_argument("--html", type=Path, help="write an animated HTML replay of the root body's attitude")
+    mb.add_argument("--quiet", action="store_true")
     cmp_ = sub.add_parser("compare", help="solve a scene with each expansion and compare convergence")
     cmp_.add_argument("scene", type=Path)
     cmp_.add_argument("--json", type=Path, help="write a summary JSON here")
     cmp_.add_argument("--plots", type=Path, help="write convergence figures into this directory")
     cmp_.add_argument("--quiet", action="store_true")
     return p
+
+
+_MULTIBODY_SCENES = {"spacecraft_docking": "spacecraft_docking", "space_manipulator": "space_manipulator",
+                     "quadrotor": "quadrotor"}
+
+
+def _multibody(args) -> int:
+    from . import multibody_scenes
+    from .solver import SolverOptions, solve
+
+    problem = getattr(multibody_scenes, _MULTIBODY_SCENES[args.scene])(integrator=args.integrator)
+    init = multibody_scenes.hover_controls(problem) if args.scene == "quadrotor" else None
+    result = solve(problem, SolverOptions(expansion=args.expansion, verbose=not args.quiet), initial_controls=init)
+    print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
+          f"solve time = {result.solve_time_s:.3f} s")
+    print(f"status: {result.status} ({result.message})")
+    if args.json:
+        print(f"wrote {result.write_json(args.json)}")
+    if args.html:
+        from . import viz
+
+        print(f"wrote {viz.export_html(result, args.html)}")
+    return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
 
 
 def _summary_row(name: str, r) -> str:
@@ -109,7 +139,8 @@ def _compare(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return _run(args) if args.command == "run" else _compare(args)
+        handler = {"run": _run, "compare": _compare, "multibody": _multibody}[args.command]
+        return handler(args)
     except (InputError, FileNotFoundError, IsADirectoryError) as exc:
         print(f"geoddp: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
