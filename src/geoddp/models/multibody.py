@@ -9,7 +9,7 @@ Dynamics (Pinocchio is the source of truth):
     q+ = integrate(q, dt w),  w = v  (explicit Euler, paper eq. disceq)
                               w = v+ (semi-implicit Euler, Crocoddyl's).
 or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step of :mod:`geoddp.rkmk4`
-(first-order expansion only).
+(second-order terms by central differences of its analytic step Jacobian, symmetrised).
 
 Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
 * velocity update: first order from ``computeABADerivatives`` (ddq_dq, ddq_dv, Minv); second
@@ -58,8 +58,8 @@ class Multibody:
             identity (every degree of freedom actuated). For a free-flyer root the first six
             rows are the body wrench [force; torque] in the root body frame.
         dt: time step, s.
-        integrator: "euler" (paper), "semi_implicit" (Crocoddyl) or "rk4" (RKMK4, first-order
-            expansion only).
+        integrator: "euler" (paper), "semi_implicit" (Crocoddyl) or "rk4" (RKMK4 on the Lie group;
+            second order by central differences of its analytic step Jacobian).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
     """
@@ -237,6 +237,35 @@ class Multibody:
             F2[k] = 0.5 * (Dk + np.swapaxes(Dk, 1, 2))
         return F1, F2
 
+    def _expansion_rk4(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray, order: int) -> integ.Expansion:
+        """RK4 on the Lie group: Phi, B from the analytic step Jacobian (stages chained); for
+        order 2, central differences of that analytic Jacobian along tangent directions of
+        z = (dq, dv, du), symmetrised. Expressing the output at the perturbed step's image instead
+        of the nominal one changes the Jacobian by 1/2 ad(G a) G b, which is antisymmetric in
+        (a, b) and so drops out of the symmetrised (0)-Hessian."""
+        model, dt, nv, m = self.pin_model, self.dt, self.nv, self.nu
+        n, nz, H = 2 * nv, 2 * nv + m, U.shape[0]
+        data = model.createData()
+        jac = lambda q, v, u: rkmk4.step_jacobian(model, data, self.groups, q, v, self.actuation @ u, self.actuation, dt)  # noqa: E731
+        G = np.stack([jac(Q[k], V[k], U[k]) for k in range(H)])
+        e = integ.Expansion(Phi=np.ascontiguousarray(G[:, :, :n]), B=np.ascontiguousarray(G[:, :, n:]))
+        if order < 2:
+            return e
+        h = FD_STEP
+        G2 = np.empty((H, n, nz, nz))
+        for k in range(H):
+            D = np.empty((n, nz, nz))
+            for j in range(nz):
+                z = np.zeros(nz)
+                z[j] = h
+                (qp, vp), (qm, vm) = self.retract(Q[k], V[k], z[:n]), self.retract(Q[k], V[k], -z[:n])
+                D[:, :, j] = (jac(qp, vp, U[k] + z[n:]) - jac(qm, vm, U[k] - z[n:])) / (2.0 * h)
+            G2[k] = 0.5 * (D + np.swapaxes(D, 1, 2))
+        e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
+        e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
+        e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
+        return e
+
     def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
 
@@ -255,12 +284,7 @@ class Multibody:
         n, nz = 2 * nv, 2 * nv + m
         model = self.pin_model
         if self.integrator == "rk4":
-            if order != 1:
-                raise InputError("order", f"expected 1 for integrator 'rk4' (first-order expansion only), got {order!r}")
-            data = model.createData()
-            G = np.stack([rkmk4.step_jacobian(model, data, self.groups, Q[k], V[k], self.actuation @ U[k], self.actuation, dt)
-                          for k in range(H)])
-            return integ.Expansion(Phi=np.ascontiguousarray(G[:, :, :n]), B=np.ascontiguousarray(G[:, :, n:]))
+            return self._expansion_rk4(Q, V, U, order)
         F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
         W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
         # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
