@@ -213,7 +213,7 @@ def compare(mb_problem: Any, runs: int = 1, seed: int = 0) -> list[dict[str, Any
         if best is None or r.solve_time_s < best.solve_time_s:
             best = r
     rows.append(dict(solver="geoddp (switch)", cost=best.cost, iterations=best.iterations,
-                     time_s=best.solve_time_s, status=best.status))
+                     time_s=best.solve_time_s, status="converged" if best.converged else best.status))
     for name in ("fddp", "ddp"):
         res = min((solve_crocoddyl(mb_problem, name) for _ in range(runs)), key=lambda d: d["time_s"])
         rows.append(dict(solver=res["solver"], cost=res["cost"], iterations=res["iterations"],
