@@ -36,9 +36,13 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from peers import _make_matrix_actuation  # noqa: E402  (the satellite benchmark's tau = H u model)
 
 __all__ = ["crocoddyl_problem", "solve_crocoddyl", "check_cost_equivalence", "compare"]
 
@@ -58,27 +62,6 @@ def _single(ref: np.ndarray, what: str) -> np.ndarray:
     if ref.shape[0] != 1:
         raise NotImplementedError(f"{what}: per-node (tracking) references are not mapped to Crocoddyl")
     return ref[0]
-
-
-def _matrix_actuation(crocoddyl: Any, state: Any, H: np.ndarray) -> Any:
-    """Constant-matrix actuation tau = H u (Python subclass of ActuationModelAbstract)."""
-    H = np.array(H, dtype=float)
-    Hpinv = np.linalg.pinv(H)
-
-    class ActuationModelMatrix(crocoddyl.ActuationModelAbstract):  # type: ignore[misc]
-        def __init__(self) -> None:
-            crocoddyl.ActuationModelAbstract.__init__(self, state, H.shape[1])
-
-        def calc(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
-            data.tau[:] = H @ u if u is not None else 0.0
-
-        def calcDiff(self, data: Any, x: np.ndarray, u: np.ndarray | None = None) -> None:
-            data.dtau_du[:, :] = H
-
-        def commands(self, data: Any, x: np.ndarray, tau: np.ndarray) -> None:
-            data.u[:] = Hpinv @ tau
-
-    return ActuationModelMatrix()
 
 
 def _cost_model(crocoddyl: Any, pin: Any, state: Any, nu: int, cost_sum: Any, scale: float) -> Any:
@@ -122,7 +105,7 @@ def crocoddyl_problem(mb_problem: Any) -> Any:
     if H.shape == (pm.nv, pm.nv) and np.array_equal(H, np.eye(pm.nv)):
         actuation = crocoddyl.ActuationModelFull(state)
     else:
-        actuation = _matrix_actuation(crocoddyl, state, H)
+        actuation = _make_matrix_actuation(crocoddyl, state, H)
     dt = float(model.dt)
     # geoddp: sum_k l(x_k, u_k) (no dt); Crocoddyl's Euler integrates dt * l -> weights / dt
     run_costs = _cost_model(crocoddyl, pin, state, nu, mb_problem.running, 1.0 / dt)

@@ -174,7 +174,7 @@ def test_phi_b_against_pinocchio_derivatives(root, integrator, rng):
 
 
 # ---------------------------------------------------------------------------- second order
-@pytest.mark.parametrize("integrator", INTEGRATORS)
+@pytest.mark.parametrize("integrator", INTEGRATORS + ["rk4"])
 @pytest.mark.parametrize("root", ROOTS)
 def test_second_order_error_falls_8x_per_halving(root, integrator, rng):
     """One-step prediction error over random nominals and directions: ~8x per halving of the
@@ -446,30 +446,6 @@ def test_rk4_phi_b_against_finite_differences(root, rng):
         worst = max(worst, np.abs(J - np.hstack([e.Phi[k], e.B[k]])).max())
     # FD noise: near-identity SE(3) logs carry ~1e-12 round-off, i.e. ~1e-9 in a 1e-3 difference
     assert worst < 1e-8, worst
-
-
-@pytest.mark.parametrize("root", ["free_flyer", "spherical"])
-def test_rk4_second_order_error_falls_8x_per_halving(root, rng):
-    mb = _model(root, "rk4")
-    for _ in range(2):
-        Q, V, U = _trajectory(mb, rng, H=2)
-        e = mb.expansion(Q, V, U, order=2)
-        k = 1
-        f = _one_step_map(mb, Q, V, U, k)
-        G = np.concatenate([e.Phi[k], e.B[k]], axis=1)
-        T = _full_hessian(e, k, mb.nx)
-        d = rng.normal(size=mb.nx + mb.nu)
-        d /= np.linalg.norm(d)
-        errs1, errs2 = [], []
-        for eps in (4e-2, 2e-2, 1e-2, 5e-3):
-            z = eps * d
-            lin = G @ z
-            errs1.append(np.linalg.norm(f(z) - lin))
-            errs2.append(np.linalg.norm(f(z) - lin - 0.5 * np.einsum("iab,a,b->i", T, z, z)))
-        r2 = np.array([errs2[i] / errs2[i + 1] for i in range(3)])
-        r1 = np.array([errs1[i] / errs1[i + 1] for i in range(3)])
-        assert np.all((r2 > 7.0) & (r2 < 9.0)), r2
-        assert np.all((r1 > 3.5) & (r1 < 4.5)), r1
 
 
 def test_rk4_second_order_terms_against_finite_difference_hessians(rng):
