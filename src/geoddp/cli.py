@@ -26,7 +26,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--view", action="store_true", help="replay in a live meshcat viewer (loopback)")
     run.add_argument("--quiet", action="store_true", help="no iteration table")
     mb = sub.add_parser("multibody", help="solve one of the built-in multibody scenes (issue 6)")
-    mb.add_argument("scene", choices=sorted(_MULTIBODY_SCENES), help="built-in scene")
+    mb.add_argument("scene", choices=_MULTIBODY_SCENES, help="built-in scene")
     mb.add_argument("--integrator", choices=["euler", "semi_implicit"], default="semi_implicit")
     mb.add_argument("--expansion", choices=["first", "second", "switch"], default="switch")
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
@@ -40,15 +40,14 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-_MULTIBODY_SCENES = {"spacecraft_docking": "spacecraft_docking", "space_manipulator": "space_manipulator",
-                     "quadrotor": "quadrotor"}
+_MULTIBODY_SCENES = ("quadrotor", "space_manipulator", "spacecraft_docking")  # builders in multibody_scenes
 
 
 def _multibody(args) -> int:
     from . import multibody_scenes
     from .solver import SolverOptions, solve
 
-    problem = getattr(multibody_scenes, _MULTIBODY_SCENES[args.scene])(integrator=args.integrator)
+    problem = getattr(multibody_scenes, args.scene)(integrator=args.integrator)
     init = multibody_scenes.hover_controls(problem) if args.scene == "quadrotor" else None
     result = solve(problem, SolverOptions(expansion=args.expansion, verbose=not args.quiet), initial_controls=init)
     print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "

@@ -118,6 +118,6 @@ class MultibodyProblem:
         R_d = np.eye(3)
         for t in getattr(self.terminal, "terms", []):
             if isinstance(t, FramePlacement):
-                R_d = np.array(t.M_ref.rotation if hasattr(t.M_ref, "rotation") else np.asarray(t.M_ref)[..., :3, :3]).reshape(-1, 3, 3)[-1]
+                R_d = t.M_ref[-1, :3, :3].copy()  # (K, 4, 4) references; the last is the final node's
         return dict(rotations=R, angular_velocities=np.array(rate), target_rotation=R_d,
                     target_angular_velocity=np.zeros(3), configurations=Q, velocities=V)
