@@ -9,6 +9,7 @@ convention), v = v_bar + dv, nx = 2 nv.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -105,7 +106,8 @@ class MultibodyProblem:
 
     def trajectory_fields(self, Q: np.ndarray, V: np.ndarray) -> dict:
         """Result fields: the root body's attitude and body rate (identity and zero for a fixed
-        root), the target attitude of a terminal frame-placement term, and the full (Q, V)."""
+        root), the target attitude of a terminal frame-placement term, the full (Q, V), and the
+        model description the viewer rebuilds the model from (:meth:`model_description`)."""
         root = self.model.root
         N = Q.shape[0]
         if root == "free_flyer":
@@ -120,4 +122,13 @@ class MultibodyProblem:
             if isinstance(t, FramePlacement):
                 R_d = t.M_ref[-1, :3, :3].copy()  # (K, 4, 4) references; the last is the final node's
         return dict(rotations=R, angular_velocities=np.array(rate), target_rotation=R_d,
-                    target_angular_velocity=np.zeros(3), configurations=Q, velocities=V)
+                    target_angular_velocity=np.zeros(3), configurations=Q, velocities=V,
+                    multibody=self.model_description())
+
+    def model_description(self) -> dict:
+        """``Result.multibody``: the URDF (absolute path and its text as solved), the root joint
+        kind and (nq, nv), enough to rebuild the kinematics and visuals without the solver."""
+        m = self.model
+        urdf = Path(m.urdf).resolve()
+        return {"urdf": str(urdf), "urdf_xml": urdf.read_text(encoding="utf-8"), "root": m.root,
+                "nq": m.nq, "nv": m.nv}

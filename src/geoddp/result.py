@@ -90,6 +90,9 @@ class Result:
         configurations: (H+1, nq) Pinocchio configurations of a multibody solve (None on TSO(3));
             then ``rotations``/``angular_velocities`` describe the root body.
         velocities: (H+1, nv) generalised velocities of a multibody solve (None on TSO(3)).
+        multibody: what the viewer needs to rebuild a multibody model without the solver (None on
+            TSO(3)): ``{"urdf": absolute path (str), "urdf_xml": the URDF text as solved (str),
+            "root": "free_flyer" | "spherical" | "fixed", "nq": int, "nv": int}``.
         time_history: (iterations+1,) wall time in seconds from the start of the solve at which
             each iterate of cost_history was reached (0 for the initial guess).
         solve_time_s: wall time of the solve in seconds.
@@ -128,6 +131,7 @@ class Result:
     time_history: np.ndarray | None = None
     configurations: np.ndarray | None = None
     velocities: np.ndarray | None = None
+    multibody: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -192,6 +196,7 @@ class Result:
             "time_history": None if self.time_history is None else self.time_history.tolist(),
             "configurations": None if self.configurations is None else self.configurations.tolist(),
             "velocities": None if self.velocities is None else self.velocities.tolist(),
+            "multibody": None if self.multibody is None else dict(self.multibody),
         }
 
     def write_json(self, path: str | Path) -> Path:
@@ -233,6 +238,7 @@ class Result:
             time_history=None if d.get("time_history") is None else a(d["time_history"], dtype=float),
             configurations=None if d.get("configurations") is None else a(d["configurations"], dtype=float),
             velocities=None if d.get("velocities") is None else a(d["velocities"], dtype=float),
+            multibody=None if d.get("multibody") is None else dict(d["multibody"]),
         )
 
     @classmethod
