@@ -4,6 +4,10 @@ Reads Results only; never imports the solver.
 
 - :func:`replay`: live meshcat viewer (loopback server), time-synchronised animation.
 - :func:`export_html`: self-contained static HTML replay (no server, no network).
+
+Both draw the satellite for a TSO(3) result and, for a multibody result, the whole Pinocchio
+model from its URDF visuals (:mod:`geoddp.viz.multibody`; :func:`visual_placements` gives the
+per-frame world placements they animate).
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures.
 """
 import warnings
@@ -17,6 +21,7 @@ with warnings.catch_warnings():
 from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
+from .multibody import load_visual_model, visual_placements
 
 __all__ = [
     "FigureData",
@@ -25,7 +30,9 @@ __all__ = [
     "animation_frame_count",
     "build_satellite",
     "export_html",
+    "load_visual_model",
     "plot_convergence",
     "plot_trajectory",
     "replay",
+    "visual_placements",
 ]

@@ -48,8 +48,9 @@ def record_scene(result: Result, scale: float = 1.0) -> list[bytes]:
     """msgpack-encoded meshcat commands that build the scene and set the animation.
 
     Args:
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s).
-        scale: satellite size factor.
+        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s); for a
+            multibody result ``configurations (H+1, nq)``, ``multibody`` and ``dt`` (s).
+        scale: satellite size factor (unused for a multibody model).
 
     Returns:
         One bytes object per command, in the order they must be applied.
@@ -126,13 +127,15 @@ def export_html(result: Result, path: str | Path, scale: float = 1.0) -> Path:
 
     The file embeds meshcat's three.js viewer and the recorded scene commands, so it opens
     from disk with no server and no network. The page shows the satellite and the target
-    ghost, with an animation of H+1 keyframes at fps = 1/dt (play/pause/scrub under
-    "Animations" in the control panel).
+    ghost or, for a multibody result, the whole Pinocchio model (every URDF visual placed by
+    forward kinematics at q_k), with an animation of H+1 keyframes at fps = 1/dt
+    (play/pause/scrub under "Animations" in the control panel).
 
     Args:
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s).
+        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s); for a
+            multibody result ``configurations (H+1, nq)``, ``multibody`` and ``dt`` (s).
         path: output file; parent directories are created.
-        scale: satellite size factor.
+        scale: satellite size factor (unused for a multibody model).
 
     Returns:
         The path written.
@@ -156,10 +159,11 @@ def decode_commands(html_text: str) -> list[dict]:
 
 
 def animation_frame_count(html_text: str) -> int:
-    """Number of animation keyframes of the satellite node in an exported page.
+    """Number of animation keyframes in an exported page.
 
-    Reads the ``set_animation`` command embedded by :func:`export_html` and counts the
-    keys of the satellite clip's tracks (all its tracks must agree).
+    Reads the ``set_animation`` command embedded by :func:`export_html` and counts the keys of
+    its clips' tracks: the satellite clip's for a satellite replay, else every clip's (one per
+    visual object of a multibody model), which must all agree.
 
     Args:
         html_text: contents of the HTML file.
@@ -168,16 +172,19 @@ def animation_frame_count(html_text: str) -> int:
         The keyframe count, H+1 for a trajectory with horizon H.
 
     Raises:
-        ValueError: no animation, no satellite clip, or tracks of unequal length.
+        ValueError: no animation, no clip, or tracks of unequal length.
     """
     anims = [c for c in decode_commands(html_text) if c.get("type") == "set_animation"]
     if not anims:
         raise ValueError("the page contains no set_animation command")
     # The last set_animation wins in the viewer (Animator.load clears earlier ones).
-    for entry in anims[-1]["animations"]:
-        if entry["path"].rstrip("/").split("/")[-1] == SATELLITE:
-            counts = {len(track["keys"]) for track in entry["clip"]["tracks"]}
-            if len(counts) != 1:
-                raise ValueError(f"satellite tracks disagree on the keyframe count: {sorted(counts)}")
-            return counts.pop()
-    raise ValueError("the animation has no clip for the satellite node")
+    entries = anims[-1]["animations"]
+    satellite = [e for e in entries if e["path"].rstrip("/").split("/")[-1] == SATELLITE]
+    entries = satellite or entries
+    if not entries:
+        raise ValueError("the animation has no clip")
+    counts = {len(track["keys"]) for e in entries for track in e["clip"]["tracks"]}
+    if len(counts) != 1:
+        what = "satellite tracks" if satellite else "animated tracks"
+        raise ValueError(f"{what} disagree on the keyframe count: {sorted(counts)}")
+    return counts.pop()

@@ -24,7 +24,7 @@ import zmq
 from meshcat.visualizer import ViewerWindow
 
 from ..result import Result
-from .scene import check_result, build_satellite, build_scene
+from .scene import build_satellite, build_scene, check_replayable
 
 __all__ = ["ViewerUnavailable", "build_satellite", "replay"]
 
@@ -202,17 +202,21 @@ def replay(
 ) -> meshcat.Visualizer:
     """Show ``result`` in a meshcat viewer as an animation synchronised with its time.
 
-    The scene is a satellite (bus, two solar panels, red/green/blue body axes) and a
-    translucent ghost at ``target_rotation``; the animation has one keyframe per time step,
-    played at fps = 1/dt, with play/pause/scrub under "Animations" in the viewer's controls.
+    For a multibody result (``result.multibody`` set) the scene is the whole Pinocchio model
+    rebuilt from its URDF visuals, each object placed by forward kinematics at q_k (root position
+    and orientation and every joint). Otherwise it is a satellite (bus, two solar panels,
+    red/green/blue body axes) and a translucent ghost at ``target_rotation``. The animation has
+    one keyframe per time step, played at fps = 1/dt, with play/pause/scrub under "Animations" in
+    the viewer's controls.
 
     Args:
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)`` and ``dt`` (s).
+        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)`` and ``dt`` (s); for a
+            multibody result ``configurations (H+1, nq)``, ``multibody`` and ``dt`` (s).
         vis: an existing visualizer to draw into (no server is started).
         open_browser: open the viewer URL in the default web browser.
         zmq_url: reuse the meshcat server listening at this ZMQ URL
             (e.g. ``"tcp://127.0.0.1:6000"``) instead of starting one.
-        scale: satellite size factor (1.0 = 1.0 x 0.8 x 0.6 m bus).
+        scale: satellite size factor (1.0 = 1.0 x 0.8 x 0.6 m bus); unused for a multibody model.
         timeout_s: bound in seconds on server start-up and on every ZMQ round trip.
 
     Returns:
@@ -224,7 +228,7 @@ def replay(
             ``zmq_url`` is invalid. A server started here is stopped before raising.
         ValueError: malformed ``result``, or both ``vis`` and ``zmq_url`` given.
     """
-    check_result(result)  # before any server exists, so bad data never leaks a process
+    check_replayable(result)  # before any server exists, so bad data never leaks a process
     if vis is not None and zmq_url is not None:
         raise ValueError("give either vis or zmq_url, not both")
     owned = vis is None  # we created the window (and maybe the server): we clean it up

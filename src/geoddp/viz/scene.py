@@ -1,10 +1,16 @@
 """The satellite scene and its time-synchronised animation, as meshcat commands.
 
+:func:`build_scene` is the entry point of the live viewer and the HTML export: a multibody result
+(one with ``Result.multibody``) goes to :mod:`geoddp.viz.multibody` (the whole Pinocchio model),
+any other to the satellite scene below (the TSO(3) attitude).
+
 This module only *describes* the scene: it talks to anything that behaves like a
 ``meshcat.Visualizer`` (a live one backed by a server, or the offline recorder used by
 :mod:`geoddp.viz.html`). Starting servers and writing files live elsewhere.
 """
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import meshcat
@@ -12,6 +18,7 @@ import meshcat.geometry as g
 from meshcat.animation import Animation
 
 from ..result import Result
+from .multibody import build_multibody_scene, check_multibody_result, is_multibody
 
 #: Scene-tree names (relative to the visualizer root). The animation targets SATELLITE.
 SATELLITE = "satellite"
@@ -167,18 +174,44 @@ def set_backdrop(vis: meshcat.Visualizer) -> None:
     vis["/Grid"].set_property("visible", False)
 
 
+def check_replayable(result: Result) -> None:
+    """Validate ``result`` for :func:`build_scene` (either kind) before anything is sent.
+
+    Raises:
+        ValueError: see :func:`check_result`, or
+            :func:`geoddp.viz.multibody.check_multibody_result` for a multibody result.
+    """
+    if is_multibody(result):
+        check_multibody_result(result)
+    else:
+        check_result(result)
+
+
 def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, play: bool = True) -> Animation:
-    """Backdrop, satellite, ghost at R_d and the trajectory animation, in that order.
+    """The whole replay scene: backdrop, bodies and the trajectory animation.
+
+    A multibody result (``result.multibody`` set) replays the full Pinocchio model, root placement
+    and every joint (:func:`geoddp.viz.multibody.build_multibody_scene`). Otherwise: backdrop,
+    satellite, ghost at R_d and the attitude animation, in that order. A result with
+    ``configurations`` but no ``multibody`` description (written before it existed) falls back to
+    the root attitude, with a warning.
 
     Args:
         vis: live or recording visualizer.
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s).
-        scale: satellite size factor.
+        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s); for a
+            multibody result ``configurations (H+1, nq)`` and ``multibody`` instead.
+        scale: satellite size factor (the satellite scene only; a multibody model is drawn at the
+            URDF's size in metres).
         play: start the animation immediately.
 
     Returns:
-        The animation (H+1 keyframes at fps = 1/dt).
+        The animation (H+1 keyframes per animated node at fps = 1/dt).
     """
+    if is_multibody(result):
+        return build_multibody_scene(vis, result, play=play)
+    if result.configurations is not None:
+        warnings.warn("this multibody result has no model description (Result.multibody): replaying only the "
+                      "root body's attitude", UserWarning, stacklevel=2)
     check_result(result)
     set_backdrop(vis)
     build_satellite(vis, scale=scale)
