@@ -30,7 +30,9 @@ def _parser() -> argparse.ArgumentParser:
     mb.add_argument("--integrator", choices=["euler", "semi_implicit"], default="semi_implicit")
     mb.add_argument("--expansion", choices=["first", "second", "switch"], default="switch")
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
-    mb.add_argument("--html", type=Path, help="write an animated HTML replay of the root body's attitude")
+    mb.add_argument("--html", type=Path, help="write a self-contained animated HTML replay of the whole model "
+                    "(root position and orientation and every joint)")
+    mb.add_argument("--view", action="store_true", help="replay the whole model in a live meshcat viewer (loopback)")
     mb.add_argument("--quiet", action="store_true")
     cmp_ = sub.add_parser("compare", help="solve a scene with each expansion and compare convergence")
     cmp_.add_argument("scene", type=Path)
@@ -55,10 +57,7 @@ def _multibody(args) -> int:
     print(f"status: {result.status} ({result.message})")
     if args.json:
         print(f"wrote {result.write_json(args.json)}")
-    if args.html:
-        from . import viz
-
-        print(f"wrote {viz.export_html(result, args.html)}")
+    _visualise(result, args)
     return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
 
 
@@ -87,12 +86,12 @@ def _visualise(result, args) -> None:
         return
     from . import viz
 
-    if args.plots:
+    if getattr(args, "plots", None):
         for path in viz.plot_trajectory(result, args.plots).values():
             print(f"wrote {getattr(path, 'path', path)}")
-    if args.html:
+    if getattr(args, "html", None):
         print(f"wrote {viz.export_html(result, args.html)}")
-    if args.view:
+    if getattr(args, "view", False):
         try:
             viz.replay(result, open_browser=False)
             input("Replaying in meshcat; press Enter to quit.\n") if sys.stdin.isatty() else None
