@@ -74,6 +74,17 @@ def synthetic_result(
     )
 
 
+def multibody_result(scene: str = "space_manipulator", horizon: int = 20, dt: float = 0.05, max_iter: int = 2) -> Result:
+    """A real (short, few-iteration) multibody solve of a built-in scene, through the solver:
+    model -> problem -> solver -> Result, as the CLI does it. ~0.1 s once numba is warm."""
+    from geoddp import multibody_scenes
+    from geoddp.solver import SolverOptions, solve
+
+    problem = getattr(multibody_scenes, scene)(horizon=horizon, dt=dt)
+    init = multibody_scenes.hover_controls(problem) if scene == "quadrotor" else None
+    return solve(problem, SolverOptions(expansion="first", max_iter=max_iter, verbose=False), initial_controls=init)
+
+
 # ---------------------------------------------------------------------------------------
 # Headless Chromium helpers (static HTML and live viewer tests).
 
