@@ -63,6 +63,7 @@ __all__ = [
     "MultibodySceneSpec",
     "build_multibody_problem",
     "parse_multibody_scene",
+    "terminal_frame_errors",
 ]
 
 COST_TYPES = ("frame_placement", "frame_rotation", "frame_translation", "state_regularisation", "control")
@@ -394,7 +395,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     except InputError as e:
         raise r.err(f"[model].{e.parameter}", e.detail) from None
     pm = bare.pin_model
-    nq, nv = pm.nq, pm.nv
+    nv = pm.nv
 
     # ---- actuation
     act_t = r.section(data, "actuation")
@@ -600,7 +601,7 @@ def _frame_kinematics(r: _Reader, t: Mapping[str, Any], path: str, pm: pin.Model
 
 def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: bool) -> CostTermSpec:
     r, pm = ctx.r, ctx.pm
-    nq, nv = pm.nq, pm.nv
+    nv = pm.nv
     if "type" not in t:
         raise r.err(f"{path}.type", f"missing required key (one of {' | '.join(COST_TYPES)})")
     kind = r.check(v.choice, t["type"], f"{path}.type", COST_TYPES)
@@ -699,3 +700,34 @@ def build_multibody_problem(spec: MultibodySceneSpec):
     running = MultibodyCostSum([c.build(pm) for c in spec.running_costs], model=pm)
     terminal = MultibodyCostSum([c.build(pm) for c in spec.terminal_costs], model=pm, terminal=True)
     return MultibodyProblem(model, np.array(spec.q0), np.array(spec.v0), spec.horizon, running, terminal)
+
+
+def terminal_frame_errors(spec: MultibodySceneSpec, q: np.ndarray) -> list[dict[str, Any]]:
+    """Distances of the frames of the terminal frame terms from their references at configuration
+    q (nq,), e.g. the solution's last configuration.
+
+    Returns:
+        One dict per terminal frame term, in order: ``name``, ``frame``, ``type`` and, as the term
+        constrains them, ``position_error_m`` (|p - p_ref|) and ``rotation_error_deg`` (the angle of
+        R_ref^T R).
+    """
+    from .models.multibody import Multibody
+
+    pm = Multibody(spec.urdf, root=spec.root, dt=spec.dt, gravity=spec.gravity).pin_model
+    data = pm.createData()
+    pin.framesForwardKinematics(pm, data, np.asarray(q, dtype=float))
+    out = []
+    for c in spec.terminal_costs:
+        if c.frame is None:
+            continue
+        M = data.oMf[pm.getFrameId(c.frame)]
+        row: dict[str, Any] = {"name": c.name, "frame": c.frame, "type": c.type}
+        ref = np.asarray(c.reference)
+        p_ref = ref[:3, 3] if c.type == "frame_placement" else ref if c.type == "frame_translation" else None
+        R_ref = ref[:3, :3] if c.type == "frame_placement" else ref if c.type == "frame_rotation" else None
+        if p_ref is not None:
+            row["position_error_m"] = float(np.linalg.norm(M.translation - p_ref))
+        if R_ref is not None:
+            row["rotation_error_deg"] = float(np.degrees(np.linalg.norm(pin.log3(R_ref.T @ M.rotation))))
+        out.append(row)
+    return out
