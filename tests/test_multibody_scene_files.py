@@ -470,3 +470,39 @@ def test_run_multibody_refuses_plots_and_view_before_solving(tmp_path, capsys, f
     code, out, err = _run(capsys, argv)
     assert code == EXIT_BAD_INPUT and out == ""
     assert err.startswith(f"geoddp: error: {flag[0]}: not supported for multibody scenes") and len(err.splitlines()) == 1
+
+
+def test_readme_example_is_the_docking_scene(tmp_path):
+    """The full example in the README parses and states the same problem as the example file."""
+    text = (ROOT / "README.md").read_text()
+    block = text.split("### Multibody scene files", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]
+    p = EXAMPLES / "_readme_example_test.toml"  # next to the file: the relative URDF path resolves
+    try:
+        p.write_text(block)
+        a = load_scene(p)
+    finally:
+        p.unlink(missing_ok=True)
+    b = load_scene(EXAMPLES / "spacecraft_docking.toml")
+    for f in ("urdf", "root", "gravity", "dt", "horizon", "integrator", "expansion", "tol", "max_iter"):
+        assert getattr(a, f) == getattr(b, f), f
+    for f in ("actuation", "q0", "v0"):
+        assert np.array_equal(getattr(a, f), getattr(b, f)), f
+    for ca, cb in zip(a.running_costs + a.terminal_costs, b.running_costs + b.terminal_costs, strict=True):
+        assert (ca.type, ca.frame) == (cb.type, cb.frame)
+        assert np.array_equal(ca.reference, cb.reference) and np.array_equal(ca.weight, cb.weight)
+
+
+@pytest.mark.parametrize("case,message", [
+    ("unknown_frame_lists_frames", "terminal_costs[0].frame: expected a frame of model 'spacecraft', got 'tool'; "
+                                   "frames: 'root_joint', 'bus'"),
+    ("quaternion_not_normalised", "[initial].quaternion: expected a unit quaternion (x, y, z, w) with norm 1 +- 1e-09, "
+                                  "got norm 1.00498756211"),
+    ("dt_zero", "[horizon].dt: expected a number > 0, got 0.0"),
+])
+def test_readme_error_messages_are_verbatim(tmp_path, case, message):
+    p = tmp_path / "s.toml"
+    p.write_text(BAD[case][0])
+    with pytest.raises(InputError) as info:
+        load_scene(p)
+    assert str(info.value) == f"{message} (in {p})"
+    assert message in (ROOT / "README.md").read_text().replace("\n  ", " ")
