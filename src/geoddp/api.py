@@ -1,4 +1,4 @@
-"""The few-lines entry point: scene file (or SceneSpec) in, :class:`Result` out."""
+"""The few-lines entry point: scene file (or spec) in, :class:`Result` out."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,23 +6,30 @@ from typing import Any
 
 import numpy as np
 
+from .multibody_scene import MultibodySceneSpec
 from .result import Result
-from .scene import SceneSpec, build_problem, load_scene, solver_options
+from .scene import AnySceneSpec, SceneSpec, build_problem, load_scene, solver_options
 from .solver import solve
 
 
-def solve_scene(scene: str | Path | SceneSpec, *, verbose: bool = True, **options: Any) -> Result:
-    """Load (if a path), build and solve a scene.
+def initial_controls(spec: AnySceneSpec) -> np.ndarray | None:
+    """The scene's (H, m) initial control guess, or None for zeros."""
+    if isinstance(spec, MultibodySceneSpec):
+        return spec.initial_control_sequence()
+    return None if spec.initial_controls is None else np.array(spec.initial_controls)
+
+
+def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **options: Any) -> Result:
+    """Load (if a path), build and solve a scene: satellite or multibody (``[model] kind``).
 
     Keyword options override the scene's ``[solver]`` table (for example ``expansion="second"``,
     ``record_controls=True``, ``verbose=False``).
     """
-    spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
+    spec = scene if isinstance(scene, (SceneSpec, MultibodySceneSpec)) else load_scene(scene)
     scene_keys = {"expansion", "switch_ratio", "tol", "grad_tol", "max_iter"}
     spec = spec.with_overrides(**{k: v for k, v in options.items() if k in scene_keys})
     rest = {k: v for k, v in options.items() if k not in scene_keys}
     problem = build_problem(spec)
-    init = None if spec.initial_controls is None else np.array(spec.initial_controls)
-    result = solve(problem, solver_options(spec, verbose=verbose, **rest), initial_controls=init)
+    result = solve(problem, solver_options(spec, verbose=verbose, **rest), initial_controls=initial_controls(spec))
     result.extra["scene"] = spec.name
     return result

@@ -1,4 +1,5 @@
-"""Command line: ``geoddp run SCENE`` and ``geoddp compare SCENE``.
+"""Command line: ``geoddp run SCENE`` and ``geoddp compare SCENE`` (satellite or multibody scene
+files), ``geoddp multibody NAME`` (the built-in multibody scenes).
 
 Exit codes: 0 converged, 1 stopped without converging, 2 bad input (message, no traceback).
 """
@@ -18,7 +19,7 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="geoddp", description="Differential Dynamic Programming on Lie groups")
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve a scene and write its results")
-    run.add_argument("scene", type=Path, help="scene file (TOML)")
+    run.add_argument("scene", type=Path, help="scene file (TOML): satellite, or [model] kind = \"multibody\"")
     run.add_argument("--expansion", choices=["first", "second", "switch"], help="override [solver].expansion")
     run.add_argument("--json", type=Path, help="write the result as JSON here")
     run.add_argument("--html", type=Path, help="write a self-contained animated HTML replay here")
@@ -68,12 +69,32 @@ def _summary_row(name: str, r) -> str:
 
 def _run(args) -> int:
     from .api import solve_scene
+    from .multibody_scene import MultibodySceneSpec, terminal_frame_errors
+    from .scene import load_scene
 
+    spec = load_scene(args.scene)
+    multibody = isinstance(spec, MultibodySceneSpec)
+    if multibody:
+        # Refused before solving, as bad input. The static HTML replays the root body's attitude
+        # (as `geoddp multibody NAME --html` does).
+        for flag, given in (("--plots", args.plots), ("--view", args.view)):
+            if given:
+                raise InputError(flag, "not supported for multibody scenes yet (the figures and the live viewer "
+                                 "show a single rigid body); use --json OUT.json, or --html OUT.html for a replay "
+                                 "of the root body's attitude")
     overrides = {"expansion": args.expansion} if args.expansion else {}
-    result = solve_scene(args.scene, verbose=not args.quiet, **overrides)
-    print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
-          f"attitude error = {result.attitude_error_deg:.4f} deg  |Omega_H - Omega_d| = "
-          f"{result.angular_velocity_error:.3e} rad/s  solve time = {result.solve_time_s:.3f} s")
+    result = solve_scene(spec, verbose=not args.quiet, **overrides)
+    if multibody:
+        print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
+              f"solve time = {result.solve_time_s:.3f} s")
+        for e in terminal_frame_errors(spec, result.configurations[-1]):
+            parts = [f"position error = {e['position_error_m']:.3e} m"] if "position_error_m" in e else []
+            parts += [f"rotation error = {e['rotation_error_deg']:.4f} deg"] if "rotation_error_deg" in e else []
+            print(f"terminal {e['type']} {e['frame']!r}: " + "  ".join(parts))
+    else:
+        print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
+              f"attitude error = {result.attitude_error_deg:.4f} deg  |Omega_H - Omega_d| = "
+              f"{result.angular_velocity_error:.3e} rad/s  solve time = {result.solve_time_s:.3f} s")
     print(f"status: {result.status} ({result.message})")
     if args.json:
         print(f"wrote {result.write_json(args.json)}")
@@ -118,10 +139,12 @@ def _compare(args) -> int:
                                              "solve_time_s": r.solve_time_s, "status": r.status}
                                          for k, r in results.items()}, indent=1))
         print(f"wrote {args.json}")
+    from .api import initial_controls
     from .reference import lbfgs
     from .scene import build_problem, load_scene
 
-    ref = lbfgs(build_problem(load_scene(args.scene)))
+    spec = load_scene(args.scene)
+    ref = lbfgs(build_problem(spec), initial_controls=initial_controls(spec))
     print(f"| L-BFGS (scipy, exact gradient) | {ref.iterations:5d} | {ref.cost:.12f} | {ref.grad_norm:9.2e} | | "
           f"{ref.time_history[-1] * 1e3:9.1f} | {ref.message} |")
     if args.plots:

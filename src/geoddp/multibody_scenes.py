@@ -1,8 +1,10 @@
 """The three multibody scenes of issue 6, as :class:`MultibodyProblem` builders.
 
-Each scene loads its URDF from ``models/`` (holding only what the scene needs) and states its
-numbers here, once. Running costs are applied per step without a dt factor (the paper's
-convention; divide Crocoddyl's running weights by dt to compare).
+Each scene is defined once, in its scene file ``examples/multibody/<name>.toml`` (URDF from
+``models/``, actuation, initial state, costs, time grid; see :mod:`geoddp.multibody_scene`); the
+builders here load that file and may change the integrator, the time step and the horizon.
+Running costs are applied per step without a dt factor (the paper's convention; divide
+Crocoddyl's running weights by dt to compare).
 
 * :func:`spacecraft_docking`: a 500 kg free flyer on SE(3) with six bidirectional body-fixed
   thrusters reorients by 90 degrees and docks at the origin at rest.
@@ -15,107 +17,57 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
-from .models.actuation import quadrotor_actuation, thruster_actuation
-from .models.multibody import Multibody
-from .multibody_costs import (
-    ControlRegularisation,
-    FramePlacement,
-    MultibodyCostSum,
-    StateRegularisation,
-)
+from .models.actuation import hover_inputs
 from .multibody_problem import MultibodyProblem
+from .multibody_scene import MultibodySceneSpec, build_multibody_problem
 
-MODELS = Path(__file__).resolve().parents[2] / "models"
-
-
-def _velocity_weight(nv: int, w_v, w_q=0.0) -> np.ndarray:
-    """(2nv, 2nv) weight of StateRegularisation: w_q on dq, w_v (scalar or (nv,)) on dv."""
-    return np.diag(np.concatenate([np.broadcast_to(w_q, nv), np.broadcast_to(w_v, nv)]).astype(float))
+SCENES = Path(__file__).resolve().parents[2] / "examples" / "multibody"
+NAMES = ("quadrotor", "space_manipulator", "spacecraft_docking")
 
 
-def spacecraft_thrusters(lever: float = 0.8) -> np.ndarray:
-    """(6, 6) wrench map of six bidirectional thrusters: for each body axis i, two thrusters along
-    e_i at +-lever e_(i+1). Their sum is a force along e_i, their difference a torque."""
-    positions, directions = [], []
-    for i in range(3):
-        j = (i + 1) % 3
-        for s in (1.0, -1.0):
-            positions.append(s * lever * np.eye(3)[j])
-            directions.append(np.eye(3)[i])
-    return thruster_actuation(np.array(positions), np.array(directions))
+def scene_path(name: str) -> Path:
+    """Path of the scene file of built-in scene ``name`` (one of :data:`NAMES`)."""
+    from .validate import choice
+
+    return SCENES / f"{choice(name, 'scene', NAMES)}.toml"
 
 
-def spacecraft_docking(integrator: str = "semi_implicit", dt: float = 0.05, horizon: int = 200) -> MultibodyProblem:
-    """Reorient by 90 deg about z and dock at the origin at rest, from 4.3 m away and tilted 50 deg."""
-    model = Multibody(MODELS / "spacecraft.urdf", root="free_flyer", actuation=spacecraft_thrusters(), dt=dt,
-                      integrator=integrator, gravity=False)
-    axis = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
-    M0 = pin.SE3(pin.exp3(np.radians(50.0) * axis), np.array([-4.0, 1.5, 0.5]))
-    q0 = pin.SE3ToXYZQUAT(M0)
-    M_dock = pin.SE3(pin.exp3(np.array([0.0, 0.0, np.pi / 2])), np.zeros(3))
-    pm = model.pin_model
-    running = MultibodyCostSum([ControlRegularisation(np.zeros(model.nu), W=1e-3)], model=pm)
-    terminal = MultibodyCostSum([
-        FramePlacement(pm, "bus", M_dock, W=1e4),
-        # arrive at rest: a docking contact tolerates a few mm/s
-        StateRegularisation(pm, pin.neutral(pm), np.zeros(model.nv), W=_velocity_weight(model.nv, 1e6)),
-    ], model=pm, terminal=True)
-    return MultibodyProblem(model, q0, np.zeros(model.nv), horizon, running, terminal)
+def scene_spec(name: str, integrator: str | None = None, dt: float | None = None,
+               horizon: int | None = None) -> MultibodySceneSpec:
+    """The validated spec of built-in scene ``name``, with the integrator, time step (s) and
+    horizon (steps) of its file unless given."""
+    from .scene import load_scene
+
+    spec = load_scene(scene_path(name))
+    over = {k: val for k, val in (("integrator", integrator), ("dt", dt), ("horizon", horizon)) if val is not None}
+    return spec.with_overrides(**over)
 
 
-def space_manipulator(integrator: str = "semi_implicit", dt: float = 0.02, horizon: int = 150) -> MultibodyProblem:
+def spacecraft_docking(integrator: str | None = None, dt: float | None = None,
+                       horizon: int | None = None) -> MultibodyProblem:
+    """Reorient by 90 deg about z and dock at the origin at rest, from 4.3 m away and tilted 50 deg
+    (file: semi-implicit Euler, dt = 0.05 s, H = 200)."""
+    return build_multibody_problem(scene_spec("spacecraft_docking", integrator, dt, horizon))
+
+
+def space_manipulator(integrator: str | None = None, dt: float | None = None,
+                      horizon: int | None = None) -> MultibodyProblem:
     """Bring the end effector to the pose it has at arm angles (0.6, -0.5, 0.8) with the base at
-    rest at the origin, while the free-floating base (no thrusters) is kept still."""
-    m_arm = 3
-    nv = 6 + m_arm
-    actuation = np.zeros((nv, m_arm))
-    actuation[6:, :] = np.eye(m_arm)  # joint motors only: the base floats
-    model = Multibody(MODELS / "space_manipulator.urdf", root="free_flyer", actuation=actuation, dt=dt,
-                      integrator=integrator, gravity=False)
-    pm = model.pin_model
-    q0 = pin.neutral(pm)
-    q_goal = q0.copy()
-    q_goal[7:] = [0.6, -0.5, 0.8]
-    data = pm.createData()
-    pin.framesForwardKinematics(pm, data, q_goal)
-    M_target = data.oMf[pm.getFrameId("ee")].copy()
-    base_still = _velocity_weight(nv, np.concatenate([np.full(6, 10.0), np.zeros(m_arm)]))
-    running = MultibodyCostSum([
-        ControlRegularisation(np.zeros(m_arm), W=1e-2),
-        StateRegularisation(pm, q0, np.zeros(nv), W=base_still),
-    ], model=pm)
-    terminal = MultibodyCostSum([
-        FramePlacement(pm, "ee", M_target, W=1e3),
-        StateRegularisation(pm, q0, np.zeros(nv), W=_velocity_weight(nv, 1e2)),
-    ], model=pm, terminal=True)
-    return MultibodyProblem(model, q0, np.zeros(nv), horizon, running, terminal)
+    rest at the origin, while the free-floating base (no thrusters) is kept still (file:
+    semi-implicit Euler, dt = 0.02 s, H = 150)."""
+    return build_multibody_problem(scene_spec("space_manipulator", integrator, dt, horizon))
 
 
-def quadrotor(integrator: str = "semi_implicit", dt: float = 0.02, horizon: int = 150) -> MultibodyProblem:
+def quadrotor(integrator: str | None = None, dt: float | None = None, horizon: int | None = None) -> MultibodyProblem:
     """Fly from hover at (0, 0, 1) m to hover at (2, 1, 2) m, yawed 45 deg, in 3 s; rotor thrusts
-    regularised about the hover thrust m g / 4."""
-    actuation = quadrotor_actuation(arm_length=0.25, torque_coefficient=0.02)
-    model = Multibody(MODELS / "quadrotor.urdf", root="free_flyer", actuation=actuation, dt=dt,
-                      integrator=integrator, gravity=True)
-    pm = model.pin_model
-    mass = sum(I.mass for I in pm.inertias)
-    hover = np.full(4, mass * 9.81 / 4.0)
-    q0 = pin.SE3ToXYZQUAT(pin.SE3(np.eye(3), np.array([0.0, 0.0, 1.0])))
-    M_goal = pin.SE3(pin.exp3(np.array([0.0, 0.0, np.pi / 4])), np.array([2.0, 1.0, 2.0]))
-    body = pm.frames[pm.getFrameId("body")].name if pm.existFrame("body") else pm.frames[1].name
-    running = MultibodyCostSum([ControlRegularisation(hover, W=1e-1)], model=pm)
-    terminal = MultibodyCostSum([
-        FramePlacement(pm, body, M_goal, W=1e3),
-        StateRegularisation(pm, pin.neutral(pm), np.zeros(model.nv), W=_velocity_weight(model.nv, 1e2)),
-    ], model=pm, terminal=True)
-    return MultibodyProblem(model, q0, np.zeros(model.nv), horizon, running, terminal)
+    regularised about the hover thrust m g / 4 (file: semi-implicit Euler, dt = 0.02 s, H = 150)."""
+    return build_multibody_problem(scene_spec("quadrotor", integrator, dt, horizon))
 
 
 def hover_controls(problem: MultibodyProblem) -> np.ndarray:
-    """(H, 4) rotor thrusts m g / 4 (N): the quadrotor's natural initial guess (zero thrust would
-    start from free fall)."""
-    pm = problem.model.pin_model
-    mass = sum(I.mass for I in pm.inertias)
-    return np.full((problem.horizon, problem.nu), mass * 9.81 / problem.nu)
+    """(H, m) inputs balancing gravity at the initial configuration (for the quadrotor, the rotor
+    thrusts m g / 4 in N): the natural initial guess (zero thrust would start from free fall).
+    The same inputs as ``initial_controls = "hover"`` in a scene file."""
+    u = hover_inputs(problem.model.pin_model, problem.model.actuation, problem.q0)
+    return np.tile(u, (problem.horizon, 1))

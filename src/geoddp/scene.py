@@ -8,7 +8,7 @@ else's job, so this module never imports the solver.
 Schema (``?`` = optional, with its default)::
 
     name? = "satellite_paper"           description? = "..."
-    [model]    inertia (3 numbers or 3x3, kg m^2), actuation? = I_3 (3 x m), urdf? (path)
+    [model]    kind? = "satellite", inertia (3 numbers or 3x3, kg m^2), actuation? = I_3 (3 x m), urdf? (path)
     [initial]  exactly one of quaternion (x,y,z,w) | rotation (3x3);
                angular_velocity? = [0,0,0] (rad/s)
     [target]   exactly one of rotation | quaternion | euler_intrinsic ([[axis, deg], ...]);
@@ -23,6 +23,11 @@ Schema (``?`` = optional, with its default)::
 
 Every error is an :class:`~geoddp.validate.InputError` naming the key path (``[cost].attitude``)
 and the file.
+
+A scene with ``[model] kind = "multibody"`` is a multibody scene on any Pinocchio URDF: its
+schema and :class:`~geoddp.multibody_scene.MultibodySceneSpec` live in
+:mod:`geoddp.multibody_scene`; :func:`load_scene`, :func:`parse_scene`, :func:`build_problem` and
+:func:`solver_options` accept both kinds.
 """
 from __future__ import annotations
 
@@ -32,20 +37,24 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 
 from . import validate as v
 from .validate import InputError
 
-__all__ = ["SceneSpec", "load_scene", "parse_scene", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS", "SECOND_ORDER"]
+if TYPE_CHECKING:
+    from .multibody_scene import MultibodySceneSpec
+
+__all__ = ["SceneSpec", "AnySceneSpec", "SCENE_KINDS", "load_scene", "parse_scene", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS", "SECOND_ORDER"]
 
 INTEGRATORS = ("euler", "semi_implicit")
 ATTITUDE_KINDS = ("chordal", "geodesic")
 EXPANSIONS = ("first", "second", "switch")
 SECOND_ORDER = ("exact", "paper")
 AXES = ("x", "y", "z")
+SCENE_KINDS = ("multibody", "satellite")  # [model].kind; absent means "satellite"
 
 DEFAULT_INTEGRATOR = "euler"
 DEFAULT_ATTITUDE_KIND = "chordal"
@@ -59,7 +68,7 @@ DEFAULT_SECOND_ORDER = "exact"
 # Allowed keys per table: key -> required?
 _TOP_KEYS = {"name": False, "description": False}
 _SECTIONS: dict[str, dict[str, bool]] = {
-    "model": {"inertia": True, "actuation": False, "urdf": False},
+    "model": {"kind": False, "inertia": True, "actuation": False, "urdf": False},
     "initial": {"quaternion": False, "rotation": False, "angular_velocity": False},
     "target": {"rotation": False, "quaternion": False, "euler_intrinsic": False, "angular_velocity": False},
     "horizon": {"tf": True, "dt": True, "integrator": False},
@@ -243,12 +252,17 @@ class SceneSpec:
     __hash__ = None  # type: ignore[assignment]  # holds arrays; equality is by value
 
 
+AnySceneSpec = Union[SceneSpec, "MultibodySceneSpec"]
+"""What :func:`load_scene` returns: a satellite or a multibody scene."""
+
+
 # --------------------------------------------------------------------------------------
 # parsing
 
 
-def load_scene(path: str | Path) -> SceneSpec:
-    """Read and validate a TOML scene file.
+def load_scene(path: str | Path) -> AnySceneSpec:
+    """Read and validate a TOML scene file: a :class:`SceneSpec`, or a
+    :class:`~geoddp.multibody_scene.MultibodySceneSpec` if ``[model] kind = "multibody"``.
 
     Args:
         path: scene file. Relative paths inside it (``[model].urdf``) are resolved against
@@ -271,7 +285,21 @@ def load_scene(path: str | Path) -> SceneSpec:
         raise InputError("scene file", f"expected UTF-8 text, got invalid bytes at offset {exc.start}", src) from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError("scene file", _toml_error_detail(exc, text), src) from None
-    return _parse(data, src, base_dir=p.resolve().parent, default_name=p.stem)
+    return _dispatch(data, src, base_dir=p.resolve().parent, default_name=p.stem)
+
+
+def _dispatch(data: Mapping[str, Any], source: str, base_dir: Path, default_name: str) -> AnySceneSpec:
+    """Route to the satellite or the multibody parser by ``[model].kind``."""
+    model = data.get("model")
+    kind = model.get("kind", "satellite") if isinstance(model, Mapping) else "satellite"
+    if kind == "multibody":
+        from .multibody_scene import parse_multibody_scene
+
+        return parse_multibody_scene(data, source, base_dir=base_dir, default_name=default_name)
+    if kind != "satellite":
+        raise InputError("[model].kind", f"expected one of {' | '.join(SCENE_KINDS)} (default satellite), "
+                         f"got {kind!r}", source)
+    return _parse(data, source, base_dir=base_dir, default_name=default_name)
 
 
 def _toml_error_detail(exc: tomllib.TOMLDecodeError, text: str) -> str:
@@ -293,7 +321,7 @@ def _toml_error_detail(exc: tomllib.TOMLDecodeError, text: str) -> str:
     return f"malformed TOML at {where}: {msg}{tail}"
 
 
-def parse_scene(data: Mapping[str, Any], source: str = "<dict>") -> SceneSpec:
+def parse_scene(data: Mapping[str, Any], source: str = "<dict>") -> AnySceneSpec:
     """Validate an already-parsed scene (the dict a TOML parser would produce).
 
     Relative ``[model].urdf`` paths are resolved against the directory of ``source`` if it is
@@ -303,7 +331,7 @@ def parse_scene(data: Mapping[str, Any], source: str = "<dict>") -> SceneSpec:
         raise InputError("scene", f"expected a table (dict), got {type(data).__name__}", source)
     base = Path(source).resolve().parent if source != "<dict>" else Path.cwd()
     default_name = Path(source).stem if source != "<dict>" else "scene"
-    return _parse(data, source, base_dir=base, default_name=default_name)
+    return _dispatch(data, source, base_dir=base, default_name=default_name)
 
 
 def _check_urdf(path: Any, name: str, base_dir: Path) -> Path:
@@ -528,9 +556,15 @@ def _parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: s
     )
 
 
-def build_problem(spec: SceneSpec):
-    """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0)."""
+def build_problem(spec: AnySceneSpec):
+    """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0), or a
+    :class:`geoddp.multibody_problem.MultibodyProblem` for a multibody scene."""
     from .problem import satellite_problem
+
+    if not isinstance(spec, SceneSpec):
+        from .multibody_scene import build_multibody_problem
+
+        return build_multibody_problem(spec)
 
     return satellite_problem(
         inertia=spec.inertia, actuation=spec.actuation, dt=spec.dt, horizon=spec.horizon,
@@ -541,7 +575,7 @@ def build_problem(spec: SceneSpec):
     )
 
 
-def solver_options(spec: SceneSpec, **overrides: Any):
+def solver_options(spec: AnySceneSpec, **overrides: Any):
     """The scene's ``[solver]`` table as :class:`geoddp.solver.SolverOptions`."""
     from .solver import SolverOptions
 

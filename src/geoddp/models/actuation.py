@@ -58,3 +58,31 @@ def quadrotor_actuation(arm_length: float, torque_coefficient: float) -> np.ndar
     Hm = thruster_actuation(positions, np.tile([0.0, 0.0, 1.0], (4, 1)))
     Hm[5] += c * np.array([1.0, -1.0, 1.0, -1.0])  # rotor drag (reaction) torques about z
     return Hm
+
+
+def hover_inputs(model, actuation: np.ndarray, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Inputs u (m,) that balance gravity at rest at configuration q: actuation @ u = g(q).
+
+    Args:
+        model: a ``pinocchio.Model`` (its gravity field is used).
+        actuation: (nv, m) input-to-generalised-force matrix.
+        q: (nq,) configuration.
+        tol: largest accepted residual |actuation u - g(q)|, relative to max(1, |g(q)|).
+
+    Returns:
+        The least-squares solution u of actuation @ u = g(q), Pinocchio's generalised gravity
+        (for a "+" quadrotor level at rest, m g / 4 per rotor).
+
+    Raises:
+        InputError ("hover"): no input balances gravity (residual above ``tol``).
+    """
+    import pinocchio as pin
+
+    g = pin.computeGeneralizedGravity(model, model.createData(), np.asarray(q, dtype=float))
+    A = np.asarray(actuation, dtype=float)
+    u = np.linalg.lstsq(A, g, rcond=None)[0]
+    res = float(np.linalg.norm(A @ u - g))
+    if res > tol * max(1.0, float(np.linalg.norm(g))):
+        raise InputError("hover", "expected an actuation that can balance gravity at the configuration, got a "
+                         f"least-squares residual of {res:.3g} (N, N m)")
+    return u
