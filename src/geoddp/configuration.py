@@ -18,7 +18,13 @@ module docstring of :mod:`geoddp.integrators`). The joint groups Pinocchio uses 
   Jr, dJr from :class:`geoddp.lie.SO3`.
 * ``"se3"``: the free-flyer joint; q = (translation, quaternion), body-frame twists (6,) in
   Pinocchio's [linear; angular] order, q+ = q exp6(v); ad = ``Motion(x).action``,
-  Jr = ``pin.Jexp6``, dJr by central differences of ``pin.Jexp6`` (see :func:`se3_dJr`).
+  Jr from :meth:`geoddp.lie.SE3.right_jacobian`, dJr by central differences of it (see
+  :func:`se3_dJr`).
+
+Why our own Jr rather than ``pin.Jexp6`` / ``dIntegrate(ARG1)`` / ``dDifference``: Pinocchio 4.1
+loses up to 3e-5 absolute in the SE(3) Jacobians' coupling block for joint rotations between
+1e-5 and 1e-2 rad (see :meth:`geoddp.lie.SE3.right_jacobian`), exactly the small per-step
+rotations a trajectory produces. The functions here are exact to round-off (tested).
 
 Other joints (planar = SE(2), composite, mimic) are refused with an error naming the joint.
 """
@@ -29,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .lie import SO3, hat
+from . import kernels
+from .lie import SE3, SO3, hat
 
 _VECTOR_SHORTNAMES = frozenset(
     ["JointModelR" + a for a in "XYZ"]
@@ -113,9 +120,10 @@ def difference(model: pin.Model, groups: list[JointGroup], q0: np.ndarray, q1: n
 
 
 def se3_dJr(x: np.ndarray) -> np.ndarray:
-    """D (6, 6, 6) with D[i, j, l] = d Jr(x)[i, j] / d x_l for SE(3), Jr = ``pin.Jexp6``.
+    """D (6, 6, 6) with D[i, j, l] = d Jr(x)[i, j] / d x_l for SE(3).
 
-    Central differences of the closed-form Jr (error ~1e-10, tested); x (6,) [linear; angular].
+    Central differences of the closed-form :meth:`geoddp.lie.SE3.right_jacobian` (error ~1e-10,
+    tested); x (6,) [linear; angular].
     """
     x = np.asarray(x, dtype=float)
     h = _SE3_DJR_STEP
@@ -123,15 +131,15 @@ def se3_dJr(x: np.ndarray) -> np.ndarray:
     for l in range(6):
         e = np.zeros(6)
         e[l] = h
-        D[:, :, l] = (pin.Jexp6(x + e) - pin.Jexp6(x - e)) / (2.0 * h)
+        D[:, :, l] = (SE3.right_jacobian(x + e) - SE3.right_jacobian(x - e)) / (2.0 * h)
     return D
 
 
 def block_Ad_Jr(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Ad_{exp(-omega)} and Jr(omega), each (nv, nv) block-diagonal; omega (nv,).
 
-    These equal ``pin.dIntegrate(model, q, omega, ARG0 / ARG1)`` (tested); the model uses
-    Pinocchio's, this is the per-group statement of what they are.
+    These are ``pin.dIntegrate(model, q, omega, ARG0 / ARG1)``, with Jr exact to round-off
+    where Pinocchio's SE(3) block is not (module docstring; tested against the series).
     """
     A = np.eye(nv)
     J = np.eye(nv)
@@ -139,11 +147,32 @@ def block_Ad_Jr(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[n
         s, w = g.slice, omega[g.slice]
         if g.kind == "so3":
             A[s, s] = pin.exp3(w).T
-            J[s, s] = pin.Jexp3(w)
+            J[s, s] = kernels.so3_right_jacobian(w, False)
         elif g.kind == "se3":
             A[s, s] = pin.exp6(-w).action
-            J[s, s] = pin.Jexp6(w)
+            J[s, s] = SE3.right_jacobian(w)
     return A, J
+
+
+def block_Jr_inv(groups: list[JointGroup], nv: int, omega: np.ndarray) -> np.ndarray:
+    """Jr(omega)^-1, (nv, nv) block-diagonal; omega (nv,), rotations below 2 pi per joint."""
+    K = np.eye(nv)
+    for g in groups:
+        s, w = g.slice, omega[g.slice]
+        if g.kind == "so3":
+            K[s, s] = SO3.right_jacobian_inv(w)
+        elif g.kind == "se3":
+            K[s, s] = SE3.right_jacobian_inv(w)
+    return K
+
+
+def difference_jacobian(model: pin.Model, groups: list[JointGroup], q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """d difference(q0, q1 exp(d)) / dd at d = 0, (nv, nv): Jr(difference(q0, q1))^-1 per joint.
+
+    ``pin.dDifference(model, q0, q1, ARG1)``, exact near q0 = q1 where Pinocchio's SE(3) block
+    is not (module docstring).
+    """
+    return block_Jr_inv(groups, model.nv, difference(model, groups, q0, q1))
 
 
 def second_order_tensors(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -672,6 +672,92 @@ def satellite_linearise(
                     Th[3 + i, 3 + a, 3 + b] = T[i, a, b]
 
 
+
+# ----------------------------------------------------------------------------- right Jacobians
+# Series coefficients (see geoddp.lie): c(t) of Jr^-1 = I + hat/2 + c hat^2, and the SE(3)
+# coupling coefficients c1, c2, c3 of Barfoot's Q (eq. 7.86); 7 terms each.
+_JRINV_C = np.array([1 / 12, 1 / 720, 1 / 30240, 1 / 1209600, 1 / 47900160, 691 / 1307674368000, 1 / 74724249600])
+_Q1 = np.array([(-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 4))) for k in range(7)])
+_Q2 = np.array([(-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 1))) for k in range(2, 9)])
+_Q3 = np.array([(-1.0) ** k * (k - 1) / float(np.prod(np.arange(1, 2 * k + 2))) for k in range(2, 9)])
+
+
+@njit(cache=True)
+def _poly(c: np.ndarray, t2: float) -> float:
+    out = 0.0
+    for i in range(c.shape[0] - 1, -1, -1):
+        out = out * t2 + c[i]
+    return out
+
+
+@njit(cache=True)
+def _hat(x0: float, x1: float, x2: float) -> np.ndarray:
+    K = np.zeros((3, 3))
+    K[0, 1] = -x2
+    K[0, 2] = x1
+    K[1, 0] = x2
+    K[1, 2] = -x0
+    K[2, 0] = -x1
+    K[2, 1] = x0
+    return K
+
+
+@njit(cache=True)
+def so3_right_jacobian(x: np.ndarray, inverse: bool) -> np.ndarray:
+    """Jr(x) or Jr(x)^-1 (3, 3) of SO(3), exact to round-off (Taylor branches near 0)."""
+    t = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    K = _hat(x[0], x[1], x[2])
+    K2 = K @ K
+    J = np.eye(3)
+    if inverse:
+        if t < 0.25:
+            c = _poly(_JRINV_C, t * t)
+        else:
+            c = 1.0 / (t * t) - np.cos(0.5 * t) / (2.0 * t * np.sin(0.5 * t))
+        return J + 0.5 * K + c * K2
+    a, b, _, _ = _jr_coefficients(t)
+    return J - a * K + b * K2
+
+
+@njit(cache=True)
+def _se3_coupling(r: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Barfoot's Q(rho, phi) (3, 3), the coupling block of the SE(3) left Jacobian."""
+    t = np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+    t2 = t * t
+    if t < 0.6:
+        c1 = _poly(_Q1, t2)
+        c2 = _poly(_Q2, t2)
+        c3 = _poly(_Q3, t2)
+    else:
+        s = np.sin(t)
+        c = np.cos(t)
+        c1 = (t - s) / (t2 * t)
+        c2 = (t2 + 2.0 * c - 2.0) / (2.0 * t2 * t2)
+        c3 = (2.0 * t - 3.0 * s + t * c) / (2.0 * t2 * t2 * t)
+    P = _hat(p[0], p[1], p[2])
+    R = _hat(r[0], r[1], r[2])
+    PR = P @ R
+    RP = R @ P
+    PRP = PR @ P
+    return 0.5 * R + c1 * (PR + RP + PRP) + c2 * (P @ PR + RP @ P - 3.0 * PRP) + c3 * (PRP @ P + P @ PRP)
+
+
+@njit(cache=True)
+def se3_right_jacobian(x: np.ndarray, inverse: bool) -> np.ndarray:
+    """Jr(x) or Jr(x)^-1 (6, 6) of SE(3), x = [linear; angular]: [[J3, Q(-v, -w)], [0, J3]]
+    (inverse: [[K3, -K3 Q K3], [0, K3]]), exact to round-off (Taylor branches near 0)."""
+    J3 = so3_right_jacobian(x[3:], inverse)
+    Q = _se3_coupling(-x[:3], -x[3:])
+    out = np.zeros((6, 6))
+    out[:3, :3] = J3
+    out[3:, 3:] = J3
+    if inverse:
+        out[:3, 3:] = -(J3 @ Q @ J3)
+    else:
+        out[:3, 3:] = Q
+    return out
+
+
 _WARM = False
 
 
@@ -704,6 +790,8 @@ def warm_up() -> None:
                       np.zeros((H, m, 6)), np.zeros(H))
     gradient(Phi, B, np.zeros((H, 6)), U, np.zeros(6), np.zeros((H, m)))
     so3_log_batch(R, np.empty((H + 1, 3)))
+    for inverse in (False, True):
+        se3_right_jacobian(np.zeros(6), inverse)
     _WARM = True
 
 

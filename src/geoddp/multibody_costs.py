@@ -56,7 +56,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from . import configuration as cfg
 from .costs import CostDerivatives
+from .lie import SE3, SO3
 from .validate import InputError, closest, finite_array, rotation_matrix, spd_matrix
 
 __all__ = [
@@ -277,7 +279,7 @@ class FramePlacement(_FrameTerm):
         else:
             E = self._Minv[kk] * oMf
         r = pin.log6(E).vector
-        return r, (pin.Jlog6(E) @ J if jac else None)
+        return r, (SE3.right_jacobian_inv(r) @ J if jac else None)  # pin.Jlog6, exact near the target
 
 
 class FrameRotation(_FrameTerm):
@@ -308,7 +310,7 @@ class FrameRotation(_FrameTerm):
         E = np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation
         r = pin.log3(E)
         # R(q exp(s dq)) = R exp(s J_ang dq): the angular LOCAL rows
-        return r, (pin.Jlog3(E) @ J[3:6] if jac else None)
+        return r, (SO3.right_jacobian_inv(r) @ J[3:6] if jac else None)
 
 
 class FrameTranslation(_FrameTerm):
@@ -341,7 +343,7 @@ class FrameTranslation(_FrameTerm):
 
 
 class StateRegularisation(MultibodyCostTerm):
-    """1/2 r^T W r with r = (pin.difference(model, q_ref, q), v - v_ref) (2 nv,).
+    """1/2 r^T W r with r = (difference(q_ref, q), v - v_ref) (2 nv,), ``pin.difference`` per joint.
 
     Args:
         model: the multibody.
@@ -373,6 +375,10 @@ class StateRegularisation(MultibodyCostTerm):
         if not isinstance(gauss_newton, (bool, np.bool_)):
             raise InputError("StateRegularisation.gauss_newton", f"expected True or False, got {gauss_newton!r}")
         self.gauss_newton = bool(gauss_newton)
+        try:
+            self.groups = cfg.joint_groups(self.model)
+        except ValueError as exc:
+            raise InputError("StateRegularisation.model", str(exc)) from None
         # tangent indices of the joints whose configuration space is not a vector space
         self.curved_dofs = np.array(
             [j.idx_v + i for j in self.model.joints[1:] if j.nq != j.nv for i in range(j.nv)], dtype=int)
@@ -386,7 +392,7 @@ class StateRegularisation(MultibodyCostTerm):
         N = Q.shape[0]
         self._check_nodes(N)
         qr, vr = _pick(self.q_ref, N, ""), _pick(self.v_ref, N, "")
-        rq = np.array([pin.difference(self.model, qr[k], Q[k]) for k in range(N)]).reshape(N, self.nv)
+        rq = np.array([cfg.difference(self.model, self.groups, qr[k], Q[k]) for k in range(N)]).reshape(N, self.nv)
         return np.concatenate([rq, V - vr], axis=1)
 
     def value(self, Q, V, U):
@@ -402,7 +408,8 @@ class StateRegularisation(MultibodyCostTerm):
         d.lx[:, nv:] += w[:, nv:]
         d.lxx[:, nv:, nv:] += self.W[nv:, nv:]
         for k in range(N):
-            J = pin.dDifference(self.model, qr[k], Q[k], pin.ARG1)  # (nv, nv), identity on Euclidean joints
+            # pin.dDifference(ARG1), exact where Pinocchio's SE(3) block is not; identity on Euclidean joints
+            J = cfg.difference_jacobian(self.model, self.groups, qr[k], Q[k])
             d.lx[k, :nv] += J.T @ w[k, :nv]
             JW = J.T @ self.W[:nv]  # (nv, 2 nv)
             G = JW[:, :nv] @ J
@@ -416,8 +423,8 @@ class StateRegularisation(MultibodyCostTerm):
                 e = np.zeros(nv)
                 for j in self.curved_dofs:
                     e[j] = _FD_STEP
-                    Jp = pin.dDifference(self.model, qr[k], pin.integrate(self.model, Q[k], e), pin.ARG1)
-                    Jm = pin.dDifference(self.model, qr[k], pin.integrate(self.model, Q[k], -e), pin.ARG1)
+                    Jp = cfg.difference_jacobian(self.model, self.groups, qr[k], pin.integrate(self.model, Q[k], e))
+                    Jm = cfg.difference_jacobian(self.model, self.groups, qr[k], pin.integrate(self.model, Q[k], -e))
                     e[j] = 0.0
                     H[:, j] = (Jp - Jm).T @ wq / (2.0 * _FD_STEP)
                 d.lxx[k, :nv, :nv] += 0.5 * (H + H.T)

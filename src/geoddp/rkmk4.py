@@ -11,7 +11,8 @@ dexpinv), and (theta, v) obeys an ODE on a vector space. The classical RK4 table
     theta = h/6 (k1 + 2 k2 + 2 k3 + k4)_theta,  v+ = v_n + h/6 (k1 + 2 k2 + 2 k3 + k4)_v,
     q+ = q_n exp(theta).
 
-Jr(theta) is ``pin.dIntegrate(model, q, theta, ARG1)`` (block-diagonal over joints).
+Jr(theta) is ``pin.dIntegrate(model, q, theta, ARG1)`` (block-diagonal over joints), taken from
+:func:`geoddp.configuration.block_Ad_Jr`, which is exact where Pinocchio's SE(3) block is not.
 
 The Jacobian w.r.t. z = (dq, dv, du) (q_n -> q_n exp(dq)) chains the stages' analytic
 derivatives: the tangent of q_i = q_n exp(dq) exp(theta_i) is Ad_exp(-theta_i) dq + Jr dtheta_i
@@ -29,7 +30,8 @@ _C = (0.0, 0.5, 0.5, 1.0)
 _W = (1.0, 2.0, 2.0, 1.0)
 
 
-def step(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarray, tau: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+def step(model: pin.Model, data: pin.Data, groups: list[cfg.JointGroup], q: np.ndarray, v: np.ndarray,
+         tau: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """One RKMK4 step: q (nq,), v (nv,), tau (nv,) generalised forces, h (s) -> (q+, v+)."""
     theta_sum = np.zeros(model.nv)
     v_sum = np.zeros(model.nv)
@@ -39,8 +41,7 @@ def step(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarray, tau: np
             theta_i, v_i = np.zeros(model.nv), v
         else:
             theta_i, v_i = c * h * k_theta, v + c * h * k_v
-        Jr = pin.dIntegrate(model, q, theta_i, pin.ARG1)
-        k_theta = np.linalg.solve(Jr, v_i)
+        k_theta = cfg.block_Jr_inv(groups, model.nv, theta_i) @ v_i
         k_v = pin.aba(model, data, pin.integrate(model, q, theta_i), v_i, tau)
         theta_sum += w * k_theta
         v_sum += w * k_v
@@ -74,8 +75,7 @@ def step_jacobian(
             theta_i, v_i = c * h * k_theta, v + c * h * k_v
             Th_i, V_i = c * h * K_theta, Pv + c * h * K_v
         q_i = pin.integrate(model, q, theta_i)
-        Ad_i = pin.dIntegrate(model, q, theta_i, pin.ARG0)
-        Jr_i = pin.dIntegrate(model, q, theta_i, pin.ARG1)
+        Ad_i, Jr_i = cfg.block_Ad_Jr(groups, nv, theta_i)
         Qtan_i = Ad_i @ Pq + Jr_i @ Th_i  # tangent of q_i at q_i
         pin.computeABADerivatives(model, data, q_i, v_i, tau)
         Minv = np.triu(data.Minv) + np.triu(data.Minv, 1).T  # Pinocchio fills only the upper part
@@ -92,6 +92,7 @@ def step_jacobian(
         A_sum += w * K_v
     theta = (h / 6.0) * theta_sum
     G = np.empty((2 * nv, nz))
-    G[:nv] = pin.dIntegrate(model, q, theta, pin.ARG0) @ Pq + pin.dIntegrate(model, q, theta, pin.ARG1) @ ((h / 6.0) * Theta_sum)
+    Ad, Jr = cfg.block_Ad_Jr(groups, nv, theta)
+    G[:nv] = Ad @ Pq + Jr @ ((h / 6.0) * Theta_sum)
     G[nv:] = Pv + (h / 6.0) * A_sum
     return G

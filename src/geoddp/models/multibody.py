@@ -16,7 +16,8 @@ Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
   order by central differences of those analytic first derivatives along tangent directions
   (q through ``integrate``, v and u additively), symmetrised to the (0)-connection Hessian (the
   pip wheel has no second-order ABA derivatives);
-* reconstruction: first order from ``dIntegrate`` (ARG0 = Ad_exp(-omega), ARG1 = Jr(omega));
+* reconstruction: first order from ``dIntegrate``'s ARG0 = Ad_exp(-omega), ARG1 = Jr(omega)
+  (:func:`geoddp.configuration.block_Ad_Jr`: Pinocchio's SE(3) Jr is inaccurate at small angles);
   second order exact per joint group (:mod:`geoddp.configuration`), the TSO(3) formula of
   :mod:`geoddp.integrators` applied to the product group.
 Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
@@ -31,11 +32,11 @@ import pinocchio as pin
 
 from .. import configuration as cfg
 from .. import integrators as integ
-from .. import rkmk4
+from .. import rkmk4, variational
 from ..validate import InputError, choice, finite_array, positive_float
 
 ROOTS = ("free_flyer", "spherical", "fixed")
-INTEGRATORS = integ.INTEGRATORS + ("rk4",)
+INTEGRATORS = integ.INTEGRATORS + ("rk4", "variational")
 SECOND_ORDER_KINDS = ("exact",)
 # Central-difference step for the second derivatives of the velocity update: the error is
 # ~h^2 |f'''| / 6 + eps |f'| / h; h = 1e-5 balances them near 1e-10 relative (tested against a
@@ -58,8 +59,9 @@ class Multibody:
             identity (every degree of freedom actuated). For a free-flyer root the first six
             rows are the body wrench [force; torque] in the root body frame.
         dt: time step, s.
-        integrator: "euler" (paper), "semi_implicit" (Crocoddyl) or "rk4" (RKMK4 on the Lie group;
-            second order by central differences of its analytic step Jacobian).
+        integrator: "euler" (paper), "semi_implicit" (Crocoddyl), "rk4" (RKMK4 on the Lie group;
+            second order by central differences of its analytic step Jacobian) or "variational"
+            (the paper's forward variational Euler, implicit; :mod:`geoddp.variational`).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
     """
@@ -73,6 +75,7 @@ class Multibody:
     second_order: str = "exact"
     pin_model: pin.Model = field(init=False, repr=False)
     groups: list = field(init=False, repr=False)
+    _variational: variational.VariationalEuler | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         self.root = choice(self.root, "root", ROOTS)
@@ -110,6 +113,8 @@ class Multibody:
             if zero.size:
                 raise InputError("actuation", f"expected every column to be non-zero, got an all-zero column {int(zero[0])}")
             self.actuation = Hm
+        if self.integrator == "variational":
+            self._variational = variational.VariationalEuler(model, self.groups, self.actuation, self.dt)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -155,7 +160,9 @@ class Multibody:
     def _step(self, data: pin.Data, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         model = self.pin_model
         if self.integrator == "rk4":
-            return rkmk4.step(model, data, q, v, self.actuation @ u, self.dt)
+            return rkmk4.step(model, data, self.groups, q, v, self.actuation @ u, self.dt)
+        if self._variational is not None:
+            return self._variational.step(data, None, q, v, self.actuation @ u)
         v_next = v + self.dt * pin.aba(model, data, q, v, self.actuation @ u)
         w = v_next if self.semi_implicit else v
         # No pin.normalize: integrate already renormalises to first order, and normalize moves
@@ -282,10 +289,13 @@ class Multibody:
             raise InputError("order", f"expected 1 or 2, got {order!r}")
         nv, m, dt = self.nv, self.nu, self.dt
         n, nz = 2 * nv, 2 * nv + m
-        model = self.pin_model
         if self.integrator == "rk4":
             return self._expansion_rk4(Q, V, U, order)
-        F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
+        if self._variational is not None:
+            # Implicit velocity update, explicit-Euler reconstruction q+ = q exp(dt v).
+            F1, F2 = self._variational.velocity_derivatives(Q[:H], V[:H], V[1:], U, order)
+        else:
+            F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
         W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
         # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
         if self.semi_implicit:
@@ -297,8 +307,8 @@ class Multibody:
         G2 = np.zeros((H, n, nz, nz)) if F2 is not None else None
         for k in range(H):
             omega = dt * W[k]
-            A = pin.dIntegrate(model, Q[k], omega, pin.ARG0)  # Ad_exp(-omega), block-diagonal
-            Jr = pin.dIntegrate(model, Q[k], omega, pin.ARG1)  # Jr(omega), block-diagonal
+            # Ad_exp(-omega), Jr(omega): dIntegrate's ARG0 / ARG1, block-diagonal (exact SE(3) Jr)
+            A, Jr = cfg.block_Ad_Jr(self.groups, nv, omega)
             JW = Jr @ W1[k]
             G1[k, :nv] = dt * JW
             G1[k, :nv, :nv] += A
