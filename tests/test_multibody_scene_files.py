@@ -462,8 +462,8 @@ def test_run_multibody_max_iter_1_exits_1(tmp_path, capsys):
     assert code == EXIT_NOT_CONVERGED and err == "" and "max_iter" in out
 
 
-@pytest.mark.parametrize("flag", [["--plots", "figs"], ["--view"]])
-def test_run_multibody_refuses_plots_and_view_before_solving(tmp_path, capsys, flag):
+@pytest.mark.parametrize("flag", [["--plots", "figs"]])
+def test_run_multibody_refuses_plots_before_solving(tmp_path, capsys, flag):
     p = tmp_path / "good.toml"
     p.write_text(GOOD)
     argv = ["run", str(p), "--quiet"] + [str(tmp_path / f) if f == "figs" else f for f in flag]

@@ -7,18 +7,21 @@ import json
 import re
 import subprocess
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from geoddp import viz  # first: silences meshcat's import warning
-from geoddp.multibody_scenes import MODELS, space_manipulator, spacecraft_docking
+from geoddp.multibody_scenes import space_manipulator, spacecraft_docking
 from geoddp.result import Result
 from geoddp.validate import InputError
 from geoddp.viz import meshcat_replay
 from geoddp.viz.html import STATUS_ID, decode_commands, record_scene
 from geoddp.viz.multibody import ROBOT, SHAPE, load_visual_model, visual_placements
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
 from geoddp.viz.scene import BACKGROUND_RGB
 import umsgpack  # noqa: E402
 

@@ -28,7 +28,10 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no iteration table")
     mb = sub.add_parser("multibody", help="solve one of the built-in multibody scenes (issue 6)")
     mb.add_argument("scene", choices=_MULTIBODY_SCENES, help="built-in scene")
-    mb.add_argument("--integrator", choices=["euler", "semi_implicit"], default="semi_implicit")
+    from .models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
+
+    mb.add_argument("--integrator", choices=list(MULTIBODY_INTEGRATORS), default="semi_implicit",
+                    help="variational: the paper's forward variational Euler (implicit)")
     mb.add_argument("--expansion", choices=["first", "second", "switch"], default="switch")
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
     mb.add_argument("--html", type=Path, help="write a self-contained animated HTML replay of the whole model "
@@ -75,13 +78,11 @@ def _run(args) -> int:
     spec = load_scene(args.scene)
     multibody = isinstance(spec, MultibodySceneSpec)
     if multibody:
-        # Refused before solving, as bad input. The static HTML replays the root body's attitude
-        # (as `geoddp multibody NAME --html` does).
-        for flag, given in (("--plots", args.plots), ("--view", args.view)):
-            if given:
-                raise InputError(flag, "not supported for multibody scenes yet (the figures and the live viewer "
-                                 "show a single rigid body); use --json OUT.json, or --html OUT.html for a replay "
-                                 "of the root body's attitude")
+        # Refused before solving, as bad input: the figures plot a single rigid body's attitude.
+        # --html and --view replay the whole model (as `geoddp multibody NAME` does).
+        if args.plots:
+            raise InputError("--plots", "not supported for multibody scenes (the figures plot a single rigid "
+                             "body's attitude); use --json OUT.json, --html OUT.html or --view for a replay")
     overrides = {"expansion": args.expansion} if args.expansion else {}
     result = solve_scene(spec, verbose=not args.quiet, **overrides)
     if multibody:
