@@ -146,6 +146,20 @@ def block_Ad_Jr(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[n
     return A, J
 
 
+def group_second_order_tensors(kind: str, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One non-commutative joint group's dJr at N points and its structure constants.
+
+    kind: "so3" or "se3"; omega (N, d) -> D (N, d, d, d) with D[n, i, j, l] = d Jr(omega_n)[i, j]
+    / d omega_l, and C (d, d, d) with [x, y]_i = C[i, p, q] x_p y_q. Vector and SO(2) joints
+    have D = 0 and C = 0 (commutative).
+    """
+    if kind == "so3":
+        return SO3.right_jacobian_derivative_batch(omega), _SO3_C
+    if kind == "se3":
+        return np.stack([se3_dJr(w) for w in omega]), _SE3_C
+    raise ValueError(f"expected a non-commutative group kind ('so3' or 'se3'), got {kind!r}")
+
+
 def second_order_tensors(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The reconstruction's second-order ingredients at omega (nv,), block-diagonal over joints.
 
@@ -157,11 +171,9 @@ def second_order_tensors(groups: list[JointGroup], nv: int, omega: np.ndarray) -
     D = np.zeros((nv, nv, nv))
     C = np.zeros((nv, nv, nv))
     for g in groups:
-        s, w = g.slice, omega[g.slice]
-        if g.kind == "so3":
-            D[s, s, s] = SO3.right_jacobian_derivative_batch(w[None])[0]
-            C[s, s, s] = _SO3_C
-        elif g.kind == "se3":
-            D[s, s, s] = se3_dJr(w)
-            C[s, s, s] = _SE3_C
+        if g.kind in ("so3", "se3"):
+            s = g.slice
+            Dg, Cg = group_second_order_tensors(g.kind, omega[None, s])
+            D[s, s, s] = Dg[0]
+            C[s, s, s] = Cg
     return D, C

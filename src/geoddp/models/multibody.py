@@ -348,40 +348,50 @@ class Multibody:
             return self._expansion_rk4(Q, V, U, order)
         F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
         W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
+        Omega = dt * W
         # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
         if self.semi_implicit:
             W1 = F1
         else:
             W1 = np.zeros((H, nv, nz))
             W1[:, :, nv : 2 * nv] = np.eye(nv)
-        G1 = np.empty((H, n, nz))
-        G2 = np.zeros((H, n, nz, nz)) if F2 is not None else None
+        A = np.empty((H, nv, nv))  # Ad_exp(-omega), block-diagonal
+        Jr = np.empty((H, nv, nv))  # Jr(omega), block-diagonal
         for k in range(H):
-            omega = dt * W[k]
-            A = pin.dIntegrate(model, Q[k], omega, pin.ARG0)  # Ad_exp(-omega), block-diagonal
-            Jr = pin.dIntegrate(model, Q[k], omega, pin.ARG1)  # Jr(omega), block-diagonal
-            JW = Jr @ W1[k]
-            G1[k, :nv] = dt * JW
-            G1[k, :nv, :nv] += A
-            G1[k, nv:] = F1[k]
-            if G2 is None:
-                continue
-            # eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
-            # (geoddp.integrators, module docstring; any Lie group, here the product of joints).
-            D, C = cfg.second_order_tensors(self.groups, nv, omega)
-            Dsym = 0.5 * (D + np.swapaxes(D, 1, 2))
-            G2[k, :nv] = (dt * dt) * np.einsum("ai,pab,bj->pij", W1[k], Dsym, W1[k])
-            # 1/2 [A eta, Jr rho]_p = z^T Mz_p z with eta = z[:nv] and Jr rho = dt JW z.
-            Mz = np.zeros((nv, nz, nz))
-            Mz[:, :nv, :] = (0.5 * dt) * np.einsum("ai,pab,bj->pij", A, C, JW)
-            G2[k, :nv] += Mz + np.swapaxes(Mz, 1, 2)
-            if self.semi_implicit:
-                # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
-                G2[k, :nv] += dt * np.einsum("pa,aij->pij", Jr, F2[k])
-            G2[k, nv:] = F2[k]
+            A[k] = pin.dIntegrate(model, Q[k], Omega[k], pin.ARG0)
+            Jr[k] = pin.dIntegrate(model, Q[k], Omega[k], pin.ARG1)
+        JW = Jr @ W1
+        G1 = np.empty((H, n, nz))
+        G1[:, :nv] = dt * JW
+        G1[:, :nv, :nv] += A
+        G1[:, nv:] = F1
         e = integ.Expansion(Phi=np.ascontiguousarray(G1[:, :, :n]), B=np.ascontiguousarray(G1[:, :, n:]))
-        if G2 is not None:
-            e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
-            e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
-            e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
+        if F2 is None:
+            return e
+        # eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
+        # (geoddp.integrators, module docstring; any Lie group, here the product of joints).
+        # dJr and the bracket vanish on commutative joints and across joints, so both terms are
+        # assembled per non-commutative joint group s (rows p, a, b in s), on all H nodes at once.
+        G2 = np.zeros((H, n, nz, nz))
+        for g in self.groups:
+            if g.kind not in ("so3", "se3"):
+                continue
+            s = g.slice
+            D, C = cfg.group_second_order_tensors(g.kind, Omega[:, s])  # (H, d, d, d), (d, d, d)
+            Dsym = 0.5 * (D + np.swapaxes(D, 2, 3))
+            Ws = W1[:, None, s, :]  # (H, 1, d, nz)
+            # 1/2 dJr[rho] rho with rho = dt W1 z: dt^2 W1^T Dsym_p W1 for each row p
+            G2[:, s] += (dt * dt) * (np.swapaxes(Ws, 2, 3) @ (Dsym @ Ws))
+            # 1/2 [A eta, Jr rho]_p = z^T Mz_p z with eta = z[:nv] and Jr rho = dt JW z:
+            # Mz_p = dt/2 A^T C_p JW on the (eta in s, z) block
+            Mz = (0.5 * dt) * (np.swapaxes(A[:, None, s, s], 2, 3) @ (C[None] @ JW[:, None, s, :]))  # (H, d, d, nz)
+            G2[:, s, s, :] += Mz
+            G2[:, s, :, s] += np.swapaxes(Mz, 2, 3)
+        if self.semi_implicit:
+            # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
+            G2[:, :nv] += dt * (Jr @ F2.reshape(H, nv, nz * nz)).reshape(H, nv, nz, nz)
+        G2[:, nv:] = F2
+        e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
+        e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
+        e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
         return e
