@@ -117,14 +117,17 @@ def se3_dJr(x: np.ndarray) -> np.ndarray:
 
     Central differences of the closed-form Jr (error ~1e-10, tested); x (6,) [linear; angular].
     """
-    x = np.asarray(x, dtype=float)
+    return se3_dJr_batch(np.asarray(x, dtype=float)[None])[0]
+
+
+def se3_dJr_batch(X: np.ndarray) -> np.ndarray:
+    """:func:`se3_dJr` at N points: X (N, 6) -> (N, 6, 6, 6), one flat pass of ``pin.Jexp6``."""
+    X = np.asarray(X, dtype=float)
     h = _SE3_DJR_STEP
-    D = np.empty((6, 6, 6))
-    for l in range(6):
-        e = np.zeros(6)
-        e[l] = h
-        D[:, :, l] = (pin.Jexp6(x + e) - pin.Jexp6(x - e)) / (2.0 * h)
-    return D
+    steps = h * np.eye(6)
+    pts = np.stack([X[:, None, :] + steps, X[:, None, :] - steps], axis=1).reshape(-1, 6)  # [n, sign, l]
+    J = np.array([pin.Jexp6(x) for x in pts]).reshape(X.shape[0], 2, 6, 6, 6)  # [n, sign, l, i, j]
+    return np.moveaxis((J[:, 0] - J[:, 1]) / (2.0 * h), 1, -1)
 
 
 def block_Ad_Jr(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -156,7 +159,7 @@ def group_second_order_tensors(kind: str, omega: np.ndarray) -> tuple[np.ndarray
     if kind == "so3":
         return SO3.right_jacobian_derivative_batch(omega), _SO3_C
     if kind == "se3":
-        return np.stack([se3_dJr(w) for w in omega]), _SE3_C
+        return se3_dJr_batch(omega), _SE3_C
     raise ValueError(f"expected a non-commutative group kind ('so3' or 'se3'), got {kind!r}")
 
 

@@ -401,6 +401,8 @@ class StateRegularisation(MultibodyCostTerm):
         d.l += 0.5 * np.einsum("ni,ni->n", r, w)
         d.lx[:, nv:] += w[:, nv:]
         d.lxx[:, nv:, nv:] += self.W[nv:, nv:]
+        if not np.any(self.W[:nv]):
+            return  # no weight on dq (a velocity penalty): every term below is exactly zero
         for k in range(N):
             J = pin.dDifference(self.model, qr[k], Q[k], pin.ARG1)  # (nv, nv), identity on Euclidean joints
             d.lx[k, :nv] += J.T @ w[k, :nv]
