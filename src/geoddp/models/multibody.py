@@ -13,9 +13,10 @@ or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step of :mod
 
 Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
 * velocity update: first order from ``computeABADerivatives`` (ddq_dq, ddq_dv, Minv); second
-  order by central differences of those analytic first derivatives along tangent directions
-  (q through ``integrate``, v and u additively), symmetrised to the (0)-connection Hessian (the
-  pip wheel has no second-order ABA derivatives);
+  order from the structure of ABA (:meth:`Multibody.velocity_derivatives`): zero in (u, u) and
+  (v, u), exact in (v, v) from RNEA's dtau_dv, and central differences of the analytic first
+  derivatives along q (through ``integrate``) for the rest, symmetrised to the (0)-connection
+  Hessian (the pip wheel has no second-order ABA derivatives);
 * reconstruction: first order from ``dIntegrate`` (ARG0 = Ad_exp(-omega), ARG1 = Jr(omega));
   second order exact per joint group (:mod:`geoddp.configuration`), the TSO(3) formula of
   :mod:`geoddp.integrators` applied to the product group.
