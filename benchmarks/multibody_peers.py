@@ -138,8 +138,9 @@ def check_cost_equivalence(mb_problem: Any, controls: np.ndarray) -> dict[str, f
 
 
 def solve_crocoddyl(mb_problem: Any, solver: str = "fddp", th_stop: float = 1e-9, max_iter: int = 500,
-                    nthreads: int | None = None) -> dict[str, Any]:
-    """Solve the Crocoddyl equivalent of ``mb_problem`` from zero controls (and their rollout).
+                    nthreads: int | None = None, initial_controls: np.ndarray | None = None) -> dict[str, Any]:
+    """Solve the Crocoddyl equivalent of ``mb_problem`` from ``initial_controls`` (H, m) (zero
+    controls by default) and their rollout.
 
     ``th_stop``: Crocoddyl's stopping threshold; in crocoddyl 3.2.1 ``stop`` is the expected
     cost decrease of the full step (README_peers.md), so this stops after a step predicted to
@@ -161,7 +162,8 @@ def solve_crocoddyl(mb_problem: Any, solver: str = "fddp", th_stop: float = 1e-9
     else:
         raise ValueError(f"unknown crocoddyl solver {solver!r} (expected 'fddp' or 'ddp')")
     s.th_stop = float(th_stop)
-    us0 = [np.zeros(mb_problem.nu) for _ in range(mb_problem.horizon)]
+    U0 = np.zeros((mb_problem.horizon, mb_problem.nu)) if initial_controls is None else np.asarray(initial_controls, float)
+    us0 = [u.copy() for u in U0]
     xs0 = problem.rollout(us0)
     t0 = time.perf_counter()
     converged = s.solve(xs0, us0, int(max_iter), True)

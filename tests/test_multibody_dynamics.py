@@ -261,6 +261,49 @@ def test_velocity_hessian_step_is_accurate(rng):
     assert FD_STEP == 1e-5
 
 
+def _velocity_hessian_all_directions(mb, Q, V, U, h=FD_STEP):
+    """The former F2: central differences of the analytic ABA Jacobian along every direction
+    of z = (dq, dv, du) (q through integrate), symmetrised. Structure-blind reference."""
+    model, data, Hm, nv, dt = mb.pin_model, mb.pin_model.createData(), mb.actuation, mb.nv, mb.dt
+    nz = 2 * nv + mb.nu
+
+    def jac(q, v, tau):
+        pin.computeABADerivatives(model, data, q, v, tau)
+        Minv = np.triu(data.Minv) + np.triu(data.Minv, 1).T
+        return np.hstack([dt * data.ddq_dq, np.eye(nv) + dt * data.ddq_dv, dt * Minv @ Hm])
+
+    F2 = np.empty((len(U), nv, nz, nz))
+    for k in range(len(U)):
+        q, v, tau = Q[k], V[k], Hm @ U[k]
+        D = np.empty((nv, nz, nz))
+        for j, e in enumerate(h * np.eye(nz)):
+            plus = jac(pin.integrate(model, q, e[:nv]), v + e[nv:2 * nv], tau + Hm @ e[2 * nv:])
+            minus = jac(pin.integrate(model, q, -e[:nv]), v - e[nv:2 * nv], tau - Hm @ e[2 * nv:])
+            D[:, :, j] = (plus - minus) / (2 * h)
+        F2[k] = 0.5 * (D + np.swapaxes(D, 1, 2))
+    return F2
+
+
+@pytest.mark.parametrize("gravity", [True, False])
+@pytest.mark.parametrize("root", ROOTS)
+def test_structured_velocity_hessian_equals_differences_along_every_direction(root, gravity, rng):
+    """The structured F2 (zero u-u and v-u blocks, RNEA v-v block, differences along q only,
+    none along invariant root directions) against differences along all nz directions."""
+    mb = _model(root, "euler", gravity=gravity)
+    Q, V, U = _trajectory(mb, rng, H=2)
+    _, F2 = mb.velocity_derivatives(Q[:2], V[:2], U, order=2)
+    ref = _velocity_hessian_all_directions(mb, Q, V, U)
+    assert np.abs(F2 - ref).max() < 1e-8 * np.abs(ref).max()
+    nv = mb.nv
+    assert np.array_equal(F2, np.swapaxes(F2, 2, 3))
+    assert not np.any(F2[:, :, nv:, 2 * nv:])  # affine in tau, slope Minv(q) free of v
+    expected = {"free_flyer": [0, 1, 2] + ([] if gravity else [3, 4, 5]),
+                "spherical": [] if gravity else [0, 1, 2], "fixed": []}[root]
+    assert mb._invariant_q_dirs().tolist() == expected
+    # along the skipped directions the differences see round-off only
+    assert np.abs(ref[:, :, :, expected]).max(initial=0.0) < 1e-8 * np.abs(ref).max()
+
+
 @pytest.mark.parametrize("kind", ["so3", "se3"])
 def test_reconstruction_second_order_term_is_exact_to_third_order(kind, rng):
     """eta+ = log(exp(-omega) exp(eta) exp(omega + rho)) against

@@ -125,14 +125,17 @@ def se3_dJr(x: np.ndarray) -> np.ndarray:
     Central differences of the closed-form :meth:`geoddp.lie.SE3.right_jacobian` (error ~1e-10,
     tested); x (6,) [linear; angular].
     """
-    x = np.asarray(x, dtype=float)
+    return se3_dJr_batch(np.asarray(x, dtype=float)[None])[0]
+
+
+def se3_dJr_batch(X: np.ndarray) -> np.ndarray:
+    """:func:`se3_dJr` at N points: X (N, 6) -> (N, 6, 6, 6), one flat pass of the closed-form Jr."""
+    X = np.asarray(X, dtype=float)
     h = _SE3_DJR_STEP
-    D = np.empty((6, 6, 6))
-    for l in range(6):
-        e = np.zeros(6)
-        e[l] = h
-        D[:, :, l] = (SE3.right_jacobian(x + e) - SE3.right_jacobian(x - e)) / (2.0 * h)
-    return D
+    steps = h * np.eye(6)
+    pts = np.stack([X[:, None, :] + steps, X[:, None, :] - steps], axis=1).reshape(-1, 6)  # [n, sign, l]
+    J = np.array([SE3.right_jacobian(x) for x in pts]).reshape(X.shape[0], 2, 6, 6, 6)  # [n, sign, l, i, j]
+    return np.moveaxis((J[:, 0] - J[:, 1]) / (2.0 * h), 1, -1)
 
 
 def block_Ad_Jr(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -175,6 +178,20 @@ def difference_jacobian(model: pin.Model, groups: list[JointGroup], q0: np.ndarr
     return block_Jr_inv(groups, model.nv, difference(model, groups, q0, q1))
 
 
+def group_second_order_tensors(kind: str, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One non-commutative joint group's dJr at N points and its structure constants.
+
+    kind: "so3" or "se3"; omega (N, d) -> D (N, d, d, d) with D[n, i, j, l] = d Jr(omega_n)[i, j]
+    / d omega_l, and C (d, d, d) with [x, y]_i = C[i, p, q] x_p y_q. Vector and SO(2) joints
+    have D = 0 and C = 0 (commutative).
+    """
+    if kind == "so3":
+        return SO3.right_jacobian_derivative_batch(omega), _SO3_C
+    if kind == "se3":
+        return se3_dJr_batch(omega), _SE3_C
+    raise ValueError(f"expected a non-commutative group kind ('so3' or 'se3'), got {kind!r}")
+
+
 def second_order_tensors(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The reconstruction's second-order ingredients at omega (nv,), block-diagonal over joints.
 
@@ -186,11 +203,9 @@ def second_order_tensors(groups: list[JointGroup], nv: int, omega: np.ndarray) -
     D = np.zeros((nv, nv, nv))
     C = np.zeros((nv, nv, nv))
     for g in groups:
-        s, w = g.slice, omega[g.slice]
-        if g.kind == "so3":
-            D[s, s, s] = SO3.right_jacobian_derivative_batch(w[None])[0]
-            C[s, s, s] = _SO3_C
-        elif g.kind == "se3":
-            D[s, s, s] = se3_dJr(w)
-            C[s, s, s] = _SE3_C
+        if g.kind in ("so3", "se3"):
+            s = g.slice
+            Dg, Cg = group_second_order_tensors(g.kind, omega[None, s])
+            D[s, s, s] = Dg[0]
+            C[s, s, s] = Cg
     return D, C

@@ -407,6 +407,8 @@ class StateRegularisation(MultibodyCostTerm):
         d.l += 0.5 * np.einsum("ni,ni->n", r, w)
         d.lx[:, nv:] += w[:, nv:]
         d.lxx[:, nv:, nv:] += self.W[nv:, nv:]
+        if not np.any(self.W[:nv]):
+            return  # no weight on dq (a velocity penalty): every term below is exactly zero
         for k in range(N):
             # pin.dDifference(ARG1), exact where Pinocchio's SE(3) block is not; identity on Euclidean joints
             J = cfg.difference_jacobian(self.model, self.groups, qr[k], Q[k])
