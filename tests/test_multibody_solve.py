@@ -76,3 +76,22 @@ def test_spacecraft_docks():
     assert np.degrees(np.linalg.norm(pin.log3(M.rotation.T @ pin.exp3(np.array([0, 0, np.pi / 2]))))) < 0.2
     assert np.linalg.norm(r.velocities[-1][:3]) < 2e-3  # m/s
     assert np.linalg.norm(r.velocities[-1][3:]) < 1e-3  # rad/s
+
+
+def test_variational_integrator_solves_the_spacecraft_scene_superlinearly():
+    """The paper's forward variational Euler (derivatives by implicit differentiation): first and
+    switch agree on J* and switch converges superlinearly (measured ||grad J|| 1.5e-2, 2.0e-4,
+    6.5e-8 over its last three iterations)."""
+    p = SCENES["spacecraft"]("variational")
+    opts = dict(verbose=False, max_iter=200, tol=0.0, grad_tol=1e-9)
+    first = solve(p, SolverOptions(expansion="first", **opts))
+    switch = solve(p, SolverOptions(expansion="switch", **opts))
+    assert first.converged and switch.converged, (first.message, switch.message)
+    assert abs(first.cost - switch.cost) <= 1e-9 * switch.cost
+    assert switch.iterations < first.iterations
+    g = switch.grad_norm_history
+    tail = g[-3:]
+    assert tail[-1] < 1e-6 and tail[2] / tail[1] < 1e-2 and tail[1] / tail[0] < 1e-1, g
+    # and the optimum differs from the semi-implicit one by the integrators' O(dt) difference only
+    semi = solve(SCENES["spacecraft"]("semi_implicit"), SolverOptions(**opts))
+    assert abs(semi.cost - switch.cost) < 0.05 * semi.cost

@@ -54,7 +54,7 @@ import numpy as np
 import pinocchio as pin
 
 from . import validate as v
-from .validate import InputError
+from .validate import InputError, SourceReader
 
 __all__ = [
     "ACTUATION_TYPES",
@@ -260,19 +260,7 @@ class MultibodySceneSpec:
 # parsing
 
 
-class _Reader:
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def err(self, param: str, detail: str) -> InputError:
-        return InputError(param, detail, self.source)
-
-    def check(self, fn: Any, *args: Any, **kw: Any) -> Any:
-        """Run validator ``fn(*args, **kw)``; its error names the file too."""
-        try:
-            return fn(*args, **kw)
-        except InputError as e:
-            raise e.with_source(self.source) from None
+class _Reader(SourceReader):
 
     def keys(self, table: Mapping[str, Any], allowed: tuple[str, ...] | list[str], where: str, path: str,
              context: str = "") -> None:

@@ -347,22 +347,12 @@ def _check_urdf(path: Any, name: str, base_dir: Path) -> Path:
     return p
 
 
-class _Reader:
+class _Reader(v.SourceReader):
     """Walks the scene dict, checking keys and wrapping errors with the file name."""
 
     def __init__(self, data: Mapping[str, Any], source: str) -> None:
+        super().__init__(source)
         self.data = data
-        self.source = source
-
-    def err(self, param: str, detail: str) -> InputError:
-        return InputError(param, detail, self.source)
-
-    def check(self, fn: Any, *args: Any, **kw: Any) -> Any:
-        """Run validator ``fn(*args, **kw)`` and attach the file name to its error."""
-        try:
-            return fn(*args, **kw)
-        except InputError as e:
-            raise e.with_source(self.source) from None
 
     def unknown_key(self, key: str, allowed: list[str], section: str | None) -> InputError:
         path = f"[{section}].{key}" if section else key
