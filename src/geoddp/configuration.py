@@ -76,6 +76,12 @@ class JointGroup:
         return slice(self.idx_v, self.idx_v + self.nv)
 
 
+def symmetric_from_upper(M: np.ndarray) -> np.ndarray:
+    """The symmetric matrices (..., n, n) whose upper triangles are those of M: Pinocchio fills
+    only the upper triangle of the mass matrix (``crba``) and of ``Minv``."""
+    return np.triu(M) + np.swapaxes(np.triu(M, 1), -1, -2)
+
+
 def joint_groups(model: pin.Model) -> list[JointGroup]:
     """The joint groups of ``model`` in tangent order (the universe joint 0 is skipped).
 

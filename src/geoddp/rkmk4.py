@@ -78,7 +78,7 @@ def step_jacobian(
         Ad_i, Jr_i = cfg.block_Ad_Jr(groups, nv, theta_i)
         Qtan_i = Ad_i @ Pq + Jr_i @ Th_i  # tangent of q_i at q_i
         pin.computeABADerivatives(model, data, q_i, v_i, tau)
-        Minv = np.triu(data.Minv) + np.triu(data.Minv, 1).T  # Pinocchio fills only the upper part
+        Minv = cfg.symmetric_from_upper(data.Minv)
         K_v = data.ddq_dq @ Qtan_i + data.ddq_dv @ V_i
         K_v[:, 2 * nv :] += Minv @ actuation
         k_v = data.ddq.copy()

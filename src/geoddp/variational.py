@@ -56,11 +56,6 @@ class StepDidNotConverge(ArithmeticError):
     """Newton's method for the implicit velocity update did not converge (dt too large)."""
 
 
-def _symmetric(M: np.ndarray) -> np.ndarray:
-    # Pinocchio fills only the upper triangle of the mass matrix and of Minv.
-    return np.triu(M) + np.triu(M, 1).T
-
-
 @dataclass
 class VariationalEuler:
     """The forward variational Euler step of a Pinocchio model: constants only.
@@ -102,11 +97,6 @@ class VariationalEuler:
         s = K.T @ p
         return -K.T @ np.einsum("jil,j->il", D, s)
 
-    def lagrangian_gradient(self, data: pin.Data, fdata: pin.Data, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """dL/dq(q, v) = 1/2 D(q, v)^T v - g(q), (nv,), right-trivialised (N, N m)."""
-        g = pin.computeGeneralizedGravity(self.model, data, q)
-        return 0.5 * self._D(fdata, q, v).T @ v - g
-
     def _lagrangian_hessian(self, data: pin.Data, fdata: pin.Data, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """d/deta [dL/dq(q exp(eta), v)] at eta = 0, (nv, nv): the kinetic part by central
         differences of the analytic D, the gravity part from Pinocchio's analytic derivative."""
@@ -121,24 +111,29 @@ class VariationalEuler:
         return Hk - pin.computeGeneralizedGravityDerivatives(self.model, data, q)
 
     def _mass(self, data: pin.Data, q: np.ndarray) -> np.ndarray:
-        return _symmetric(pin.crba(self.model, data, q))
+        return cfg.symmetric_from_upper(pin.crba(self.model, data, q))
 
     # ------------------------------------------------------------------ step
     def momentum_before(self, data: pin.Data, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """The y-independent part of R: K(dt v)^T M(q) v + dt tau, (nv,)."""
         return self._K(self.dt * v).T @ (self._mass(data, q) @ v) + self.dt * tau
 
-    def residual(self, data: pin.Data, fdata: pin.Data, q_next: np.ndarray, y: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """R = K(-dt y)^T M(q+) y - dt dL/dq(q+, y) - b, (nv,)."""
-        dt = self.dt
-        return self._K(-dt * y).T @ (self._mass(data, q_next) @ y) - dt * self.lagrangian_gradient(data, fdata, q_next, y) - b
+    def _implicit_terms(self, fdata: pin.Data, q_next: np.ndarray, M1: np.ndarray, g1: np.ndarray, y: np.ndarray,
+                        b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """R at y, with the y-dependent pieces R_y needs: (R (nv,), K(-dt y), D(q+, y)).
 
-    def residual_velocity_jacobian(self, data: pin.Data, fdata: pin.Data, q_next: np.ndarray, y: np.ndarray) -> np.ndarray:
+        R = K(-dt y)^T M(q+) y - dt dL/dq(q+, y) - b, dL/dq = 1/2 D(q+, y)^T y - g(q+), with
+        M1 = M(q+) and g1 = g(q+) fixed over a step.
+        """
+        dt = self.dt
+        K1 = self._K(-dt * y)
+        D1 = self._D(fdata, q_next, y)
+        return K1.T @ (M1 @ y) - dt * (0.5 * D1.T @ y - g1) - b, K1, D1
+
+    def _residual_velocity_jacobian(self, K1: np.ndarray, M1: np.ndarray, D1: np.ndarray, y: np.ndarray) -> np.ndarray:
         """R_y = K(-dt y)^T M(q+) - dt d/dx[K(x)^T M y]|_(x=-dt y) - dt D(q+, y)^T, (nv, nv)."""
         dt = self.dt
-        M1 = self._mass(data, q_next)
-        K = self._K(-dt * y)
-        return K.T @ M1 - dt * self._dKT(-dt * y, K, M1 @ y) - dt * self._D(fdata, q_next, y).T
+        return K1.T @ M1 - dt * self._dKT(-dt * y, K1, M1 @ y) - dt * D1.T
 
     def step(self, data: pin.Data, fdata: pin.Data | None, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One step: q (nq,), v (nv,), tau (nv,) generalised forces -> (q+, v+).
@@ -153,23 +148,25 @@ class VariationalEuler:
             fdata = self.free_model.createData()
         q_next = pin.integrate(self.model, q, dt * v)
         b = self.momentum_before(data, q, v, tau)
+        M1 = self._mass(data, q_next)
+        g1 = pin.computeGeneralizedGravity(self.model, data, q_next).copy()
         # Start from the better of v and the explicit (symplectic) Euler velocity; damped Newton
         # (backtracking on |R|) keeps stiff light links from throwing the iteration off.
         y = v + dt * pin.aba(self.model, data, q_next, v, tau)
-        r = self.residual(data, fdata, q_next, y, b)
-        r0 = self.residual(data, fdata, q_next, v, b)
+        r, K1, D1 = self._implicit_terms(fdata, q_next, M1, g1, y, b)
+        r0, K0, D0 = self._implicit_terms(fdata, q_next, M1, g1, v, b)
         if not np.all(np.isfinite(r)) or np.linalg.norm(r0) < np.linalg.norm(r):
-            y, r = v.copy(), r0
+            y, r, K1, D1 = v.copy(), r0, K0, D0
         for _ in range(NEWTON_MAX_ITER):
-            dy = np.linalg.solve(self.residual_velocity_jacobian(data, fdata, q_next, y), r)
+            dy = np.linalg.solve(self._residual_velocity_jacobian(K1, M1, D1, y), r)
             norm_r, alpha = np.linalg.norm(r), 1.0
             while True:
                 y_try = y - alpha * dy
-                r_try = self.residual(data, fdata, q_next, y_try, b)
+                r_try, K_try, D_try = self._implicit_terms(fdata, q_next, M1, g1, y_try, b)
                 if np.linalg.norm(r_try) < norm_r or alpha < 1e-6 or alpha * np.linalg.norm(dy) <= NEWTON_TOL * (1.0 + np.linalg.norm(y)):
                     break
                 alpha *= 0.5
-            y, r = y_try, r_try
+            y, r, K1, D1 = y_try, r_try, K_try, D_try
             if not np.all(np.isfinite(y)):
                 break
             if alpha == 1.0 and np.linalg.norm(dy) <= NEWTON_TOL * (1.0 + np.linalg.norm(y)):
@@ -188,13 +185,14 @@ class VariationalEuler:
         A, Jv = cfg.block_Ad_Jr(self.groups, nv, omega)  # Ad_exp(-dt v): eta -> eta+, and Jr(dt v)
         K1 = self._K(-dt * y)
         M1 = self._mass(data, q_next)
-        S = K1.T @ self._D(fdata, q_next, y) - dt * self._lagrangian_hessian(data, fdata, q_next, y)  # dR/deta+
+        D1 = self._D(fdata, q_next, y)
+        S = K1.T @ D1 - dt * self._lagrangian_hessian(data, fdata, q_next, y)  # dR/deta+
         M0 = self._mass(data, q)
         K0 = self._K(omega)
         J = np.empty((nv, 3 * nv))
         J[:, :nv] = S @ A - K0.T @ self._D(fdata, q, v)
         J[:, nv : 2 * nv] = dt * (S @ Jv) - K0.T @ M0 - dt * self._dKT(omega, K0, M0 @ v)
-        J[:, 2 * nv :] = K1.T @ M1 - dt * self._dKT(-dt * y, K1, M1 @ y) - dt * self._D(fdata, q_next, y).T
+        J[:, 2 * nv :] = self._residual_velocity_jacobian(K1, M1, D1, y)
         return J
 
     def velocity_derivatives(

@@ -45,12 +45,6 @@ SECOND_ORDER_KINDS = ("exact",)
 FD_STEP = 1e-5
 
 
-def _sym_upper(M: np.ndarray) -> np.ndarray:
-    """The symmetric matrices (..., n, n) whose upper triangles are those of M (Pinocchio fills
-    only the upper triangle of Minv)."""
-    return np.triu(M) + np.swapaxes(np.triu(M, 1), -1, -2)
-
-
 def _root_joint(root: str):
     return {"free_flyer": pin.JointModelFreeFlyer(), "spherical": pin.JointModelSpherical(), "fixed": None}[root]
 
@@ -266,7 +260,7 @@ class Multibody:
             raw[k, :, :nv] = data.ddq_dq
             raw[k, :, nv : 2 * nv] = data.ddq_dv
             raw[k, :, 2 * nv :] = data.Minv
-        Minv = _sym_upper(raw[:, :, 2 * nv :])
+        Minv = cfg.symmetric_from_upper(raw[:, :, 2 * nv :])
         F1 = np.empty((N, nv, nz))
         F1[:, :, :nv] = dt * raw[:, :, :nv]
         F1[:, :, nv : 2 * nv] = np.eye(nv) + dt * raw[:, :, nv : 2 * nv]
@@ -297,7 +291,7 @@ class Multibody:
         # Gq[k, p, c, j]: derivative of column c of the velocity Jacobian along q_j (zero off dirs)
         Gq = np.zeros((N, nv, nz, nv))
         Gq[:, :, : 2 * nv, dirs] = dt * np.moveaxis(D[..., : 2 * nv], 1, -1)
-        Gq[:, :, 2 * nv :, dirs] = dt * np.moveaxis(_sym_upper(D[..., 2 * nv :]) @ Hm, 1, -1)
+        Gq[:, :, 2 * nv :, dirs] = dt * np.moveaxis(cfg.symmetric_from_upper(D[..., 2 * nv :]) @ Hm, 1, -1)
         F2 = np.zeros((N, nv, nz, nz))
         F2[:, :, :nv, :nv] = 0.5 * (Gq[:, :, :nv] + np.swapaxes(Gq[:, :, :nv], 2, 3))
         F2[:, :, nv:, :nv] = Gq[:, :, nv:]
