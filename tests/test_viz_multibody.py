@@ -14,7 +14,7 @@ import pinocchio as pin
 import pytest
 
 from geoddp import viz  # first: silences meshcat's import warning
-from geoddp.multibody_scenes import space_manipulator, spacecraft_docking
+from geoddp.multibody_scenes import space_manipulator
 from geoddp.result import Result
 from geoddp.validate import InputError
 from geoddp.viz import meshcat_replay
@@ -283,8 +283,9 @@ def test_cli_multibody_view_and_html(monkeypatch, tmp_path, capsys):
     """``geoddp multibody NAME --view --html``: the solved multibody result goes to both."""
     from geoddp import cli, multibody_scenes
 
-    short = {"spacecraft_docking": lambda integrator: spacecraft_docking(integrator, dt=0.2, horizon=10)}
-    monkeypatch.setattr(multibody_scenes, "spacecraft_docking", short["spacecraft_docking"])
+    full = multibody_scenes.scene_spec
+    monkeypatch.setattr(multibody_scenes, "scene_spec",
+                        lambda name, integrator=None, **kw: full(name, integrator, dt=0.2, horizon=10))
     seen = []
 
     def fake_replay(result, open_browser=False, **kw):

@@ -16,6 +16,9 @@ EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 def _parser() -> argparse.ArgumentParser:
+    from .models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
+    from .multibody_scenes import NAMES as MULTIBODY_SCENES
+
     p = argparse.ArgumentParser(prog="geoddp", description="Differential Dynamic Programming on Lie groups")
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve a scene and write its results")
@@ -27,9 +30,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--view", action="store_true", help="replay in a live meshcat viewer (loopback)")
     run.add_argument("--quiet", action="store_true", help="no iteration table")
     mb = sub.add_parser("multibody", help="solve one of the built-in multibody scenes (issue 6)")
-    mb.add_argument("scene", choices=_MULTIBODY_SCENES, help="built-in scene")
-    from .models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
-
+    mb.add_argument("scene", choices=MULTIBODY_SCENES, help="built-in scene (examples/multibody/NAME.toml)")
     mb.add_argument("--integrator", choices=list(MULTIBODY_INTEGRATORS), default="semi_implicit",
                     help="variational: the paper's forward variational Euler (implicit)")
     mb.add_argument("--expansion", choices=["first", "second", "switch"], default="switch")
@@ -46,16 +47,13 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-_MULTIBODY_SCENES = ("quadrotor", "space_manipulator", "spacecraft_docking")  # builders in multibody_scenes
-
-
 def _multibody(args) -> int:
-    from . import multibody_scenes
-    from .solver import SolverOptions, solve
+    from .api import solve_scene
+    from .multibody_scenes import scene_spec
 
-    problem = getattr(multibody_scenes, args.scene)(integrator=args.integrator)
-    init = multibody_scenes.hover_controls(problem) if args.scene == "quadrotor" else None
-    result = solve(problem, SolverOptions(expansion=args.expansion, verbose=not args.quiet), initial_controls=init)
+    # The built-in scene's file, with its initial controls (hover thrust for the quadrotor).
+    spec = scene_spec(args.scene, integrator=args.integrator)
+    result = solve_scene(spec, verbose=not args.quiet, expansion=args.expansion)
     print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
           f"solve time = {result.solve_time_s:.3f} s")
     print(f"status: {result.status} ({result.message})")
