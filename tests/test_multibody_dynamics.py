@@ -1,6 +1,6 @@
 """Multibody dynamics on Q x R^nv: rollouts and expansions against Pinocchio and finite differences.
 
-The test model (models/test_all_joints.urdf) has revolute, continuous (SO(2)), prismatic and
+The test model (tests/data/test_all_joints.urdf) has revolute, continuous (SO(2)), prismatic and
 floating (SE(3)) joints in its chain; the root is free-flyer (SE(3)), spherical (SO(3)) or fixed.
 """
 from pathlib import Path
@@ -13,8 +13,7 @@ from geoddp import configuration as cfg
 from geoddp.models.multibody import FD_STEP, Multibody
 from geoddp.validate import InputError
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
-URDF = MODELS / "test_all_joints.urdf"
+URDF = Path(__file__).resolve().parent / "data" / "test_all_joints.urdf"  # test-only model
 ROOTS = ["free_flyer", "spherical", "fixed"]
 INTEGRATORS = ["euler", "semi_implicit"]
 # The paper's forward variational Euler (implicit; derivatives by implicit differentiation).

@@ -41,13 +41,14 @@ from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 
+from . import data
 from . import validate as v
 from .validate import InputError
 
 if TYPE_CHECKING:
     from .multibody_scene import MultibodySceneSpec
 
-__all__ = ["SceneSpec", "AnySceneSpec", "SCENE_KINDS", "load_scene", "parse_scene", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS", "SECOND_ORDER"]
+__all__ = ["SceneSpec", "AnySceneSpec", "SCENE_KINDS", "load_scene", "scene_file", "parse_scene", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS", "SECOND_ORDER"]
 
 INTEGRATORS = ("euler", "semi_implicit")
 ATTITUDE_KINDS = ("chordal", "geodesic")
@@ -260,19 +261,40 @@ AnySceneSpec = Union[SceneSpec, "MultibodySceneSpec"]
 # parsing
 
 
+def scene_file(scene: str | Path) -> Path:
+    """The scene file that ``scene`` names: a path, or a built-in scene's name.
+
+    An existing file always wins. Otherwise a bare name (no folder, no ``.toml``), such as
+    ``"quadrotor"`` or ``"satellite_paper"``, is a built-in scene (:func:`geoddp.data.scene_names`);
+    anything else is returned as a path for the reader to report.
+
+    Raises:
+        InputError: naming ``scene``: a bare name that is neither a file nor a built-in scene (the
+            message suggests the closest built-in name and lists them).
+    """
+    p = Path(scene)
+    text = str(scene)
+    if p.is_file() or Path(text).name != text or p.suffix == ".toml" or not text:
+        return p
+    return data.scene_path(text, "scene")
+
+
 def load_scene(path: str | Path) -> AnySceneSpec:
     """Read and validate a TOML scene file: a :class:`SceneSpec`, or a
     :class:`~geoddp.multibody_scene.MultibodySceneSpec` if ``[model] kind = "multibody"``.
 
     Args:
-        path: scene file. Relative paths inside it (``[model].urdf``) are resolved against
-            the file's directory.
+        path: scene file, or the name of a built-in scene (``"satellite_paper"``,
+            ``"quadrotor"``; see :func:`scene_file`). Relative paths inside it
+            (``[model].urdf``) are resolved against the file's directory; a bare URDF file
+            name not found there is the built-in URDF of that name.
 
     Raises:
         InputError: the file is missing or unreadable, is not valid TOML (the message gives
-            the line and column), or any key is unknown, missing or invalid.
+            the line and column), or any key is unknown, missing or invalid; ``scene`` for a
+            name that is neither a file nor a built-in scene.
     """
-    p = Path(path)
+    p = scene_file(path)
     src = str(p)
     try:
         raw = p.read_bytes()
@@ -335,6 +357,13 @@ def parse_scene(data: Mapping[str, Any], source: str = "<dict>") -> AnySceneSpec
 
 
 def _check_urdf(path: Any, name: str, base_dir: Path) -> Path:
+    """Resolve a ``[model].urdf`` value to an existing file (absolute path).
+
+    A relative path is taken against ``base_dir`` (the scene file's folder); if no such file
+    exists and the value is a bare file name (``"quadrotor.urdf"``), the built-in URDF of that
+    name is used (:mod:`geoddp.data`), so a scene names a built-in model the same way from the
+    repository, an installed wheel or a copy in any folder. Absolute paths are used as given.
+    """
     if not isinstance(path, (str, Path)) or str(path) == "":
         raise InputError(name, f"expected a file path string, got {path!r}")
     p = Path(path).expanduser()
@@ -342,9 +371,17 @@ def _check_urdf(path: Any, name: str, base_dir: Path) -> Path:
         p = base_dir / p
     p = p.resolve()
     # Checked now rather than when the model is built, so a typo fails before any work.
-    if not p.is_file():
-        raise InputError(name, f"expected an existing URDF file, got {str(path)!r} (resolved to {p}, not found)")
-    return p
+    if p.is_file():
+        return p
+    bare = Path(path).name == str(path)
+    builtin = data.builtin_urdf(str(path)) if bare else None
+    if builtin is not None:
+        return builtin
+    hint = ""
+    if bare:
+        guess = v.closest(str(path), data.urdf_names())
+        hint = (f"; did you mean {guess!r}?" if guess else "") + f" built-in URDFs: {', '.join(data.urdf_names())}"
+    raise InputError(name, f"expected an existing URDF file, got {str(path)!r} (resolved to {p}, not found){hint}")
 
 
 class _Reader(v.SourceReader):
