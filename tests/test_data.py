@@ -129,3 +129,11 @@ def test_nothing_in_src_finds_data_through_parents():
     hits = [f"{p.relative_to(ROOT)}:{i}" for p in PACKAGE.rglob("*.py")
             for i, line in enumerate(p.read_text().splitlines(), 1) if re.search(r"parents\[\d+\]", line)]
     assert not hits, hits
+
+
+def test_the_api_solves_a_builtin_scene_by_name():
+    from geoddp import api
+
+    assert api.load_scene("satellite_semi_implicit") == load_scene(data.scene_path("satellite_semi_implicit"))
+    r = api.solve_scene("satellite_semi_implicit", verbose=False)
+    assert r.converged and r.iterations == 3 and abs(r.cost - 494.7163633884) < 1e-9
