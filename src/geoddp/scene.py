@@ -43,6 +43,8 @@ import numpy as np
 
 from . import data
 from . import validate as v
+from .scene_common import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
+                           EXPANSIONS, check_urdf as _check_urdf)
 from .validate import InputError
 
 if TYPE_CHECKING:
@@ -52,18 +54,12 @@ __all__ = ["SceneSpec", "AnySceneSpec", "SCENE_KINDS", "load_scene", "scene_file
 
 INTEGRATORS = ("euler", "semi_implicit")
 ATTITUDE_KINDS = ("chordal", "geodesic")
-EXPANSIONS = ("first", "second", "switch")
 SECOND_ORDER = ("exact", "paper")
 AXES = ("x", "y", "z")
 SCENE_KINDS = ("multibody", "satellite")  # [model].kind; absent means "satellite"
 
 DEFAULT_INTEGRATOR = "euler"
 DEFAULT_ATTITUDE_KIND = "chordal"
-DEFAULT_EXPANSION = "switch"
-DEFAULT_SWITCH_RATIO = 0.1
-DEFAULT_TOL = 1e-8
-DEFAULT_GRAD_TOL = 1e-10
-DEFAULT_MAX_ITER = 200
 DEFAULT_SECOND_ORDER = "exact"
 
 # Allowed keys per table: key -> required?
@@ -354,34 +350,6 @@ def parse_scene(data: Mapping[str, Any], source: str = "<dict>") -> AnySceneSpec
     base = Path(source).resolve().parent if source != "<dict>" else Path.cwd()
     default_name = Path(source).stem if source != "<dict>" else "scene"
     return _dispatch(data, source, base_dir=base, default_name=default_name)
-
-
-def _check_urdf(path: Any, name: str, base_dir: Path) -> Path:
-    """Resolve a ``[model].urdf`` value to an existing file (absolute path).
-
-    A relative path is taken against ``base_dir`` (the scene file's folder); if no such file
-    exists and the value is a bare file name (``"quadrotor.urdf"``), the built-in URDF of that
-    name is used (:mod:`geoddp.data`), so a scene names a built-in model the same way from the
-    repository, an installed wheel or a copy in any folder. Absolute paths are used as given.
-    """
-    if not isinstance(path, (str, Path)) or str(path) == "":
-        raise InputError(name, f"expected a file path string, got {path!r}")
-    p = Path(path).expanduser()
-    if not p.is_absolute():
-        p = base_dir / p
-    p = p.resolve()
-    # Checked now rather than when the model is built, so a typo fails before any work.
-    if p.is_file():
-        return p
-    bare = Path(path).name == str(path)
-    builtin = data.builtin_urdf(str(path)) if bare else None
-    if builtin is not None:
-        return builtin
-    hint = ""
-    if bare:
-        guess = v.closest(str(path), data.urdf_names())
-        hint = (f"; did you mean {guess!r}?" if guess else "") + f" built-in URDFs: {', '.join(data.urdf_names())}"
-    raise InputError(name, f"expected an existing URDF file, got {str(path)!r} (resolved to {p}, not found){hint}")
 
 
 class _Reader(v.SourceReader):
