@@ -3,7 +3,6 @@
 The test model (tests/data/test_all_joints.urdf) has revolute, continuous (SO(2)), prismatic and
 floating (SE(3)) joints in its chain; the root is free-flyer (SE(3)), spherical (SO(3)) or fixed.
 """
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -12,8 +11,9 @@ import pytest
 from geoddp import configuration as cfg
 from geoddp.models.multibody import FD_STEP, Multibody
 from geoddp.validate import InputError
+from urdfs import urdf
 
-URDF = Path(__file__).resolve().parent / "data" / "test_all_joints.urdf"  # test-only model
+URDF = urdf("test_all_joints.urdf")  # test-only model (tests/data/)
 ROOTS = ["free_flyer", "spherical", "fixed"]
 INTEGRATORS = ["euler", "semi_implicit"]
 # The paper's forward variational Euler (implicit; derivatives by implicit differentiation).
