@@ -7,13 +7,13 @@ import json
 import re
 import subprocess
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from geoddp import viz  # first: silences meshcat's import warning
+from geoddp.data import urdf_dir
 from geoddp.multibody_scenes import space_manipulator
 from geoddp.result import Result
 from geoddp.validate import InputError
@@ -21,7 +21,7 @@ from geoddp.viz import meshcat_replay
 from geoddp.viz.html import STATUS_ID, decode_commands, record_scene
 from geoddp.viz.model import load_visual_model, visual_placements
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = urdf_dir()  # the built-in URDFs (package data)
 from geoddp.viz.scene import BACKGROUND_RGB, GHOST, ROBOT, SHAPE
 import umsgpack  # noqa: E402
 
