@@ -16,8 +16,7 @@ def _vectors(rng, scale, n=12):
 @pytest.mark.parametrize("scale", SCALES)
 def test_batched_closed_forms_match_pinocchio(rng, scale):
     X = _vectors(rng, scale)
-    for x, E, J, Ji in zip(X, SO3.exp_batch(X), SO3.right_jacobian_batch(X), SO3.right_jacobian_inv_batch(X)):
-        assert np.abs(E - pin.exp3(x)).max() < 1e-14
+    for x, J, Ji in zip(X, SO3.right_jacobian_batch(X), SO3.right_jacobian_inv_batch(X)):
         assert np.abs(J - pin.Jexp3(x)).max() < 1e-14
         assert np.abs(Ji @ pin.Jexp3(x) - np.eye(3)).max() < 1e-12
         assert np.all(np.isfinite(Ji))

@@ -210,15 +210,9 @@ class TSO3:
     def retract(R: np.ndarray, Omega: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """g exp(zeta) = (R exp(eta), Omega + delta_xi)."""
         zeta = np.asarray(zeta, dtype=float)
-        return R @ pin.exp3(zeta[TSO3.ETA]), Omega + zeta[TSO3.XI]
+        return R @ SO3.exp(zeta[TSO3.ETA]), Omega + zeta[TSO3.XI]
 
     @staticmethod
     def local(R_bar: np.ndarray, Omega_bar: np.ndarray, R: np.ndarray, Omega: np.ndarray) -> np.ndarray:
         """zeta = log(g_bar^-1 g) = (log(R_bar^T R), Omega - Omega_bar), (6,)."""
-        return np.concatenate([pin.log3(R_bar.T @ R), Omega - Omega_bar])
-
-    @staticmethod
-    def local_batch(R_bar: np.ndarray, Omega_bar: np.ndarray, R: np.ndarray, Omega: np.ndarray) -> np.ndarray:
-        """Batched :meth:`local`: (N,3,3),(N,3),(N,3,3),(N,3) -> (N, 6)."""
-        E = np.einsum("nji,njk->nik", R_bar, R)
-        return np.concatenate([SO3.log_batch(E), Omega - Omega_bar], axis=1)
+        return np.concatenate([SO3.log(R_bar.T @ R), Omega - Omega_bar])

@@ -166,17 +166,6 @@ class SO3:
 
     # --- batched closed forms (N, 3) ---
     @staticmethod
-    def exp_batch(X: np.ndarray) -> np.ndarray:
-        """(N, 3) -> (N, 3, 3) rotations, Rodrigues with a NaN-free small-angle branch."""
-        X = np.asarray(X, dtype=float)
-        t = np.linalg.norm(X, axis=-1)
-        safe = np.where(t > 0.0, t, 1.0)
-        sinc = np.where(t > 1e-4, np.sin(safe) / safe, 1.0 - t * t / 6.0)
-        a, _, _, _ = _coefficients(t)
-        K = hat(X)
-        return _EYE3 + sinc[:, None, None] * K + a[:, None, None] * (K @ K)
-
-    @staticmethod
     def right_jacobian_batch(X: np.ndarray) -> np.ndarray:
         """(N, 3) -> (N, 3, 3) Jr(x) = I - a(t) hat(x) + b(t) hat(x)^2."""
         X = np.asarray(X, dtype=float)
