@@ -115,7 +115,7 @@ def satellite_linearise(
 
     Om: (H+1, 3) nominal body rates. Fills Phi (H,6,6), B (H,6,m) and, when second_order,
     Theta (H,6,6,6), Gamma (H,6,6,m), Xi (H,6,m,m). The formulas are those of
-    :func:`geoddp.integrators.assemble` with the satellite's velocity map
+    :func:`geoddp.integrators.expand` on SO(3) with the satellite's velocity map
     Omega+ = Omega + dt I^-1((I Omega) x Omega + H u), which does not depend on R and is linear in u.
     """
     H = Phi.shape[0]
