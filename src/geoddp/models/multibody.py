@@ -344,6 +344,8 @@ class Multibody:
         V = finite_array(V, "V", (H + 1, self.nv))
         if order not in (1, 2):
             raise InputError("order", f"expected 1 or 2, got {order!r}")
+        nv, m, dt = self.nv, self.nu, self.dt
+        n, nz = 2 * nv, 2 * nv + m
         if self.integrator == "rk4":
             return self._expansion_rk4(Q, V, U, order)
         if self._variational is not None:
@@ -353,4 +355,4 @@ class Multibody:
             F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
         W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
         # the exact second-order reconstruction on the product of the joints' groups
-        return integ.expand(self.groups, self.dt, W, F1, F2, self.semi_implicit)
+        return integ.expand(self.groups, dt, W, F1, F2, self.semi_implicit)
