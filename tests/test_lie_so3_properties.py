@@ -24,7 +24,7 @@ SETTINGS = settings(max_examples=200, derandomize=True, deadline=None,
 _coord = st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False)
 axes = st.tuples(_coord, _coord, _coord).map(np.array).filter(lambda v: np.linalg.norm(v) > 1e-3).map(
     lambda v: v / np.linalg.norm(v))
-# Tiny angles stop at 1e-12 (plus exactly 0): below ~1e-65 lie._coefficients' closed forms
+# Tiny angles stop at 1e-12 (plus exactly 0): below ~1e-65 lie.so3._coefficients' closed forms
 # (evaluated by np.where even where the series is used) overflow and emit RuntimeWarnings; the
 # values returned stay finite, which test_no_nan_for_extreme_tiny_angles checks.
 tiny_angles = st.one_of(st.just(0.0), st.just(1e-8), st.floats(1e-12, 1e-7), st.floats(5e-9, 2e-8))
