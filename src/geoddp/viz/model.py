@@ -214,8 +214,8 @@ def load_visual_model(description: dict, geometry: str = "visual") -> VisualMode
                 raise InputError("result.multibody", f"expected a valid URDF with loadable {geometry} geometry ({exc})") from None
             missing.append(m.group(1))
             xml = _without_mesh(xml, m.group(1))
-    for obj in [o for o in gmodel.geometryObjects if _is_placeholder(o)]:
-        gmodel.removeGeometryObject(obj.name)
+    for name in [o.name for o in gmodel.geometryObjects if _is_placeholder(o)]:
+        gmodel.removeGeometryObject(name)
     for filename in missing:
         warnings.warn(f"mesh file {filename!r} not found (searched package_dirs {list(dirs)} and ROS_PACKAGE_PATH): "
                       f"the {geometry} objects using it are not drawn, the rest of the model is", UserWarning, stacklevel=2)
