@@ -79,7 +79,6 @@ BACKGROUND_RGB = [0.05, 0.07, 0.12]
 
 # three.js builds cylinders along their local +y axis, Pinocchio (coal) along +z: rotate y -> z.
 _Y_TO_Z = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
-_CUBE_CORNERS = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], dtype=float)
 # Camera direction from its target (the centre of the trajectory's box), world coordinates (z up):
 # from -y, a little ahead in x and above, so a reach along +x reads as a side view.
 _CAMERA_DIRECTION = np.array([0.6, -1.0, 0.55])
@@ -357,8 +356,8 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
         vis[TARGETS].set_transform(np.diag([scale, scale, scale, 1.0]))
         for i, (frame, M) in enumerate(targets):
             _draw_triad(vis[TARGETS][f"{i}_{frame}".replace("/", "_")], M, length)
-            # the cube of half-side `length` about the origin holds the whole triad
-            points.append(M[:3, 3] + length * (2.0 * _CUBE_CORNERS - 1.0))
+            # the triad is its origin and its three axis tips (one cylinder radius further out)
+            points.append(M[:3, 3] + np.vstack([np.zeros(3), (1.0 + 1.0 / 15.0) * length * M[:3, :3].T]))
     if path is not None:
         vis[TRAIL].set_transform(np.diag([scale, scale, scale, 1.0]))
         _draw_trail(vis[TRAIL], path, bead=0.006 * float(np.max(upper - lower)) + 1e-3)
