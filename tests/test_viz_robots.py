@@ -161,3 +161,29 @@ def test_page_shows_the_robot_moving_and_its_target(robot, tmp_path):
     if os.environ.get("GEODDP_WRITE_FIGURES"):
         FIGURES.mkdir(parents=True, exist_ok=True)
         shutil.copy(tmp_path / f"{name}_middle.png", FIGURES / f"replay_{name}.png")
+
+
+def test_live_replay_sends_the_meshes():
+    """The live loopback viewer gets the same scene: the server holds every UR5 DAE mesh (with
+    the file's text), the target triad and the trail, and the keyframes of the last link."""
+    import base64
+
+    import umsgpack
+
+    result, frame = robot_result("ur5")
+    vis = viz.replay(result, trail=frame, timeout_s=20)
+    proc = vis.window.server_proc
+    try:
+        blobs = re.findall(r'base64,([A-Za-z0-9+/=]+)"', vis.static_html())
+        cmds = [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+    finally:
+        vis.close()
+    assert proc.wait(timeout=5) is not None
+    objects = {c["path"]: c["object"] for c in cmds if c["type"] == "set_object"}
+    gmodel = example_robot_data.load("ur5").visual_model
+    for obj in gmodel.geometryObjects:
+        inner = objects[f"/meshcat/{ROBOT}/{obj.name}/{SHAPE}"]["object"]
+        assert inner["format"] == "dae" and inner["data"] == Path(obj.meshPath).read_text()
+    assert f"/meshcat/{TARGETS}/0_{frame}/x" in objects and "/meshcat/trail/line" in objects
+    (anim,) = [c for c in cmds if c["type"] == "set_animation"]
+    assert {len(t["keys"]) for a in anim["animations"] for t in a["clip"]["tracks"]} == {H + 1}

@@ -6,7 +6,7 @@ when present, else the built-in ``satellite.urdf`` with a spherical root, the on
 satellite (TSO(3)) result. The configuration sequence comes from the result
 (:func:`replay_configurations`): ``Result.configurations`` (H+1, nq) for a multibody result, else
 q_k = the unit quaternion (x, y, z, w) of ``rotations[k]``. The visual geometry comes from
-``pin.buildGeomFromUrdfString(..., pin.GeometryType.VISUAL)`` and each object's world placement at
+``pin.buildGeomFromUrdfString(..., pin.GeometryType.VISUAL, package_dirs)`` and each object's world placement at
 frame k is ``oMg`` from ``pin.forwardKinematics`` + ``pin.updateGeometryPlacements`` at q_k
 (:func:`visual_placements`). The target pose of the root (:func:`ghost_configuration`) is the
 final configuration with the root's rotation set to ``Result.target_rotation``.
