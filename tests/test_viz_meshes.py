@@ -145,8 +145,9 @@ def test_missing_mesh_in_the_live_replay_warns_too(arm, tmp_path, monkeypatch):
     recorder = viz.html._RecordingWindow()
     import meshcat
 
-    with pytest.warns(UserWarning, match=r"mesh file 'package://nowhere/x\.stl' not found"):
+    with pytest.warns(UserWarning, match=r"mesh file 'package://nowhere/x\.stl' not found") as caught:
         viz.replay(result, vis=meshcat.Visualizer(window=recorder))
+    assert len([w for w in caught if "not found" in str(w.message)]) == 1  # the model is loaded once
     paths = {json.dumps(p) for p in (decode_commands_raw(recorder.commands))}
     assert any("arm_0" in p for p in paths) and not any("base_0" in p or "hand_0" in p for p in paths)
 
@@ -366,3 +367,33 @@ def test_bad_options_fail_before_any_server(arm, monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         render_html(result)  # an intact model: no warning
+
+
+def test_one_body_mesh_model_has_a_mesh_ghost(tmp_path):
+    """A free-flying body whose only visual is an STL mesh: its ghost is the same mesh (file
+    bytes), uniformly ghost-coloured and translucent, 3 % larger, at the final position with the
+    target rotation."""
+    from geoddp.viz.scene import GHOST, GHOST_COLOR, GHOST_INFLATE
+    from viz_meshes import write_stl
+
+    write_stl(tmp_path / "hull.stl")
+    urdf = tmp_path / "probe.urdf"
+    urdf.write_text("""<robot name="probe"><link name="body">
+      <inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
+      <visual><geometry><mesh filename="hull.stl" scale="1.0 0.5 0.25"/></geometry></visual></link></robot>""")
+    model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
+    q1 = pin.SE3ToXYZQUAT(pin.SE3(pin.exp3(np.array([0.0, 0.0, 1.0])), np.array([2.0, 0.0, 0.0])))
+    result = trajectory_result(urdf, smooth_path(model, pin.neutral(model), q1, 10), root="free_flyer")
+    R_d = pin.exp3(np.array([0.0, 0.0, np.pi / 2]))
+    result.target_rotation = R_d
+    cmds = decode_commands(render_html(result))
+    objects, transforms = objects_of(cmds), transforms_of(cmds)
+    node = f"/meshcat/{GHOST}/body_0/{SHAPE}"
+    (geom,) = objects[node]["geometries"]
+    assert geom["type"] == "_meshfile" and geom["format"] == "stl" and geom["data"].data == (tmp_path / "hull.stl").read_bytes()
+    mat = objects[node]["materials"][0]
+    assert mat["color"] == GHOST_COLOR and mat["transparent"] is True and mat["opacity"] < 1
+    np.testing.assert_allclose(transforms[node], np.diag([GHOST_INFLATE, 0.5 * GHOST_INFLATE, 0.25 * GHOST_INFLATE, 1.0]), atol=1e-15)
+    ghost = transforms[f"/meshcat/{GHOST}/body_0"]
+    np.testing.assert_allclose(ghost[:3, :3], R_d, atol=1e-12)
+    np.testing.assert_allclose(ghost[:3, 3], [2.0, 0.0, 0.0], atol=1e-12)

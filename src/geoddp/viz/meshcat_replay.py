@@ -237,7 +237,7 @@ def replay(
             ``scale`` not positive, or both ``vis`` and ``zmq_url`` given.
     """
     options = dict(geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
-    prepare_scene(result, **options)  # before any server exists, so bad data never leaks a process
+    prepared = prepare_scene(result, **options)  # before any server exists, so bad data never leaks a process
     if not scale > 0:
         raise ValueError(f"scale must be positive, got {scale!r}")
     if vis is not None and zmq_url is not None:
@@ -255,7 +255,7 @@ def replay(
                 raise
         vis = meshcat.Visualizer(window=window)
     try:
-        build_scene(vis, result, scale=scale, play=True, **options)
+        build_scene(vis, result, scale=scale, play=True, prepared=prepared)
     except BaseException as exc:
         if owned:
             vis.window.close()  # stops a server started here; a user's server is left alone

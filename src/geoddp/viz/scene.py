@@ -306,7 +306,7 @@ def check_mesh_size(result: Result, visual: VisualModel, copies: int, max_mesh_m
 
 def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, play: bool = True, *,
                 geometry: str = "visual", trail: str | None = None,
-                max_mesh_mb: float | None = MAX_MESH_MB) -> Animation:
+                max_mesh_mb: float | None = MAX_MESH_MB, prepared: tuple | None = None) -> Animation:
     """The whole replay scene of any result: backdrop, the model's visuals at q_0, the target
     ghost, frame-target triads, the trail, the camera, and the trajectory animation, in that order.
 
@@ -324,6 +324,8 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
             the end effector's): a line through its positions at every time step.
         max_mesh_mb: largest mesh data (MB) to embed, None for no limit
             (:func:`check_mesh_size`).
+        prepared: what :func:`prepare_scene` returned for this result and these options (the
+            live viewer checks before starting its server, and the meshes are loaded once).
 
     Returns:
         The animation (one clip per drawn visual object, H+1 keyframes each, fps = 1/dt).
@@ -336,7 +338,9 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
     """
     if not scale > 0:
         raise ValueError(f"scale must be positive, got {scale!r}")
-    visual, Q, q_ghost, targets, path = prepare_scene(result, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
+    if prepared is None:
+        prepared = prepare_scene(result, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
+    visual, Q, q_ghost, targets, path = prepared
     placements = placements_at(visual, Q)
     # A visualizer may be replayed into again: nothing of an earlier scene may remain.
     for group in (ROBOT, GHOST, TARGETS, TRAIL):
