@@ -7,9 +7,11 @@ Reads Results only; never imports the solver.
 
 Both go through one path (:func:`geoddp.viz.scene.build_scene`): the result's model is rebuilt
 from a URDF (:mod:`geoddp.viz.model`: the multibody model of the solve, or the built-in
-satellite.urdf on a spherical root) and its primitive visuals are animated by forward kinematics
-(:func:`visual_placements` gives the per-frame world placements), with the target pose as a
-translucent ghost.
+satellite.urdf on a spherical root) and its visuals (primitives, and DAE/STL/OBJ meshes found
+through ``package_dirs``; or with ``geometry="collision"`` its collision geometry) are animated by
+forward kinematics (:func:`visual_placements` gives the per-frame world placements), with the
+target pose as a translucent ghost, frame targets as triads, an optional ``trail`` and a camera
+framing the whole trajectory.
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures.
 """
 import warnings

@@ -18,7 +18,7 @@ import meshcat
 import umsgpack
 
 from ..result import Result
-from .scene import build_scene
+from .scene import MAX_MESH_MB, build_scene
 
 _VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
 
@@ -44,19 +44,20 @@ class _RecordingWindow:
         pass
 
 
-def record_scene(result: Result, scale: float = 1.0) -> list[bytes]:
+def record_scene(result: Result, scale: float = 1.0, **options) -> list[bytes]:
     """msgpack-encoded meshcat commands that build the scene and set the animation.
 
     Args:
         result: any Result (see :func:`geoddp.viz.scene.build_scene`).
         scale: uniform size factor of the drawing.
+        options: ``geometry``, ``trail``, ``max_mesh_mb`` of :func:`geoddp.viz.scene.build_scene`.
 
     Returns:
         One bytes object per command, in the order they must be applied.
     """
     window = _RecordingWindow()
     vis = meshcat.Visualizer(window=window)
-    build_scene(vis, result, scale=scale, play=True)
+    build_scene(vis, result, scale=scale, play=True, **options)
     return window.commands
 
 
@@ -99,8 +100,19 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
   var frames = viewer.animator.actions.map(function (a) {{
     return a.getClip().tracks.map(function (t) {{ return t.times.length; }});
   }});
+  // "#t=SECONDS" in the address: pause there (any instant of the replay, e.g. for screenshots);
+  // the Animations panel (play, pause, reset, time scrubber) does the same by hand.
+  var seek = /[#&]t=([0-9.eE+-]+)/.exec(location.hash);
+  if (seek) {{
+    viewer.animator.pause();
+    viewer.animator.seek(parseFloat(seek[1]));
+    viewer.animator.display_progress(parseFloat(seek[1]));
+  }}
+  var panel = viewer.animator.folder.__folders["default"];
+  var controls = panel ? panel.__controllers.map(function (c) {{ return c.property; }}) : [];
   document.getElementById("{status_id}").textContent = JSON.stringify({{
-    loaded: true, commands: cmds.length, frames: frames, duration: viewer.animator.duration
+    loaded: true, commands: cmds.length, frames: frames, duration: viewer.animator.duration,
+    controls: controls, seek: seek ? parseFloat(seek[1]) : null
   }});
 }})();
 </script>
@@ -109,9 +121,10 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
 """
 
 
-def render_html(result: Result, scale: float = 1.0, title: str = "geoddp replay") -> str:
-    """The self-contained HTML page as a string (see :func:`export_html`)."""
-    commands = [base64.b64encode(c).decode("ascii") for c in record_scene(result, scale=scale)]
+def render_html(result: Result, scale: float = 1.0, title: str = "geoddp replay", **options) -> str:
+    """The self-contained HTML page as a string (see :func:`export_html`; ``options``:
+    ``geometry``, ``trail``, ``max_mesh_mb``)."""
+    commands = [base64.b64encode(c).decode("ascii") for c in record_scene(result, scale=scale, **options)]
     return _TEMPLATE.format(
         title=title.replace("<", "&lt;"),
         status_id=STATUS_ID,
@@ -121,28 +134,39 @@ def render_html(result: Result, scale: float = 1.0, title: str = "geoddp replay"
     )
 
 
-def export_html(result: Result, path: str | Path, scale: float = 1.0) -> Path:
+def export_html(result: Result, path: str | Path, scale: float = 1.0, *, geometry: str = "visual",
+                trail: str | None = None, max_mesh_mb: float | None = MAX_MESH_MB) -> Path:
     """Write a self-contained static HTML replay of ``result`` to ``path``.
 
-    The file embeds meshcat's three.js viewer and the recorded scene commands, so it opens
-    from disk with no server and no network. The page shows the result's model (the multibody
-    model of the solve, or the built-in satellite: bus, panels, body axes), every URDF visual
-    placed by forward kinematics at q_k, with the target pose as a translucent ghost, in an
-    animation of H+1 keyframes at fps = 1/dt (play/pause/scrub under "Animations" in the
-    control panel). See :func:`geoddp.viz.scene.build_scene`.
+    The file embeds meshcat's three.js viewer, the recorded scene commands and every mesh file
+    they draw, so it opens from disk with no server and no network. The page shows the result's
+    model (the multibody model of the solve, or the built-in satellite: bus, panels, body axes),
+    every URDF visual (primitive, or DAE/STL/OBJ mesh with its scale and colour) placed by forward
+    kinematics at q_k, the target pose as a translucent ghost, frame targets as triads, an
+    optional trail, with the camera framing the whole trajectory, in an animation of H+1
+    keyframes at fps = 1/dt (play/pause/reset/time scrubber under "Animations" in the control
+    panel; ``page.html#t=1.5`` opens paused at t = 1.5 s). See
+    :func:`geoddp.viz.scene.build_scene`.
 
     Args:
-        result: any Result: reads ``multibody``, ``configurations (H+1, nq)`` or
-            ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)`` and ``dt`` (s).
+        result: any Result: reads ``multibody`` (URDF, root, ``package_dirs``), ``configurations
+            (H+1, nq)`` or ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s) and
+            ``frame_targets`` (in ``multibody`` or ``extra``).
         path: output file; parent directories are created.
         scale: uniform size factor of the drawing (1.0: the URDF's size in metres).
+        geometry: "visual" or "collision" (the URDF's collision geometry: usually much smaller).
+        trail: None, "root" or a frame name: draw the path of the root body or of that frame.
+        max_mesh_mb: refuse (InputError naming ``max_mesh_mb``, with the sizes and the
+            ``geometry="collision"`` alternative) to embed more mesh data than this many MB
+            (default 20); None: no limit.
 
     Returns:
-        The path written.
+        The path written (nothing is written when an InputError is raised).
     """
+    text = render_html(result, scale=scale, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(render_html(result, scale=scale), encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
     return path
 
 

@@ -24,8 +24,7 @@ import zmq
 from meshcat.visualizer import ViewerWindow
 
 from ..result import Result
-from .model import check_replayable
-from .scene import build_satellite, build_scene
+from .scene import MAX_MESH_MB, build_satellite, build_scene, prepare_scene
 
 __all__ = ["ViewerUnavailable", "build_satellite", "replay"]
 
@@ -200,6 +199,9 @@ def replay(
     *,
     scale: float = 1.0,
     timeout_s: float = DEFAULT_TIMEOUT_S,
+    geometry: str = "visual",
+    trail: str | None = None,
+    max_mesh_mb: float | None = MAX_MESH_MB,
 ) -> meshcat.Visualizer:
     """Show ``result`` in a meshcat viewer as an animation synchronised with its time.
 
@@ -219,6 +221,10 @@ def replay(
             (e.g. ``"tcp://127.0.0.1:6000"``) instead of starting one.
         scale: uniform size factor of the drawing (1.0: the URDF's size in metres).
         timeout_s: bound in seconds on server start-up and on every ZMQ round trip.
+        geometry: "visual" or "collision" (draw the URDF's collision geometry instead).
+        trail: None, "root" or a frame name: draw the path of the root body or of that frame.
+        max_mesh_mb: largest mesh data (MB) to send, None for no limit (see
+            :func:`geoddp.viz.scene.check_mesh_size`).
 
     Returns:
         The visualizer. When this call started the server, ``vis.close()`` stops it (it is
@@ -230,7 +236,8 @@ def replay(
         ValueError: malformed ``result`` (:class:`geoddp.validate.InputError` naming the field),
             ``scale`` not positive, or both ``vis`` and ``zmq_url`` given.
     """
-    check_replayable(result)  # before any server exists, so bad data never leaks a process
+    options = dict(geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
+    prepared = prepare_scene(result, **options)  # before any server exists, so bad data never leaks a process
     if not scale > 0:
         raise ValueError(f"scale must be positive, got {scale!r}")
     if vis is not None and zmq_url is not None:
@@ -248,7 +255,7 @@ def replay(
                 raise
         vis = meshcat.Visualizer(window=window)
     try:
-        build_scene(vis, result, scale=scale, play=True)
+        build_scene(vis, result, scale=scale, play=True, prepared=prepared)
     except BaseException as exc:
         if owned:
             vis.window.close()  # stops a server started here; a user's server is left alone

@@ -6,17 +6,27 @@ when present, else the built-in ``satellite.urdf`` with a spherical root, the on
 satellite (TSO(3)) result. The configuration sequence comes from the result
 (:func:`replay_configurations`): ``Result.configurations`` (H+1, nq) for a multibody result, else
 q_k = the unit quaternion (x, y, z, w) of ``rotations[k]``. The visual geometry comes from
-``pin.buildGeomFromUrdfString(..., pin.GeometryType.VISUAL)`` and each object's world placement at
+``pin.buildGeomFromUrdfString(..., pin.GeometryType.VISUAL, package_dirs)`` and each object's world placement at
 frame k is ``oMg`` from ``pin.forwardKinematics`` + ``pin.updateGeometryPlacements`` at q_k
 (:func:`visual_placements`). The target pose of the root (:func:`ghost_configuration`) is the
 final configuration with the root's rotation set to ``Result.target_rotation``.
+
+Meshes (DAE, STL, OBJ) are found the way Pinocchio finds them (``package://`` URIs searched in
+:func:`package_dirs`); a mesh file found nowhere is left out of the geometry with a warning naming
+the file (:func:`load_visual_model`), so the replay draws the rest. ``geometry="collision"`` builds
+the ``<collision>`` elements instead of the ``<visual>`` ones (usually far smaller meshes).
 
 The model is never rebuilt from the solver. Pure kinematics: drawing is :mod:`geoddp.viz.scene`.
 """
 from __future__ import annotations
 
+import difflib
+import os
+import re
+import sys
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -36,15 +46,21 @@ class VisualModel:
 
     Attributes:
         model: kinematic model (root joint as in the solve).
-        geometry: its ``GeometryType.VISUAL`` geometry model.
+        geometry: its ``GeometryType.VISUAL`` (or ``COLLISION``) geometry model.
         names: meshcat node name of each geometry object, in ``geometry.geometryObjects`` order.
         root: the root joint kind, one of ``ROOTS``.
+        kind: "visual" or "collision": which URDF elements ``geometry`` holds.
+        missing: the URDF ``filename`` of every mesh that was found nowhere (left out).
+        package_dirs: the directories ``package://`` URIs were searched in.
     """
 
     model: pin.Model
     geometry: pin.GeometryModel
     names: tuple[str, ...]
     root: str = "fixed"
+    kind: str = "visual"
+    missing: tuple[str, ...] = ()
+    package_dirs: tuple[str, ...] = field(default_factory=tuple)
 
     @property
     def one_body(self) -> bool:
@@ -74,17 +90,96 @@ def replay_description(result: Result) -> dict:
     return satellite_description()
 
 
-def load_visual_model(description: dict) -> VisualModel:
-    """Rebuild the model and its visual geometry from a model description.
+#: Which URDF elements a replay draws: ``<visual>`` (as designed) or ``<collision>`` (usually
+#: coarse meshes or primitives: the fallback when the visual meshes are too large to embed).
+GEOMETRIES = ("visual", "collision")
+_GEOMETRY_TYPE = {"visual": pin.GeometryType.VISUAL, "collision": pin.GeometryType.COLLISION}
+# A stand-in for a mesh found nowhere: a box this small (metres) is recognisable after parsing and
+# removed again (pin.GeometryModel.removeGeometryObject), so every other object keeps the name
+# Pinocchio gives it from its position in the URDF (<link>_<index>).
+_PLACEHOLDER_SIZE = 1.2345e-9
+_MISSING_MESH = re.compile(r"Mesh (.+) could not be found")
+
+
+def example_robot_data_dir() -> str | None:
+    """The package directory of the installed ``example-robot-data`` (the folder holding
+    ``example-robot-data/robots/...``, which its URDFs' ``package://example-robot-data/...`` URIs
+    name), or None when it is not installed.
+
+    Found by the rule ``example_robot_data.getModelPath`` uses (``<entry>/../../../share`` for each
+    ``sys.path`` entry), so the data package alone is enough: its Python loaders are not imported.
+    """
+    for entry in sys.path:
+        share = Path(entry or ".") / ".." / ".." / ".." / "share"
+        if (share / "example-robot-data" / "robots").is_dir():
+            return str(share.resolve())
+    return None
+
+
+def package_dirs(description: dict) -> tuple[str, ...]:
+    """Where ``package://`` mesh URIs of a described model are searched, in order.
+
+    ``description["package_dirs"]`` (a path or a list of paths) when given; then, always, the
+    URDF's own directory and its parent and grandparent (``<pkg>/urdf/robot.urdf`` naming
+    ``package://<pkg>/meshes/...``), when the description has a ``"urdf"`` path; then the
+    ``example-robot-data`` package directory when it is installed (:func:`example_robot_data_dir`).
+    Pinocchio also searches ``ROS_PACKAGE_PATH`` itself.
+
+    Raises:
+        InputError: naming ``result.multibody.package_dirs`` when it is not a path or a list of paths.
+    """
+    given = description.get("package_dirs")
+    if given is None:
+        given = []
+    elif isinstance(given, (str, os.PathLike)):
+        given = [given]
+    if not isinstance(given, (list, tuple)) or not all(isinstance(d, (str, os.PathLike)) for d in given):
+        raise InputError("result.multibody.package_dirs", f"expected a path or a list of paths, got {given!r}")
+    dirs = [str(d) for d in given]
+    if description.get("urdf"):
+        here = Path(str(description["urdf"])).resolve().parent
+        dirs += [str(here), str(here.parent), str(here.parent.parent)]
+    erd = example_robot_data_dir()
+    if erd is not None:
+        dirs.append(erd)
+    return tuple(dict.fromkeys(dirs))  # first occurrence wins, order kept
+
+
+def _without_mesh(xml: str, filename: str) -> str:
+    """The URDF text with every ``<mesh filename="filename" .../>`` replaced by the placeholder box."""
+    pattern = re.compile(r"<mesh\b[^>]*\bfilename\s*=\s*([\"'])%s\1[^>]*?(?:/>|>\s*</mesh\s*>)" % re.escape(filename))
+    box = '<box size="{0} {0} {0}"/>'.format(_PLACEHOLDER_SIZE)
+    out, n = pattern.subn(box, xml)
+    if n == 0:  # Pinocchio names a mesh we cannot find in the text: do not loop forever
+        raise InputError("result.multibody", f"expected loadable meshes: {filename!r} could not be found and is not a <mesh filename> of the URDF")
+    return out
+
+
+def _is_placeholder(obj: pin.GeometryObject) -> bool:
+    shape = obj.geometry
+    return type(shape).__name__ == "Box" and np.allclose(2.0 * np.asarray(shape.halfSide), _PLACEHOLDER_SIZE, rtol=1e-6, atol=0)
+
+
+def load_visual_model(description: dict, geometry: str = "visual") -> VisualModel:
+    """Rebuild the model and its visual (or collision) geometry from a model description.
 
     Args:
         description: dict with ``"root"`` in ("free_flyer", "spherical", "fixed") and the URDF,
-            as ``"urdf_xml"`` (text, preferred: the model exactly as solved) or ``"urdf"`` (path).
+            as ``"urdf_xml"`` (text, preferred: the model exactly as solved) or ``"urdf"`` (path);
+            optionally ``"package_dirs"`` (a path or list of paths) for ``package://`` mesh URIs
+            (see :func:`package_dirs` for the defaults added after them).
+        geometry: "visual" (the URDF's ``<visual>`` elements) or "collision" (its ``<collision>``
+            elements).
+
+    A mesh file found nowhere is left out, with a ``UserWarning`` naming the file and the
+    directories searched; every other object is kept under the name Pinocchio gives it.
 
     Raises:
         InputError: naming ``result.multibody`` (or the key) when the description is incomplete
-            or its URDF cannot be parsed.
+            or its URDF cannot be parsed; naming ``geometry`` when it is not one of GEOMETRIES.
     """
+    if geometry not in GEOMETRIES:
+        raise InputError("geometry", f"expected one of {GEOMETRIES}, got {geometry!r}")
     if not isinstance(description, dict):
         raise InputError("result.multibody", f"expected a dict with 'urdf_xml' or 'urdf' and 'root', got {type(description).__name__}")
     root = description.get("root")
@@ -100,14 +195,46 @@ def load_visual_model(description: dict) -> VisualModel:
                 xml = f.read()
         except OSError as exc:
             raise InputError("result.multibody.urdf", f"expected a readable URDF file, got {path!r} ({exc})") from None
+    dirs = package_dirs(description)
     rj = _root_joint(root)
     try:
         model = pin.buildModelFromXML(xml) if rj is None else pin.buildModelFromXML(xml, rj)
-        geometry = pin.buildGeomFromUrdfString(model, xml, pin.GeometryType.VISUAL)
     except (ValueError, RuntimeError) as exc:
-        raise InputError("result.multibody", f"expected a valid URDF with loadable visuals ({exc})") from None
-    names = tuple(o.name.replace("/", "_") for o in geometry.geometryObjects)
-    return VisualModel(model, geometry, names, root)
+        raise InputError("result.multibody", f"expected a valid URDF ({exc})") from None
+    missing: list[str] = []
+    while True:
+        try:
+            gmodel = pin.buildGeomFromUrdfString(model, xml, _GEOMETRY_TYPE[geometry], package_dirs=list(dirs))
+            break
+        except (ValueError, RuntimeError) as exc:
+            # Pinocchio resolves package:// URIs itself and stops at the first mesh it cannot find,
+            # naming it: leave that mesh out and parse again (once per missing file).
+            m = _MISSING_MESH.search(str(exc))
+            if m is None or m.group(1) in missing:
+                raise InputError("result.multibody", f"expected a valid URDF with loadable {geometry} geometry ({exc})") from None
+            missing.append(m.group(1))
+            xml = _without_mesh(xml, m.group(1))
+    for name in [o.name for o in gmodel.geometryObjects if _is_placeholder(o)]:
+        gmodel.removeGeometryObject(name)
+    for filename in missing:
+        warnings.warn(f"mesh file {filename!r} not found (searched package_dirs {list(dirs)} and ROS_PACKAGE_PATH): "
+                      f"the {geometry} objects using it are not drawn, the rest of the model is", UserWarning, stacklevel=2)
+    names = tuple(o.name.replace("/", "_") for o in gmodel.geometryObjects)
+    return VisualModel(model, gmodel, names, root, geometry, tuple(missing), dirs)
+
+
+def mesh_file(obj: pin.GeometryObject) -> str | None:
+    """The resolved mesh file of a geometry object drawn from a file (DAE, STL, OBJ), else None."""
+    path = getattr(obj, "meshPath", "") or ""
+    if Path(path).suffix.lower() in (".dae", ".stl", ".obj") and os.path.isfile(path):
+        return path
+    return None
+
+
+def mesh_bytes(visual: VisualModel) -> int:
+    """Bytes of mesh data the replay embeds for one drawing of the model: the sum of the mesh
+    files' sizes, each counted once per object that uses it (that is what the page carries)."""
+    return sum(os.path.getsize(f) for f in (mesh_file(o) for o in visual.geometry.geometryObjects) if f)
 
 
 def replay_configurations(result: Result, nq: int | None = None) -> np.ndarray:
@@ -141,8 +268,12 @@ def replay_configurations(result: Result, nq: int | None = None) -> np.ndarray:
     return rotations_to_quaternions(R)
 
 
-def check_replayable(result: Result) -> tuple[VisualModel, np.ndarray]:
+def check_replayable(result: Result, geometry: str = "visual") -> tuple[VisualModel, np.ndarray]:
     """Check everything the replay reads, before anything is drawn or any server started.
+
+    Args:
+        result: the result to replay.
+        geometry: "visual" or "collision", see :func:`load_visual_model`.
 
     Returns:
         (the rebuilt :class:`VisualModel`, the configurations (H+1, nq)).
@@ -153,7 +284,7 @@ def check_replayable(result: Result) -> tuple[VisualModel, np.ndarray]:
             model's nq; ``result.dt`` not a positive number of seconds; ``result.target_rotation``
             not a finite (3, 3) array.
     """
-    visual = load_visual_model(replay_description(result))
+    visual = load_visual_model(replay_description(result), geometry)
     Q = replay_configurations(result, int(visual.model.nq))
     if not (np.isfinite(result.dt) and result.dt > 0):
         raise InputError("result.dt", f"expected a positive number of seconds, got {result.dt!r}")
@@ -210,3 +341,129 @@ def ghost_configuration(result: Result, visual: VisualModel, Q: np.ndarray) -> n
     q = np.array(Q[-1], dtype=float)
     q[_ROOT_QUATERNION[visual.root]] = rotations_to_quaternions(np.asarray(target, dtype=float)[None])[0]
     return q
+
+
+def _frame_id(model: pin.Model, frame: str, parameter: str) -> int:
+    """Id of the frame named ``frame``; InputError naming ``parameter`` with close names if none."""
+    names = [f.name for f in model.frames]
+    if not isinstance(frame, str) or frame not in names:
+        close = difflib.get_close_matches(str(frame), names, n=3)
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else f"; the model's frames are {names}"
+        raise InputError(parameter, f"expected 'root' or a frame name of the model, got {frame!r}{hint}")
+    return int(model.getFrameId(frame))
+
+
+def frame_positions(visual: VisualModel, Q: np.ndarray, frame: str = "root") -> np.ndarray:
+    """World positions (metres) of a frame at each configuration: the trail of the replay.
+
+    Args:
+        visual: the rebuilt model; Q: (N, nq) configurations.
+        frame: a frame name of the model (e.g. the end effector's), or "root": the placement of
+            the first joint (the root body: a free flyer's base), oMi[1].
+
+    Returns:
+        (N, 3) positions: ``oMf[frame].translation`` after ``pin.framesForwardKinematics`` (or
+        ``oMi[1].translation`` after ``pin.forwardKinematics`` for "root").
+
+    Raises:
+        InputError: naming ``trail`` for an unknown frame name (with the closest names).
+    """
+    model = visual.model
+    data = model.createData()
+    out = np.empty((Q.shape[0], 3))
+    if frame == "root":
+        joint = 1 if model.njoints > 1 else 0
+        for k, q in enumerate(Q):
+            pin.forwardKinematics(model, data, q)
+            out[k] = data.oMi[joint].translation
+        return out
+    fid = _frame_id(model, frame, "trail")
+    for k, q in enumerate(Q):
+        pin.framesForwardKinematics(model, data, q)
+        out[k] = data.oMf[fid].translation
+    return out
+
+
+def frame_targets(result: Result) -> list[tuple[str, np.ndarray]]:
+    """The target placements of frames to draw as triads: ``"frame_targets"`` of the model
+    description (``result.multibody``) and of ``result.extra``, in that order.
+
+    Each entry is a dict ``{"frame": name, "placement": (4, 4) homogeneous world placement}`` or
+    ``{"frame": name, "position": (3,) metres[, "rotation": (3, 3)]}`` (identity rotation if
+    omitted). The frame name only labels the triad; the placement is in world coordinates.
+
+    Returns:
+        [(frame name, (4, 4) placement)], possibly empty.
+
+    Raises:
+        InputError: naming ``result.extra.frame_targets[i]`` (or ``result.multibody...``) when an
+            entry is malformed or not finite.
+    """
+    out = []
+    sources = (("result.multibody.frame_targets", (getattr(result, "multibody", None) or {}).get("frame_targets")),
+               ("result.extra.frame_targets", (getattr(result, "extra", None) or {}).get("frame_targets")))
+    for where, entries in sources:
+        if entries is None:
+            continue
+        if not isinstance(entries, (list, tuple)):
+            raise InputError(where, f"expected a list of {{'frame', 'placement'}} dicts, got {type(entries).__name__}")
+        for i, e in enumerate(entries):
+            name = f"{where}[{i}]"
+            if not isinstance(e, dict) or not isinstance(e.get("frame"), str):
+                raise InputError(name, f"expected a dict with a 'frame' name, got {e!r}")
+            M = np.eye(4)
+            if "placement" in e:
+                M = np.asarray(e["placement"], dtype=float)
+                if M.shape != (4, 4):
+                    raise InputError(name + ".placement", f"expected a (4, 4) homogeneous placement, got shape {M.shape}")
+            elif "position" in e:
+                pos = np.asarray(e["position"], dtype=float)
+                if pos.shape != (3,):
+                    raise InputError(name + ".position", f"expected a (3,) position in metres, got shape {pos.shape}")
+                M[:3, 3] = pos
+                if e.get("rotation") is not None:
+                    R = np.asarray(e["rotation"], dtype=float)
+                    if R.shape != (3, 3):
+                        raise InputError(name + ".rotation", f"expected a (3, 3) rotation, got shape {R.shape}")
+                    M[:3, :3] = R
+            else:
+                raise InputError(name, "expected 'placement' (4, 4) or 'position' (3,), got neither")
+            if not np.all(np.isfinite(M)):
+                raise InputError(name, "expected finite values, got NaN or inf")
+            out.append((e["frame"], M))
+    return out
+
+
+def local_boxes(visual: VisualModel) -> np.ndarray:
+    """(n_objects, 8, 3) corners (metres) of each object's axis-aligned box in its own geometry
+    frame: coal's ``aabb_local`` (meshes are loaded by Pinocchio with their scale applied, so the
+    box is the drawn size)."""
+    out = np.zeros((visual.geometry.ngeoms, 8, 3))
+    signs = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], dtype=float)
+    for i, obj in enumerate(visual.geometry.geometryObjects):
+        shape = obj.geometry
+        shape.computeLocalAABB()
+        lo, hi = np.asarray(shape.aabb_local.min_), np.asarray(shape.aabb_local.max_)
+        out[i] = lo + signs * (hi - lo)
+    return out
+
+
+def trajectory_corners(visual: VisualModel, placements: np.ndarray) -> np.ndarray:
+    """(N * n_objects * 8, 3) world points (metres): the corners of each object's local box
+    (:func:`local_boxes`) placed by ``placements`` (N, n_objects, 4, 4) at every frame. Their
+    convex hull holds every drawn object at every frame (a box is the hull of its corners)."""
+    if placements.size == 0:
+        return np.zeros((0, 3))
+    corners = local_boxes(visual)  # (n, 8, 3)
+    world = np.einsum("kiab,icb->kica", placements[:, :, :3, :3], corners) + placements[:, :, None, :3, 3]
+    return world.reshape(-1, 3)
+
+
+def trajectory_box(visual: VisualModel, placements: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World axis-aligned box (lower (3,), upper (3,), metres) holding every object over every
+    frame of ``placements`` (N, n_objects, 4, 4): the box of :func:`trajectory_corners`, so every
+    vertex of every drawn mesh at every frame lies inside."""
+    pts = trajectory_corners(visual, placements)
+    if pts.size == 0:
+        return np.zeros(3), np.zeros(3)
+    return pts.min(axis=0), pts.max(axis=0)
