@@ -18,12 +18,13 @@ EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 def _parser() -> argparse.ArgumentParser:
     from .models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
     from .multibody_scenes import NAMES as MULTIBODY_SCENES
+    from .solver.options import DEFAULT_EXPANSION, EXPANSIONS
 
     p = argparse.ArgumentParser(prog="geoddp", description="Differential Dynamic Programming on Lie groups")
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve a scene and write its results")
     run.add_argument("scene", type=Path, help="scene file (TOML): satellite, or [model] kind = \"multibody\"")
-    run.add_argument("--expansion", choices=["first", "second", "switch"], help="override [solver].expansion")
+    run.add_argument("--expansion", choices=list(EXPANSIONS), help="override [solver].expansion")
     run.add_argument("--json", type=Path, help="write the result as JSON here")
     run.add_argument("--html", type=Path, help="write a self-contained animated HTML replay here")
     run.add_argument("--plots", type=Path, help="write PNG figures into this directory")
@@ -33,7 +34,7 @@ def _parser() -> argparse.ArgumentParser:
     mb.add_argument("scene", choices=MULTIBODY_SCENES, help="built-in scene (examples/multibody/NAME.toml)")
     mb.add_argument("--integrator", choices=list(MULTIBODY_INTEGRATORS), default="semi_implicit",
                     help="variational: the paper's forward variational Euler (implicit)")
-    mb.add_argument("--expansion", choices=["first", "second", "switch"], default="switch")
+    mb.add_argument("--expansion", choices=list(EXPANSIONS), default=DEFAULT_EXPANSION)
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
     mb.add_argument("--html", type=Path, help="write a self-contained animated HTML replay of the whole model "
                     "(root position and orientation and every joint)")
@@ -122,9 +123,10 @@ def _visualise(result, args) -> None:
 
 def _compare(args) -> int:
     from .api import solve_scene
+    from .solver.options import EXPANSIONS
 
     results = {}
-    for exp in ("first", "second", "switch"):
+    for exp in EXPANSIONS:
         results[exp] = solve_scene(args.scene, verbose=False, expansion=exp, record_controls=True)
     print("| expansion | iters | J* | ||grad|| | att. err (deg) | time (ms) | status |")
     print("|---|---|---|---|---|---|---|")

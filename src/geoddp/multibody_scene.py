@@ -54,6 +54,14 @@ import numpy as np
 import pinocchio as pin
 
 from . import validate as v
+from .solver.options import (
+    DEFAULT_EXPANSION,
+    DEFAULT_GRAD_TOL,
+    DEFAULT_MAX_ITER,
+    DEFAULT_SWITCH_RATIO,
+    DEFAULT_TOL,
+    EXPANSIONS,
+)
 from .validate import InputError, SourceReader
 
 __all__ = [
@@ -191,11 +199,11 @@ class MultibodySceneSpec:
     integrator: str
     running_costs: tuple[CostTermSpec, ...]
     terminal_costs: tuple[CostTermSpec, ...]
-    expansion: str = "switch"
-    switch_ratio: float = 0.1
-    tol: float = 1e-8
-    grad_tol: float = 1e-10
-    max_iter: int = 200
+    expansion: str = DEFAULT_EXPANSION
+    switch_ratio: float = DEFAULT_SWITCH_RATIO
+    tol: float = DEFAULT_TOL
+    grad_tol: float = DEFAULT_GRAD_TOL
+    max_iter: int = DEFAULT_MAX_ITER
     second_order: str = "exact"
     initial_controls: np.ndarray | None = None
 
@@ -203,7 +211,6 @@ class MultibodySceneSpec:
 
     def __post_init__(self) -> None:
         from .models import multibody as mbm
-        from .scene import EXPANSIONS
 
         put = lambda k, val: object.__setattr__(self, k, val)  # noqa: E731  (frozen dataclass)
         put("actuation", _readonly(v.finite_array(self.actuation, "actuation", (None, None))))
@@ -344,7 +351,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     """
     from .models import multibody as mbm
     from .models.actuation import hover_inputs
-    from .scene import DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL, EXPANSIONS, _check_urdf
+    from .scene import _check_urdf
 
     r = _Reader(source)
     allowed = list(_TOP_KEYS) + [f"[{s}]" for s in _SECTIONS] + [f"[[{a}]]" for a in _ARRAYS]

@@ -3,7 +3,8 @@
 A scene file fixes the rigid body, the initial and target states, the time grid, the cost
 weights and the solver options. :func:`load_scene` reads it into a frozen :class:`SceneSpec`
 of validated numpy arrays and builtins; building models and solvers from it is someone
-else's job, so this module never imports the solver.
+else's job, so this module imports nothing of the solver but its options (the one home of
+the ``[solver]`` defaults).
 
 Schema (``?`` = optional, with its default)::
 
@@ -42,6 +43,14 @@ from typing import TYPE_CHECKING, Any, Union
 import numpy as np
 
 from . import validate as v
+from .solver.options import (  # the solver's defaults have one home; re-exported here
+    DEFAULT_EXPANSION,
+    DEFAULT_GRAD_TOL,
+    DEFAULT_MAX_ITER,
+    DEFAULT_SWITCH_RATIO,
+    DEFAULT_TOL,
+    EXPANSIONS,
+)
 from .validate import InputError
 
 if TYPE_CHECKING:
@@ -51,18 +60,12 @@ __all__ = ["SceneSpec", "AnySceneSpec", "SCENE_KINDS", "load_scene", "parse_scen
 
 INTEGRATORS = ("euler", "semi_implicit")
 ATTITUDE_KINDS = ("chordal", "geodesic")
-EXPANSIONS = ("first", "second", "switch")
 SECOND_ORDER = ("exact", "paper")
 AXES = ("x", "y", "z")
 SCENE_KINDS = ("multibody", "satellite")  # [model].kind; absent means "satellite"
 
 DEFAULT_INTEGRATOR = "euler"
 DEFAULT_ATTITUDE_KIND = "chordal"
-DEFAULT_EXPANSION = "switch"
-DEFAULT_SWITCH_RATIO = 0.1
-DEFAULT_TOL = 1e-8
-DEFAULT_GRAD_TOL = 1e-10
-DEFAULT_MAX_ITER = 200
 DEFAULT_SECOND_ORDER = "exact"
 
 # Allowed keys per table: key -> required?
