@@ -7,11 +7,11 @@ Do not edit to make a test pass; it is the reference.
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
+from geoddp.data import urdf_dir
 from geoddp.models.actuation import quadrotor_actuation, thruster_actuation
 from geoddp.models.multibody import Multibody
 from geoddp.multibody_costs import (
@@ -22,7 +22,7 @@ from geoddp.multibody_costs import (
 )
 from geoddp.multibody_problem import MultibodyProblem
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = urdf_dir()  # the built-in URDFs (package data)
 
 
 def _velocity_weight(nv: int, w_v, w_q=0.0) -> np.ndarray:

@@ -201,3 +201,77 @@ def test_multibody_scene_from_the_cli(tmp_path, capsys):
     assert d["converged"] and np.array(d["configurations"]).shape == (151, 7)
     assert np.array(d["velocities"]).shape == (151, 6) and np.array(d["controls"]).shape == (150, 4)
     assert np.all(np.diff(d["cost_history"]) <= 0.0)
+
+
+# ------------------------------------------------------------------ built-in scenes by name (issue 11)
+
+
+def _j_star(out: str) -> float:
+    line = next(ln for ln in out.splitlines() if ln.startswith("J* = "))
+    return float(line.split()[2])
+
+
+def test_run_a_builtin_satellite_scene_by_name(tmp_path, capsys, monkeypatch):
+    """`geoddp run satellite_paper` from a folder without the file: the paper's J* (README table)."""
+    monkeypatch.chdir(tmp_path)
+    out_json = tmp_path / "paper.json"
+    code, out, err = _run(capsys, ["run", "satellite_paper", "--quiet", "--json", str(out_json)])
+    assert code == EXIT_CONVERGED and err == "", err
+    assert abs(_j_star(out) - 510.3726365588) < 1e-9
+    d = json.loads(out_json.read_text())
+    assert abs(d["cost"] - 510.3726365588) < 1e-9 and d["iterations"] == 4
+    assert np.asarray(d["controls"]).shape == (300, 3) and d["multibody"] is None
+
+
+def test_run_a_builtin_multibody_scene_by_name_equals_the_alias_and_the_file(tmp_path, capsys, monkeypatch):
+    """`run quadrotor`, `multibody quadrotor` and `run examples/multibody/quadrotor.toml` are one solve."""
+    from geoddp.data import scene_path
+
+    costs = {}
+    for key, argv in (("name", ["run", "quadrotor"]), ("alias", ["multibody", "quadrotor"]),
+                      ("file", ["run", str(scene_path("quadrotor"))])):
+        out_json = tmp_path / f"{key}.json"
+        code, out, err = _run(capsys, argv + ["--quiet", "--json", str(out_json)])
+        assert code == EXIT_CONVERGED and err == "", (key, err)
+        d = json.loads(out_json.read_text())
+        assert d["iterations"] == 12 and abs(d["cost"] - 1.552033527923) < 1e-11, (key, d["cost"], d["iterations"])
+        assert "terminal frame_placement 'body': position error = 9.481e-04 m  rotation error = 0.1434 deg" in out
+        costs[key] = d["cost_history"]
+    assert costs["name"] == costs["alias"] == costs["file"]
+
+
+def test_compare_accepts_a_builtin_name(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = _run(capsys, ["compare", "satellite_semi_implicit", "--quiet"])
+    assert code == EXIT_CONVERGED and err == "", err
+    rows = [ln for ln in out.splitlines() if ln.startswith("| first") or ln.startswith("| switch")]
+    assert len(rows) == 2 and all(abs(float(r.split("|")[3]) - 494.7163633884) < 1e-9 for r in rows)
+
+
+@pytest.mark.parametrize("name,guess", [("quadrotr", "quadrotor"), ("satelite_paper", "satellite_paper"),
+                                        ("tumbling_5rad", "tumbling_5rads")])
+def test_unknown_scene_name_exits_2_with_one_line_and_a_suggestion(tmp_path, capsys, monkeypatch, name, guess):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = _run(capsys, ["run", name, "--quiet"])
+    assert code == EXIT_BAD_INPUT and out == ""
+    (line,) = err.strip().splitlines()
+    assert line.startswith(f"geoddp: error: scene: expected a built-in scene name or a scene file, got {name!r}; "
+                           f"did you mean {guess!r}? built-in scenes: "), line
+    assert "satellite_paper" in line and "Traceback" not in err
+
+
+def test_a_file_in_the_current_folder_wins_over_a_builtin_name(tmp_path, capsys, monkeypatch):
+    """A file literally called `quadrotor` (here: the coarse satellite scene) is read, not the built-in."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "quadrotor").write_text(GOOD)
+    code, out, err = _run(capsys, ["run", "quadrotor", "--quiet", "--json", "r.json"])
+    assert code == EXIT_CONVERGED, err
+    d = json.loads((tmp_path / "r.json").read_text())
+    assert np.asarray(d["controls"]).shape == (H, M) and d["multibody"] is None
+
+
+def test_multibody_alias_keeps_its_choices(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["multibody", "satellite_paper"])
+    assert info.value.code == EXIT_BAD_INPUT
+    assert "invalid choice: 'satellite_paper'" in capsys.readouterr().err

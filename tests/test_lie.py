@@ -164,7 +164,7 @@ def test_difference_jacobian_is_exact_at_small_rotations(rng):
 
     from geoddp import configuration as cfg
 
-    urdf = Path(__file__).resolve().parents[1] / "models" / "test_all_joints.urdf"
+    urdf = Path(__file__).resolve().parent / "data" / "test_all_joints.urdf"
     model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
     groups = cfg.joint_groups(model)
     assert [g.kind for g in groups].count("se3") == 2

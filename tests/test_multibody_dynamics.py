@@ -1,9 +1,8 @@
 """Multibody dynamics on Q x R^nv: rollouts and expansions against Pinocchio and finite differences.
 
-The test model (models/test_all_joints.urdf) has revolute, continuous (SO(2)), prismatic and
+The test model (tests/data/test_all_joints.urdf) has revolute, continuous (SO(2)), prismatic and
 floating (SE(3)) joints in its chain; the root is free-flyer (SE(3)), spherical (SO(3)) or fixed.
 """
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -12,9 +11,9 @@ import pytest
 from geoddp import configuration as cfg
 from geoddp.models.multibody import FD_STEP, Multibody
 from geoddp.validate import InputError
+from urdfs import urdf
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
-URDF = MODELS / "test_all_joints.urdf"
+URDF = urdf("test_all_joints.urdf")  # test-only model (tests/data/)
 ROOTS = ["free_flyer", "spherical", "fixed"]
 INTEGRATORS = ["euler", "semi_implicit"]
 # The paper's forward variational Euler (implicit; derivatives by implicit differentiation).

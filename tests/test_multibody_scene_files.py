@@ -14,6 +14,7 @@ import pytest
 import multibody_reference_scenes as ref
 from geoddp import multibody_scenes
 from geoddp.api import initial_controls, solve_scene
+from geoddp.data import urdf_path
 from geoddp.cli import EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, main
 from geoddp.multibody_scene import MultibodySceneSpec, terminal_frame_errors
 from geoddp.scene import SceneSpec, build_problem, load_scene, parse_scene
@@ -93,7 +94,7 @@ def test_other_files_solve_like_the_builders_on_coarse_grids(name, dt, H):
 def test_builtin_builders_load_the_files_and_take_overrides():
     p = multibody_scenes.spacecraft_docking(integrator="euler", dt=0.1, horizon=7)
     assert (p.model.integrator, p.model.dt, p.horizon) == ("euler", 0.1, 7)
-    assert multibody_scenes.scene_path("quadrotor") == EXAMPLES / "quadrotor.toml"
+    assert multibody_scenes.scene_path("quadrotor").samefile(EXAMPLES / "quadrotor.toml")  # examples/ links there
     with pytest.raises(InputError) as info:
         multibody_scenes.scene_spec("quadrotor", horizon=0)
     assert info.value.parameter == "horizon"
@@ -132,9 +133,9 @@ def _toml(text: str) -> dict:
     return tomllib.loads(text)
 
 
-URDF_SC = (ROOT / "models" / "spacecraft.urdf").as_posix()
-URDF_ARM = (ROOT / "models" / "space_manipulator.urdf").as_posix()
-URDF_QUAD = (ROOT / "models" / "quadrotor.urdf").as_posix()
+URDF_SC = urdf_path("spacecraft.urdf").as_posix()
+URDF_ARM = urdf_path("space_manipulator.urdf").as_posix()
+URDF_QUAD = urdf_path("quadrotor.urdf").as_posix()
 
 # A small spacecraft scene (H = 20) with an absolute URDF path, so that it can live in tmp_path.
 GOOD = f"""\
@@ -476,12 +477,9 @@ def test_readme_example_is_the_docking_scene(tmp_path):
     """The full example in the README parses and states the same problem as the example file."""
     text = (ROOT / "README.md").read_text()
     block = text.split("### Multibody scene files", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]
-    p = EXAMPLES / "_readme_example_test.toml"  # next to the file: the relative URDF path resolves
-    try:
-        p.write_text(block)
-        a = load_scene(p)
-    finally:
-        p.unlink(missing_ok=True)
+    p = tmp_path / "readme_example.toml"  # anywhere: the bare URDF name resolves to the built-in one
+    p.write_text(block)
+    a = load_scene(p)
     b = load_scene(EXAMPLES / "spacecraft_docking.toml")
     for f in ("urdf", "root", "gravity", "dt", "horizon", "integrator", "expansion", "tol", "max_iter"):
         assert getattr(a, f) == getattr(b, f), f

@@ -1,15 +1,15 @@
 """The three scenes' URDFs and the thruster / rotor actuation helpers."""
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
+from geoddp.data import urdf_dir
 from geoddp.models.actuation import quadrotor_actuation, thruster_actuation
 from geoddp.models.multibody import Multibody
 from geoddp.validate import InputError
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = urdf_dir()  # the built-in URDFs (package data)
 
 
 # ---------------------------------------------------------------------------- thrusters

@@ -3,8 +3,6 @@ Euler-Lagrange equations hold along rollouts, and the step keeps what a variatio
 must keep (discrete Noether momentum exactly, energy without drift), where the explicit schemes
 drift. Derivatives (Phi, B against finite differences, 8x per halving, Hessians, order 1) are
 in test_multibody_dynamics.py with the other integrators."""
-from pathlib import Path
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -12,12 +10,11 @@ import pytest
 from geoddp import configuration as cfg
 from geoddp.models.multibody import Multibody
 from geoddp.variational import StepDidNotConverge
-
-MODELS = Path(__file__).resolve().parents[1] / "models"
+from urdfs import urdf as urdf_file
 
 
 def _free_motion(urdf, integrator, dt, steps, root="free_flyer", gravity=False, seed=1):
-    mb = Multibody(MODELS / urdf, root=root, dt=dt, integrator=integrator, gravity=gravity)
+    mb = Multibody(urdf_file(urdf), root=root, dt=dt, integrator=integrator, gravity=gravity)
     rng = np.random.default_rng(seed)
     q0 = pin.integrate(mb.pin_model, mb.neutral(), rng.normal(size=mb.nv))
     v0 = 0.5 * rng.normal(size=mb.nv)
@@ -29,7 +26,7 @@ def _free_motion(urdf, integrator, dt, steps, root="free_flyer", gravity=False, 
 def test_rollout_satisfies_the_discrete_euler_lagrange_equations(root, rng):
     """R(q_k, v_k, v_k+1, u_k) = 0 at every node, with R written out here from the DEL:
     Jr(-dt v+)^-T M(q+) v+ - dt dL/dq(q+, v+) = Jr(dt v)^-T M(q) v + dt H u."""
-    mb = Multibody(MODELS / "test_all_joints.urdf", root=root, dt=0.02, integrator="variational")
+    mb = Multibody(urdf_file("test_all_joints.urdf"), root=root, dt=0.02, integrator="variational")
     model, data, nv, dt = mb.pin_model, mb.pin_model.createData(), mb.nv, mb.dt
     q0 = pin.integrate(model, mb.neutral(), 0.5 * rng.normal(size=nv))
     U = 0.5 * rng.normal(size=(6, mb.nu))
@@ -117,7 +114,7 @@ def test_single_rigid_body_energy_error_is_small_bounded_and_second_order_in_dt(
 
 
 def test_a_step_that_cannot_converge_raises_naming_dt():
-    mb = Multibody(MODELS / "test_all_joints.urdf", root="free_flyer", dt=2.0, integrator="variational")
+    mb = Multibody(urdf_file("test_all_joints.urdf"), root="free_flyer", dt=2.0, integrator="variational")
     v0 = np.full(mb.nv, 40.0)
     with pytest.raises(StepDidNotConverge, match="dt = 2.0"):
         mb.rollout(mb.neutral(), v0, np.zeros((3, mb.nu)))

@@ -9,7 +9,7 @@ import pytest
 
 from geoddp.viz import animation_frame_count, export_html
 from geoddp.viz.html import STATUS_ID, decode_commands
-from geoddp.viz.scene import BACKGROUND_RGB, SATELLITE
+from geoddp.viz.scene import BACKGROUND_RGB, ROBOT
 from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, run_chromium, screenshot, synthetic_result
 
 BACKGROUND_U8 = np.round(255 * np.asarray(BACKGROUND_RGB)).astype(int)
@@ -26,7 +26,7 @@ def test_animation_is_time_synchronised_and_ends_at_final_attitude(tmp_path):
     result = synthetic_result(horizon=25, dt=0.04)
     cmds = decode_commands(export_html(result, tmp_path / "r.html").read_text())
     (anim,) = [c for c in cmds if c["type"] == "set_animation"]
-    (clip,) = [a["clip"] for a in anim["animations"] if a["path"].endswith("/" + SATELLITE)]
+    (clip,) = [a["clip"] for a in anim["animations"] if a["path"] == f"/meshcat/{ROBOT}/bus_0"]  # the bus
     assert clip["fps"] == pytest.approx(1.0 / result.dt)  # keyframe k plays at k * dt seconds
     quat = next(t for t in clip["tracks"] if t["name"] == ".quaternion")
     assert [k["time"] for k in quat["keys"]] == list(range(result.horizon + 1))
@@ -67,7 +67,8 @@ def test_renders_in_headless_chromium_offline(tmp_path):
     assert m, "status element missing from the dumped DOM"
     status = json.loads(m.group(1))
     assert status["loaded"] is True, "viewer script did not run to the end"
-    assert status["frames"] == [[result.horizon + 1, result.horizon + 1]]  # position + quaternion tracks
+    # one clip per visual of satellite.urdf (bus, two panels, three axes): position + quaternion tracks
+    assert status["frames"] == [[result.horizon + 1, result.horizon + 1]] * 6
     assert status["duration"] == pytest.approx(result.horizon * result.dt)
 
     img = screenshot(url, tmp_path / "shot.png", OFFLINE_FLAG)

@@ -16,7 +16,8 @@ from geoddp.viz import ViewerUnavailable, meshcat_replay, replay  # first: silen
 import meshcat.geometry as g  # noqa: E402
 import umsgpack  # noqa: E402
 
-from geoddp.viz.scene import BACKGROUND_RGB, SATELLITE
+from geoddp.viz.scene import BACKGROUND_RGB, ROBOT, SHAPE
+from geoddp.validate import InputError
 from viz_fixtures import changed_fraction, chromium_or_skip, screenshot, synthetic_result
 
 LOOPBACK_HEX = "0100007F"  # 127.0.0.1 as /proc/net/tcp writes it
@@ -84,11 +85,14 @@ def test_server_on_loopback_answers_and_stops(live, capsys):
     blobs = re.findall(r'base64,([A-Za-z0-9+/=]+)"', html)
     cmds = [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
     paths = {c.get("path") for c in cmds if c["type"] == "set_object"}
-    assert "/meshcat/probe" in paths and "/meshcat/satellite/bus" in paths
+    assert "/meshcat/probe" in paths and f"/meshcat/{ROBOT}/bus_0/{SHAPE}" in paths
     (anim,) = [c for c in cmds if c["type"] == "set_animation"]
-    (clip,) = [a["clip"] for a in anim["animations"] if a["path"].endswith("/" + SATELLITE)]
-    assert {len(t["keys"]) for t in clip["tracks"]} == {result.horizon + 1}
-    assert clip["fps"] == pytest.approx(1 / result.dt)
+    # one clip per visual of satellite.urdf (bus, two panels, three axes), each with H+1 keys
+    clips = {a["path"]: a["clip"] for a in anim["animations"]}
+    assert set(clips) == {f"/meshcat/{ROBOT}/bus_{i}" for i in range(6)}
+    for clip in clips.values():
+        assert {len(t["keys"]) for t in clip["tracks"]} == {result.horizon + 1}
+        assert clip["fps"] == pytest.approx(1 / result.dt)
 
     vis.close()
     assert proc.wait(timeout=5) is not None and proc.poll() is not None
@@ -163,6 +167,6 @@ def test_bad_result_starts_no_server(monkeypatch):
     monkeypatch.setattr(meshcat_replay.subprocess, "Popen", _RecordingPopen)
     bad = synthetic_result(horizon=5)
     bad.rotations = bad.rotations[:-1]
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError, match=r"^result\.rotations: expected shape \(H\+1, 3, 3\) = \(6, 3, 3\)"):
         replay(bad)
     assert _RecordingPopen.started == []

@@ -7,22 +7,22 @@ import json
 import re
 import subprocess
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from geoddp import viz  # first: silences meshcat's import warning
+from geoddp.data import urdf_dir
 from geoddp.multibody_scenes import space_manipulator
 from geoddp.result import Result
 from geoddp.validate import InputError
 from geoddp.viz import meshcat_replay
 from geoddp.viz.html import STATUS_ID, decode_commands, record_scene
-from geoddp.viz.multibody import ROBOT, SHAPE, load_visual_model, visual_placements
+from geoddp.viz.model import load_visual_model, visual_placements
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
-from geoddp.viz.scene import BACKGROUND_RGB
+MODELS = urdf_dir()  # the built-in URDFs (package data)
+from geoddp.viz.scene import BACKGROUND_RGB, GHOST, ROBOT, SHAPE
 import umsgpack  # noqa: E402
 
 from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, multibody_result, run_chromium, screenshot
@@ -130,6 +130,24 @@ def test_root_translation_is_replayed(docking):
     np.testing.assert_allclose(panel[:, :3, 3], bus[:, :3, 3] + 1.9 * bus[:, :3, 1], atol=1e-12)
 
 
+def test_one_body_free_flyer_has_a_ghost_at_the_target_rotation(docking):
+    """The docking spacecraft (one body, free-flyer root): the ghost is the whole model at the final
+    position with the bus's rotation set to the target (90 deg about z), static (not animated)."""
+    cmds = decode_commands(viz.html.render_html(docking))
+    ghost = {c["path"][len(f"/meshcat/{GHOST}/"):]: np.asarray(c["matrix"]).reshape(4, 4).T
+             for c in cmds if c["type"] == "set_transform" and c["path"].startswith(f"/meshcat/{GHOST}/")
+             and not c["path"].endswith("/" + SHAPE)}
+    assert set(ghost) == {"bus_0", "bus_1", "bus_2", "bus_3"}
+    R_d = pin.exp3(np.array([0.0, 0.0, np.pi / 2]))
+    np.testing.assert_allclose(docking.target_rotation, R_d, atol=1e-15)
+    np.testing.assert_allclose(ghost["bus_0"][:3, :3], R_d, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ghost["bus_0"][:3, 3], docking.configurations[-1, :3], rtol=0, atol=1e-12)
+    # panel 1.9 m along the target's y axis, i.e. along world -x
+    np.testing.assert_allclose(ghost["bus_1"][:3, 3], docking.configurations[-1, :3] + [-1.9, 0.0, 0.0], atol=1e-12)
+    anims = [c for c in cmds if c["type"] == "set_animation"]
+    assert not any(GHOST in a["path"] for a in anims[-1]["animations"])
+
+
 def test_shapes_have_urdf_sizes_and_colours(manip):
     cmds = decode_commands(viz.html.render_html(manip))
     objects = {c["path"]: c["object"] for c in cmds if c["type"] == "set_object"}
@@ -139,8 +157,10 @@ def test_shapes_have_urdf_sizes_and_colours(manip):
     base = objects[f"/meshcat/{ROBOT}/base_0/{SHAPE}"]
     assert [base["geometries"][0][k] for k in ("width", "height", "depth")] == [1.2, 1.0, 1.2]
     assert base["materials"][0]["color"] == (round(0.78 * 255) << 16) | (round(0.63 * 255) << 8) | round(0.40 * 255)
-    # no satellite in a multibody scene
-    assert not any("/satellite" in p for p in objects)
+    # only the manipulator's own objects, and no ghost: its target_rotation is the end effector's,
+    # not the root's (geoddp.viz.model.ghost_configuration)
+    assert set(objects) == {f"/meshcat/{ROBOT}/{n}/{SHAPE}" for n in MANIPULATOR_OBJECTS}
+    assert not any(c["path"].startswith(f"/meshcat/{GHOST}") for c in cmds if c["type"] in ("set_object", "set_transform"))
 
 
 def test_visual_placements_shape_and_fk_route(manip):
@@ -247,9 +267,12 @@ def test_bad_multibody_result_fails_before_any_server(manip, tmp_path, monkeypat
 def test_multibody_result_without_description_falls_back_to_root_attitude(manip, tmp_path):
     old = Result.read_json(manip.write_json(tmp_path / "m.json"))
     old.multibody = None  # a JSON written before Result.multibody existed
-    with pytest.warns(UserWarning, match="replaying only the root body's attitude"):
+    with pytest.warns(UserWarning, match="replaying only the root body's attitude, on the satellite model"):
         text = viz.html.render_html(old)
     assert viz.animation_frame_count(text) == H + 1
+    # the satellite's bus carries the root attitude R_k
+    bus = keyframe_transforms(animation_clips(decode_commands(text))["bus_0"])
+    np.testing.assert_allclose(bus[:, :3, :3], manip.rotations, rtol=0, atol=1e-12)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         viz.html.render_html(manip)  # a full description: no warning

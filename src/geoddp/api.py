@@ -1,4 +1,4 @@
-"""The few-lines entry point: scene file (or spec) in, :class:`Result` out."""
+"""The few-lines entry point: scene file, built-in scene name (or spec) in, :class:`Result` out."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -20,7 +20,8 @@ def initial_controls(spec: AnySceneSpec) -> np.ndarray | None:
 
 
 def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **options: Any) -> Result:
-    """Load (if a path), build and solve a scene: satellite or multibody (``[model] kind``).
+    """Load (if a path or a built-in scene's name, see :func:`geoddp.scene.load_scene`), build and
+    solve a scene: satellite or multibody (``[model] kind``).
 
     Keyword options override the scene's ``[solver]`` table (for example ``expansion="second"``,
     ``record_controls=True``, ``verbose=False``); ``backend`` (the satellite's derivative

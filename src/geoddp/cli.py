@@ -1,5 +1,6 @@
-"""Command line: ``geoddp run SCENE`` and ``geoddp compare SCENE`` (satellite or multibody scene
-files), ``geoddp multibody NAME`` (the built-in multibody scenes).
+"""Command line: ``geoddp run SCENE`` and ``geoddp compare SCENE``, where SCENE is a scene file
+(satellite or multibody) or a built-in scene's name (``satellite_paper``, ``quadrotor``, ...);
+``geoddp multibody NAME`` is an alias of ``geoddp run NAME`` for the built-in multibody scenes.
 
 Exit codes: 0 converged, 1 stopped without converging, 2 bad input (message, no traceback).
 """
@@ -16,32 +17,37 @@ EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 def _parser() -> argparse.ArgumentParser:
+    from .data import scene_names
     from .models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
     from .multibody_scenes import NAMES as MULTIBODY_SCENES
-    from .solver.options import DEFAULT_EXPANSION, EXPANSIONS
+    from .solver.options import EXPANSIONS
+
+    scene_help = ("scene file (TOML: satellite, or [model] kind = \"multibody\") or a built-in scene's name: "
+                  + ", ".join(scene_names()))
 
     p = argparse.ArgumentParser(prog="geoddp", description="Differential Dynamic Programming on Lie groups")
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve a scene and write its results")
-    run.add_argument("scene", type=Path, help="scene file (TOML): satellite, or [model] kind = \"multibody\"")
+    run.add_argument("scene", help=scene_help)
     run.add_argument("--expansion", choices=list(EXPANSIONS), help="override [solver].expansion")
     run.add_argument("--json", type=Path, help="write the result as JSON here")
     run.add_argument("--html", type=Path, help="write a self-contained animated HTML replay here")
     run.add_argument("--plots", type=Path, help="write PNG figures into this directory")
     run.add_argument("--view", action="store_true", help="replay in a live meshcat viewer (loopback)")
     run.add_argument("--quiet", action="store_true", help="no iteration table")
-    mb = sub.add_parser("multibody", help="solve one of the built-in multibody scenes (issue 6)")
-    mb.add_argument("scene", choices=MULTIBODY_SCENES, help="built-in scene (examples/multibody/NAME.toml)")
-    mb.add_argument("--integrator", choices=list(MULTIBODY_INTEGRATORS), default="semi_implicit",
-                    help="variational: the paper's forward variational Euler (implicit)")
-    mb.add_argument("--expansion", choices=list(EXPANSIONS), default=DEFAULT_EXPANSION)
+    mb = sub.add_parser("multibody", help="alias of `run NAME` for a built-in multibody scene, with --integrator")
+    mb.add_argument("scene", choices=MULTIBODY_SCENES, help="built-in multibody scene")
+    mb.add_argument("--integrator", choices=list(MULTIBODY_INTEGRATORS),
+                    help="override the scene's integrator (the files: semi_implicit); variational: the "
+                    "paper's forward variational Euler (implicit)")
+    mb.add_argument("--expansion", choices=list(EXPANSIONS), help="override [solver].expansion")
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
     mb.add_argument("--html", type=Path, help="write a self-contained animated HTML replay of the whole model "
                     "(root position and orientation and every joint)")
     mb.add_argument("--view", action="store_true", help="replay the whole model in a live meshcat viewer (loopback)")
     mb.add_argument("--quiet", action="store_true")
     cmp_ = sub.add_parser("compare", help="solve a scene with each expansion and compare convergence")
-    cmp_.add_argument("scene", type=Path)
+    cmp_.add_argument("scene", help=scene_help)
     cmp_.add_argument("--json", type=Path, help="write a summary JSON here")
     cmp_.add_argument("--plots", type=Path, help="write convergence figures into this directory")
     cmp_.add_argument("--quiet", action="store_true")
@@ -49,19 +55,11 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _multibody(args) -> int:
-    from .api import solve_scene
+    """``geoddp multibody NAME``: ``geoddp run NAME`` with an optional integrator override."""
     from .multibody_scenes import scene_spec
 
     # The built-in scene's file, with its initial controls (hover thrust for the quadrotor).
-    spec = scene_spec(args.scene, integrator=args.integrator)
-    result = solve_scene(spec, verbose=not args.quiet, expansion=args.expansion)
-    print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
-          f"solve time = {result.solve_time_s:.3f} s")
-    print(f"status: {result.status} ({result.message})")
-    if args.json:
-        print(f"wrote {result.write_json(args.json)}")
-    _visualise(result, args)
-    return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
+    return _solve_and_report(scene_spec(args.scene, integrator=args.integrator), args)
 
 
 def _summary_row(name: str, r) -> str:
@@ -70,16 +68,20 @@ def _summary_row(name: str, r) -> str:
 
 
 def _run(args) -> int:
-    from .api import solve_scene
-    from .multibody_scene import MultibodySceneSpec, terminal_frame_errors
     from .scene import load_scene
 
-    spec = load_scene(args.scene)
+    return _solve_and_report(load_scene(args.scene), args)
+
+
+def _solve_and_report(spec, args) -> int:
+    from .api import solve_scene
+    from .multibody_scene import MultibodySceneSpec, terminal_frame_errors
+
     multibody = isinstance(spec, MultibodySceneSpec)
     if multibody:
         # Refused before solving, as bad input: the figures plot a single rigid body's attitude.
         # --html and --view replay the whole model (as `geoddp multibody NAME` does).
-        if args.plots:
+        if getattr(args, "plots", None):
             raise InputError("--plots", "not supported for multibody scenes (the figures plot a single rigid "
                              "body's attitude); use --json OUT.json, --html OUT.html or --view for a replay")
     overrides = {"expansion": args.expansion} if args.expansion else {}

@@ -54,14 +54,8 @@ import numpy as np
 import pinocchio as pin
 
 from . import validate as v
-from .solver.options import (
-    DEFAULT_EXPANSION,
-    DEFAULT_GRAD_TOL,
-    DEFAULT_MAX_ITER,
-    DEFAULT_SWITCH_RATIO,
-    DEFAULT_TOL,
-    EXPANSIONS,
-)
+from .scene_common import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
+                           EXPANSIONS, check_urdf)
 from .validate import InputError, SourceReader
 
 __all__ = [
@@ -351,7 +345,6 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     """
     from .models import multibody as mbm
     from .models.actuation import hover_inputs
-    from .scene import _check_urdf
 
     r = _Reader(source)
     allowed = list(_TOP_KEYS) + [f"[{s}]" for s in _SECTIONS] + [f"[[{a}]]" for a in _ARRAYS]
@@ -370,7 +363,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
 
     # ---- model
     model_t = r.section(data, "model")
-    urdf = r.check(_check_urdf, model_t["urdf"], "[model].urdf", base_dir)
+    urdf = r.check(check_urdf, model_t["urdf"], "[model].urdf", base_dir)
     root = r.check(v.choice, model_t.get("root", "free_flyer"), "[model].root", mbm.ROOTS)
     gravity = r.boolean(model_t.get("gravity", True), "[model].gravity")
     horizon_t = r.section(data, "horizon")

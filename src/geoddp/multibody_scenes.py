@@ -1,8 +1,8 @@
 """The three multibody scenes of issue 6, as :class:`MultibodyProblem` builders.
 
-Each scene is defined once, in its scene file ``examples/multibody/<name>.toml`` (URDF from
-``models/``, actuation, initial state, costs, time grid; see :mod:`geoddp.multibody_scene`); the
-builders here load that file and may change the integrator, the time step and the horizon.
+Each scene is defined once, in its built-in scene file ``geoddp/data/scenes/multibody/<name>.toml``
+(package data, :mod:`geoddp.data`; ``examples/multibody/`` in the repository): URDF, actuation,
+initial state, costs, time grid (see :mod:`geoddp.multibody_scene`). The builders here load that file and may change the integrator, the time step and the horizon.
 Running costs are applied per step without a dt factor (the paper's convention; divide
 Crocoddyl's running weights by dt to compare).
 
@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from . import data
 from .models.actuation import hover_inputs
 from .multibody_problem import MultibodyProblem
 from .multibody_scene import MultibodySceneSpec, build_multibody_problem
 
-SCENES = Path(__file__).resolve().parents[2] / "examples" / "multibody"
 NAMES = ("quadrotor", "space_manipulator", "spacecraft_docking")
 
 
@@ -30,7 +30,7 @@ def scene_path(name: str) -> Path:
     """Path of the scene file of built-in scene ``name`` (one of :data:`NAMES`)."""
     from .validate import choice
 
-    return SCENES / f"{choice(name, 'scene', NAMES)}.toml"
+    return data.scene_path(choice(name, "scene", NAMES))
 
 
 def scene_spec(name: str, integrator: str | None = None, dt: float | None = None,

@@ -3,8 +3,7 @@
 A scene file fixes the rigid body, the initial and target states, the time grid, the cost
 weights and the solver options. :func:`load_scene` reads it into a frozen :class:`SceneSpec`
 of validated numpy arrays and builtins; building models and solvers from it is someone
-else's job, so this module imports nothing of the solver but its options (the one home of
-the ``[solver]`` defaults).
+else's job, so this module never imports the solver.
 
 Schema (``?`` = optional, with its default)::
 
@@ -42,21 +41,16 @@ from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 
+from . import data
 from . import validate as v
-from .solver.options import (  # the solver's defaults have one home; re-exported here
-    DEFAULT_EXPANSION,
-    DEFAULT_GRAD_TOL,
-    DEFAULT_MAX_ITER,
-    DEFAULT_SWITCH_RATIO,
-    DEFAULT_TOL,
-    EXPANSIONS,
-)
+from .scene_common import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
+                           EXPANSIONS, check_urdf as _check_urdf)
 from .validate import InputError
 
 if TYPE_CHECKING:
     from .multibody_scene import MultibodySceneSpec
 
-__all__ = ["SceneSpec", "AnySceneSpec", "SCENE_KINDS", "load_scene", "parse_scene", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS", "SECOND_ORDER"]
+__all__ = ["SceneSpec", "AnySceneSpec", "SCENE_KINDS", "load_scene", "scene_file", "parse_scene", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS", "SECOND_ORDER"]
 
 INTEGRATORS = ("euler", "semi_implicit")
 ATTITUDE_KINDS = ("chordal", "geodesic")
@@ -263,19 +257,40 @@ AnySceneSpec = Union[SceneSpec, "MultibodySceneSpec"]
 # parsing
 
 
+def scene_file(scene: str | Path) -> Path:
+    """The scene file that ``scene`` names: a path, or a built-in scene's name.
+
+    An existing file always wins. Otherwise a bare name (no folder, no ``.toml``), such as
+    ``"quadrotor"`` or ``"satellite_paper"``, is a built-in scene (:func:`geoddp.data.scene_names`);
+    anything else is returned as a path for the reader to report.
+
+    Raises:
+        InputError: naming ``scene``: a bare name that is neither a file nor a built-in scene (the
+            message suggests the closest built-in name and lists them).
+    """
+    p = Path(scene)
+    text = str(scene)
+    if p.is_file() or Path(text).name != text or p.suffix == ".toml" or not text:
+        return p
+    return data.scene_path(text, "scene")
+
+
 def load_scene(path: str | Path) -> AnySceneSpec:
     """Read and validate a TOML scene file: a :class:`SceneSpec`, or a
     :class:`~geoddp.multibody_scene.MultibodySceneSpec` if ``[model] kind = "multibody"``.
 
     Args:
-        path: scene file. Relative paths inside it (``[model].urdf``) are resolved against
-            the file's directory.
+        path: scene file, or the name of a built-in scene (``"satellite_paper"``,
+            ``"quadrotor"``; see :func:`scene_file`). Relative paths inside it
+            (``[model].urdf``) are resolved against the file's directory; a bare URDF file
+            name not found there is the built-in URDF of that name.
 
     Raises:
         InputError: the file is missing or unreadable, is not valid TOML (the message gives
-            the line and column), or any key is unknown, missing or invalid.
+            the line and column), or any key is unknown, missing or invalid; ``scene`` for a
+            name that is neither a file nor a built-in scene.
     """
-    p = Path(path)
+    p = scene_file(path)
     src = str(p)
     try:
         raw = p.read_bytes()
@@ -335,19 +350,6 @@ def parse_scene(data: Mapping[str, Any], source: str = "<dict>") -> AnySceneSpec
     base = Path(source).resolve().parent if source != "<dict>" else Path.cwd()
     default_name = Path(source).stem if source != "<dict>" else "scene"
     return _dispatch(data, source, base_dir=base, default_name=default_name)
-
-
-def _check_urdf(path: Any, name: str, base_dir: Path) -> Path:
-    if not isinstance(path, (str, Path)) or str(path) == "":
-        raise InputError(name, f"expected a file path string, got {path!r}")
-    p = Path(path).expanduser()
-    if not p.is_absolute():
-        p = base_dir / p
-    p = p.resolve()
-    # Checked now rather than when the model is built, so a typo fails before any work.
-    if not p.is_file():
-        raise InputError(name, f"expected an existing URDF file, got {str(path)!r} (resolved to {p}, not found)")
-    return p
 
 
 class _Reader(v.SourceReader):

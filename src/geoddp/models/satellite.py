@@ -24,10 +24,10 @@ import pinocchio as pin
 
 from .. import integrators as integ
 from ..lie import hat
-from .. import kernels
+from .. import data, kernels
 from ..validate import actuation_matrix, choice, inertia_matrix, positive_float
 
-DEFAULT_URDF = Path(__file__).resolve().parents[3] / "models" / "satellite.urdf"
+DEFAULT_URDF = data.urdf_path("satellite.urdf")
 BACKENDS = ("compiled", "analytic", "pinocchio")
 
 
@@ -58,9 +58,8 @@ class Satellite:
         dt: time step, s.
         integrator: "euler" (paper) or "semi_implicit" (Crocoddyl).
         second_order: "exact" (default) or "paper" expansion of the reconstruction.
-        urdf: URDF of one rigid body (its inertia is replaced by ``inertia``). By default
-            ``models/satellite.urdf`` of the repository; without it (an installed wheel has no
-            ``models/``), the same one-body model is built in code.
+        urdf: URDF of one rigid body (its inertia is replaced by ``inertia``). By default the
+            built-in ``satellite.urdf`` (package data, :mod:`geoddp.data`).
         backend: derivative backend used by :meth:`expansion` unless a call names another:
             "compiled" (numba, default), "analytic" (numpy reference) or "pinocchio" (per-node
             Pinocchio calls, the source of truth). A model choice, made when the model is built.
@@ -85,7 +84,7 @@ class Satellite:
         self.backend = choice(self.backend, "backend", BACKENDS)
         if self.second_order == "paper" and self.integrator != "euler":
             raise ValueError("second_order: 'paper' is derived for integrator 'euler' only")
-        if self.urdf is None and DEFAULT_URDF.is_file():
+        if self.urdf is None:
             self.urdf = DEFAULT_URDF
         if self.urdf is not None:
             self.urdf = Path(self.urdf)

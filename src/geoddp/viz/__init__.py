@@ -5,9 +5,11 @@ Reads Results only; never imports the solver.
 - :func:`replay`: live meshcat viewer (loopback server), time-synchronised animation.
 - :func:`export_html`: self-contained static HTML replay (no server, no network).
 
-Both draw the satellite for a TSO(3) result and, for a multibody result, the whole Pinocchio
-model from its URDF visuals (:mod:`geoddp.viz.multibody`; :func:`visual_placements` gives the
-per-frame world placements they animate).
+Both go through one path (:func:`geoddp.viz.scene.build_scene`): the result's model is rebuilt
+from a URDF (:mod:`geoddp.viz.model`: the multibody model of the solve, or the built-in
+satellite.urdf on a spherical root) and its primitive visuals are animated by forward kinematics
+(:func:`visual_placements` gives the per-frame world placements), with the target pose as a
+translucent ghost.
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures.
 """
 import warnings
@@ -21,7 +23,7 @@ with warnings.catch_warnings():
 from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
-from .multibody import load_visual_model, visual_placements
+from .model import load_visual_model, visual_placements
 
 __all__ = [
     "FigureData",

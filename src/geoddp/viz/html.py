@@ -18,7 +18,7 @@ import meshcat
 import umsgpack
 
 from ..result import Result
-from .scene import SATELLITE, build_scene
+from .scene import build_scene
 
 _VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
 
@@ -48,9 +48,8 @@ def record_scene(result: Result, scale: float = 1.0) -> list[bytes]:
     """msgpack-encoded meshcat commands that build the scene and set the animation.
 
     Args:
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s); for a
-            multibody result ``configurations (H+1, nq)``, ``multibody`` and ``dt`` (s).
-        scale: satellite size factor (unused for a multibody model).
+        result: any Result (see :func:`geoddp.viz.scene.build_scene`).
+        scale: uniform size factor of the drawing.
 
     Returns:
         One bytes object per command, in the order they must be applied.
@@ -126,16 +125,17 @@ def export_html(result: Result, path: str | Path, scale: float = 1.0) -> Path:
     """Write a self-contained static HTML replay of ``result`` to ``path``.
 
     The file embeds meshcat's three.js viewer and the recorded scene commands, so it opens
-    from disk with no server and no network. The page shows the satellite and the target
-    ghost or, for a multibody result, the whole Pinocchio model (every URDF visual placed by
-    forward kinematics at q_k), with an animation of H+1 keyframes at fps = 1/dt
-    (play/pause/scrub under "Animations" in the control panel).
+    from disk with no server and no network. The page shows the result's model (the multibody
+    model of the solve, or the built-in satellite: bus, panels, body axes), every URDF visual
+    placed by forward kinematics at q_k, with the target pose as a translucent ghost, in an
+    animation of H+1 keyframes at fps = 1/dt (play/pause/scrub under "Animations" in the
+    control panel). See :func:`geoddp.viz.scene.build_scene`.
 
     Args:
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s); for a
-            multibody result ``configurations (H+1, nq)``, ``multibody`` and ``dt`` (s).
+        result: any Result: reads ``multibody``, ``configurations (H+1, nq)`` or
+            ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)`` and ``dt`` (s).
         path: output file; parent directories are created.
-        scale: satellite size factor (unused for a multibody model).
+        scale: uniform size factor of the drawing (1.0: the URDF's size in metres).
 
     Returns:
         The path written.
@@ -162,8 +162,7 @@ def animation_frame_count(html_text: str) -> int:
     """Number of animation keyframes in an exported page.
 
     Reads the ``set_animation`` command embedded by :func:`export_html` and counts the keys of
-    its clips' tracks: the satellite clip's for a satellite replay, else every clip's (one per
-    visual object of a multibody model), which must all agree.
+    its clips' tracks (one clip per visual object of the model), which must all agree.
 
     Args:
         html_text: contents of the HTML file.
@@ -179,12 +178,9 @@ def animation_frame_count(html_text: str) -> int:
         raise ValueError("the page contains no set_animation command")
     # The last set_animation wins in the viewer (Animator.load clears earlier ones).
     entries = anims[-1]["animations"]
-    satellite = [e for e in entries if e["path"].rstrip("/").split("/")[-1] == SATELLITE]
-    entries = satellite or entries
     if not entries:
         raise ValueError("the animation has no clip")
     counts = {len(track["keys"]) for e in entries for track in e["clip"]["tracks"]}
     if len(counts) != 1:
-        what = "satellite tracks" if satellite else "animated tracks"
-        raise ValueError(f"{what} disagree on the keyframe count: {sorted(counts)}")
+        raise ValueError(f"animated tracks disagree on the keyframe count: {sorted(counts)}")
     return counts.pop()

@@ -24,7 +24,8 @@ import zmq
 from meshcat.visualizer import ViewerWindow
 
 from ..result import Result
-from .scene import build_satellite, build_scene, check_replayable
+from .model import check_replayable
+from .scene import build_satellite, build_scene
 
 __all__ = ["ViewerUnavailable", "build_satellite", "replay"]
 
@@ -202,21 +203,21 @@ def replay(
 ) -> meshcat.Visualizer:
     """Show ``result`` in a meshcat viewer as an animation synchronised with its time.
 
-    For a multibody result (``result.multibody`` set) the scene is the whole Pinocchio model
-    rebuilt from its URDF visuals, each object placed by forward kinematics at q_k (root position
-    and orientation and every joint). Otherwise it is a satellite (bus, two solar panels,
-    red/green/blue body axes) and a translucent ghost at ``target_rotation``. The animation has
-    one keyframe per time step, played at fps = 1/dt, with play/pause/scrub under "Animations" in
-    the viewer's controls.
+    The scene is the result's model rebuilt from its URDF visuals (the multibody model of the
+    solve, or for a satellite result the built-in satellite: bus, two solar panels,
+    red/green/blue body axes), each object placed by forward kinematics at q_k (root position and
+    orientation and every joint), and the target pose as a translucent ghost
+    (:func:`geoddp.viz.scene.build_scene`). The animation has one keyframe per time step, played
+    at fps = 1/dt, with play/pause/scrub under "Animations" in the viewer's controls.
 
     Args:
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)`` and ``dt`` (s); for a
-            multibody result ``configurations (H+1, nq)``, ``multibody`` and ``dt`` (s).
+        result: any Result: reads ``multibody``, ``configurations (H+1, nq)`` or
+            ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)`` and ``dt`` (s).
         vis: an existing visualizer to draw into (no server is started).
         open_browser: open the viewer URL in the default web browser.
         zmq_url: reuse the meshcat server listening at this ZMQ URL
             (e.g. ``"tcp://127.0.0.1:6000"``) instead of starting one.
-        scale: satellite size factor (1.0 = 1.0 x 0.8 x 0.6 m bus); unused for a multibody model.
+        scale: uniform size factor of the drawing (1.0: the URDF's size in metres).
         timeout_s: bound in seconds on server start-up and on every ZMQ round trip.
 
     Returns:
@@ -226,9 +227,12 @@ def replay(
     Raises:
         ViewerUnavailable: the server could not be started, or did not answer in time, or
             ``zmq_url`` is invalid. A server started here is stopped before raising.
-        ValueError: malformed ``result``, or both ``vis`` and ``zmq_url`` given.
+        ValueError: malformed ``result`` (:class:`geoddp.validate.InputError` naming the field),
+            ``scale`` not positive, or both ``vis`` and ``zmq_url`` given.
     """
     check_replayable(result)  # before any server exists, so bad data never leaks a process
+    if not scale > 0:
+        raise ValueError(f"scale must be positive, got {scale!r}")
     if vis is not None and zmq_url is not None:
         raise ValueError("give either vis or zmq_url, not both")
     owned = vis is None  # we created the window (and maybe the server): we clean it up

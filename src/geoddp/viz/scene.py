@@ -1,218 +1,237 @@
-"""The satellite scene and its time-synchronised animation, as meshcat commands.
+"""The replay scene of any Result, as meshcat commands: the single entry point of the live viewer
+(:mod:`geoddp.viz.meshcat_replay`) and the static HTML export (:mod:`geoddp.viz.html`).
 
-:func:`build_scene` is the entry point of the live viewer and the HTML export: a multibody result
-(one with ``Result.multibody``) goes to :mod:`geoddp.viz.multibody` (the whole Pinocchio model),
-any other to the satellite scene below (the TSO(3) attitude).
+:func:`build_scene` draws the model :mod:`geoddp.viz.model` rebuilds (the multibody model of the
+solve, or the built-in satellite) from its URDF primitive visuals, under ``vis["robot"]``, one
+node per geometry object, and animates them: keyframe k of node ``robot/<object>`` is its world
+placement oMg(q_k), at fps = 1/dt. The target pose is a translucent ghost of the whole model under
+``vis["target_ghost"]`` (static), placed at :func:`geoddp.viz.model.ghost_configuration`.
+
+Each animated node ``robot/<object>`` carries exactly ``oMg``; the primitive's own frame correction
+(three.js cylinders lie along y, Pinocchio's along z) sits on its child ``robot/<object>/shape``.
+A ``scale`` other than 1 sits on ``vis["robot"]`` and ``vis["target_ghost"]`` themselves.
+
+Pinocchio's own ``pin.visualize.MeshcatVisualizer`` is not reused: it draws one configuration at a
+time through its own ``meshcat.Visualizer`` (``display(q)``) and records animations only as videos,
+whereas the live loopback viewer and the offline HTML recorder both need the whole trajectory as
+one meshcat animation on a visualizer we provide.
 
 This module only *describes* the scene: it talks to anything that behaves like a
-``meshcat.Visualizer`` (a live one backed by a server, or the offline recorder used by
+``meshcat.Visualizer`` (a live one backed by a server, or the offline recorder of
 :mod:`geoddp.viz.html`). Starting servers and writing files live elsewhere.
 """
 from __future__ import annotations
 
 import warnings
 
-import numpy as np
 import meshcat
 import meshcat.geometry as g
+import numpy as np
+import pinocchio as pin
 from meshcat.animation import Animation
 
 from ..result import Result
-from .multibody import build_multibody_scene, check_multibody_result, is_multibody
+from .model import (VisualModel, check_replayable, ghost_configuration, load_visual_model, placements_at,
+                    satellite_description)
 
-#: Scene-tree names (relative to the visualizer root). The animation targets SATELLITE.
-SATELLITE = "satellite"
+#: Scene-tree name (relative to the visualizer root) of the group holding the model's visuals.
+ROBOT = "robot"
+#: Scene-tree name of the group holding the translucent target ghost.
 GHOST = "target_ghost"
+#: Name of the child node holding each object's primitive (static shape-frame correction).
+SHAPE = "shape"
 
-# Bus and panel dimensions in metres at scale 1 (x, y, z in the body frame).
-BUS_SIZE = (1.0, 0.8, 0.6)
-PANEL_SIZE = (0.6, 1.6, 0.02)
-PANEL_GAP = 0.1  # clearance between the bus side and the panel root, in metres
-AXIS_LENGTH = 1.2
-AXIS_RADIUS = 0.03  # thicker than the panels so the y axis shows on them
-
-BUS_COLOR = 0xC8A165  # gold foil
-PANEL_COLOR = 0x1F3A93  # blue cells
-AXIS_COLORS = {"x": 0xE02020, "y": 0x20B020, "z": 0x2040E0}
 GHOST_COLOR = 0x88CCFF
 GHOST_OPACITY = 0.3
-GHOST_INFLATE = 1.03  # slightly larger than the satellite: no z-fighting when they coincide
+GHOST_INFLATE = 1.03  # each ghost primitive 3 % larger than the model's: no z-fighting when they coincide
 # Uniform dark background (top = bottom colour, RGB in [0, 1]): space-like, and a single
 # background colour makes "is anything drawn?" checks on screenshots trivial.
 BACKGROUND_RGB = [0.05, 0.07, 0.12]
 
-
-def _homogeneous(rotation: np.ndarray | None = None, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """4x4 transform from a 3x3 rotation and a translation in metres."""
-    T = np.eye(4)
-    if rotation is not None:
-        T[:3, :3] = rotation
-    T[:3, 3] = translation
-    return T
-
-
-# three.js cylinders are built along their local +y axis; these rotations lay a
-# cylinder along body x, y or z respectively.
-_AXIS_ALIGN = {
-    "x": np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),  # y -> x
-    "y": np.eye(3),
-    "z": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),  # y -> z
-}
-_AXIS_UNIT = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
-
-
-def _add_body(vis: meshcat.Visualizer, scale: float, opacity: float, color_override: int | None) -> None:
-    """Bus, two panels and axes under ``vis``; one body frame, origin at the centre of mass."""
-
-    def mat(color: int) -> g.MeshLambertMaterial:
-        c = color if color_override is None else color_override
-        # depthWrite off for the ghost so the solid satellite stays visible inside it.
-        extra = {"depthWrite": False} if opacity < 1.0 else {}
-        return g.MeshLambertMaterial(color=c, opacity=opacity, **extra)
-
-    bx, by, bz = (scale * s for s in BUS_SIZE)
-    vis["bus"].set_object(g.Box([bx, by, bz]), mat(BUS_COLOR))
-    px, py, pz = (scale * s for s in PANEL_SIZE)
-    offset = by / 2 + scale * PANEL_GAP + py / 2
-    for side, sign in (("panel_pos_y", 1.0), ("panel_neg_y", -1.0)):
-        vis[side].set_object(g.Box([px, py, pz]), mat(PANEL_COLOR))
-        vis[side].set_transform(_homogeneous(translation=(0.0, sign * offset, 0.0)))
-    length, radius = scale * AXIS_LENGTH, scale * AXIS_RADIUS
-    for name, R in _AXIS_ALIGN.items():
-        node = vis["axes"][name]
-        node.set_object(g.Cylinder(length, radius), mat(AXIS_COLORS[name]))
-        # The cylinder is centred on its origin: shift it by half its length so it starts
-        # at the body origin and pokes out of the bus along +axis.
-        node.set_transform(_homogeneous(R, translation=_AXIS_UNIT[name] * (length / 2)))
-
-
-def build_satellite(vis: meshcat.Visualizer, scale: float = 1.0) -> None:
-    """Add the satellite and its translucent target ghost to ``vis``.
-
-    Creates ``vis["satellite"]`` (a 1.0 x 0.8 x 0.6 m bus, two 0.6 x 1.6 m solar panels
-    along body y, and a red/green/blue x/y/z body-axes triad of thin cylinders) and
-    ``vis["target_ghost"]`` (the same shape, translucent, uniformly coloured). Both start
-    at the identity attitude; :func:`animate_result` moves them.
-
-    Args:
-        vis: a ``meshcat.Visualizer`` (live or recording); nodes are created below it.
-        scale: uniform size factor (1.0 gives the dimensions above in metres).
-    """
-    if not scale > 0:
-        raise ValueError(f"scale must be positive, got {scale!r}")
-    _add_body(vis[SATELLITE], scale, opacity=1.0, color_override=None)
-    _add_body(vis[GHOST], scale * GHOST_INFLATE, opacity=GHOST_OPACITY, color_override=GHOST_COLOR)
-
-
-def check_result(result: Result) -> None:
-    """Check the fields the viewer reads, so bad data fails here and not inside three.js.
-
-    Raises:
-        ValueError: ``rotations`` not (H+1, 3, 3) for ``times`` (H+1,), non-finite
-            rotations, or ``dt`` not a positive number of seconds.
-    """
-    n = result.times.shape[0]
-    if result.rotations.shape != (n, 3, 3):
-        raise ValueError(f"rotations must be (H+1, 3, 3) = ({n}, 3, 3), got {result.rotations.shape}")
-    if n < 1:
-        raise ValueError("the trajectory has no time steps")
-    if not (np.isfinite(result.dt) and result.dt > 0):
-        raise ValueError(f"dt must be a positive number of seconds, got {result.dt!r}")
-    if not np.all(np.isfinite(result.rotations)):
-        raise ValueError("rotations contain non-finite values")
-
-
-def trajectory_animation(vis: meshcat.Visualizer, result: Result) -> Animation:
-    """One keyframe per time step of ``result`` for ``vis["satellite"]``.
-
-    Frame k holds R_k; the clip runs at fps = 1/dt, so keyframe k plays at t_k = k dt
-    seconds and the replay is synchronised with the trajectory's own time.
-
-    Args:
-        vis: the visualizer holding the scene built by :func:`build_satellite`.
-        result: the trajectory; reads ``rotations (H+1, 3, 3)`` and ``dt`` (s).
-
-    Returns:
-        A ``meshcat.animation.Animation`` with H+1 keyframes on the satellite node.
-    """
-    check_result(result)
-    anim = Animation(default_framerate=1.0 / float(result.dt))
-    node = vis[SATELLITE]
-    for k, R in enumerate(result.rotations):
-        with anim.at_frame(node, k) as frame:
-            frame.set_transform(_homogeneous(R))
-    return anim
-
-
-def animate_result(vis: meshcat.Visualizer, result: Result, play: bool = True) -> Animation:
-    """Place the ghost at R_d, put the satellite at R_0 and send the trajectory animation.
-
-    Args:
-        vis: visualizer with the scene from :func:`build_satellite`.
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s).
-        play: start playing immediately in the viewer.
-
-    Returns:
-        The animation that was sent.
-    """
-    check_result(result)
-    vis[GHOST].set_transform(_homogeneous(np.asarray(result.target_rotation, dtype=float)))
-    vis[SATELLITE].set_transform(_homogeneous(result.rotations[0]))
-    anim = trajectory_animation(vis, result)
-    vis.set_animation(anim, play=play, repetitions=1)
-    return anim
+# three.js builds cylinders along their local +y axis, Pinocchio (coal) along +z: rotate y -> z.
+_Y_TO_Z = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+# Camera direction from the world origin (meshcat's orbit target), world coordinates (z up): from
+# -y, a little ahead in x and above, so a reach along +x reads as a side view.
+_CAMERA_DIRECTION = np.array([0.6, -1.0, 0.55])
+# meshcat's default camera: 75 deg vertical field of view (the narrower one in a landscape window).
+# A sphere of radius r about the target stays inside the view from distance r / sin(37.5 deg) =
+# 1.64 r on (its near side looks larger than r / tan(37.5 deg) = 1.30 r, the older fit, suggests:
+# at 1.4 r the satellite's near panel left the frame mid-turn).
+_CAMERA_FIT = 1.7
 
 
 def set_backdrop(vis: meshcat.Visualizer) -> None:
     """Space backdrop: uniform dark background and no ground grid.
 
-    The grid would otherwise cut through the satellite (it sits at the world origin) and
-    hide its lower half.
+    The grid would otherwise cut through a model at the world origin and hide its lower half.
     """
     vis["/Background"].set_property("top_color", BACKGROUND_RGB)
     vis["/Background"].set_property("bottom_color", BACKGROUND_RGB)
     vis["/Grid"].set_property("visible", False)
 
 
-def check_replayable(result: Result) -> None:
-    """Validate ``result`` for :func:`build_scene` (either kind) before anything is sent.
+def _primitive(obj: pin.GeometryObject) -> tuple[g.Geometry, np.ndarray] | None:
+    """(meshcat geometry, 4x4 shape-frame correction) of a primitive, or None if unsupported."""
+    shape = obj.geometry
+    kind = type(shape).__name__  # coal (Pinocchio 3+) or hppfcl: same class names
+    if kind == "Box":
+        return g.Box((2.0 * np.asarray(shape.halfSide)).tolist()), np.eye(4)
+    if kind == "Sphere":
+        return g.Sphere(float(shape.radius)), np.eye(4)
+    if kind in ("Cylinder", "Capsule"):
+        return g.Cylinder(2.0 * float(shape.halfLength), float(shape.radius)), _Y_TO_Z
+    return None
 
-    Raises:
-        ValueError: see :func:`check_result`, or
-            :func:`geoddp.viz.multibody.check_multibody_result` for a multibody result.
+
+def _color(rgba) -> int:
+    """0xRRGGBB of an RGBA colour in [0, 1]."""
+    r, gr, b = (int(round(255 * float(np.clip(c, 0, 1)))) for c in rgba[:3])
+    return (r << 16) | (gr << 8) | b
+
+
+def _draw(vis: meshcat.Visualizer, visual: VisualModel, placements: np.ndarray, scale: float,
+          ghost: bool = False) -> list[int]:
+    """One node per drawable visual object under ``vis`` (the group, scaled by ``scale``): node
+    ``<name>`` at its world placement ``placements[i]`` (n_objects, 4, 4), and its child
+    ``<name>/shape`` holding the primitive in the URDF's size (metres) and colour, or for the ghost
+    inflated by GHOST_INFLATE, translucent and uniformly GHOST_COLOR (depthWrite off, so the solid
+    model stays visible inside it). Objects that are not box, sphere, cylinder or capsule (e.g.
+    meshes) are skipped, with a warning for the model (not again for its ghost).
+
+    Returns:
+        The indices (in ``visual.geometry.geometryObjects``) of the objects drawn.
     """
-    if is_multibody(result):
-        check_multibody_result(result)
+    vis.set_transform(np.diag([scale, scale, scale, 1.0]))
+    drawn = []
+    for i, (obj, name) in enumerate(zip(visual.geometry.geometryObjects, visual.names)):
+        prim = _primitive(obj)
+        if prim is None:
+            if not ghost:
+                warnings.warn(f"visual {obj.name!r}: {type(obj.geometry).__name__} geometry is not drawn "
+                              "(only box, sphere, cylinder and capsule primitives are)", UserWarning, stacklevel=3)
+            continue
+        geometry, correction = prim
+        if ghost:
+            material = g.MeshLambertMaterial(color=GHOST_COLOR, opacity=GHOST_OPACITY, depthWrite=False)
+            correction = correction @ np.diag([GHOST_INFLATE, GHOST_INFLATE, GHOST_INFLATE, 1.0])
+        else:
+            material = g.MeshLambertMaterial(color=_color(obj.meshColor), opacity=float(np.clip(obj.meshColor[3], 0, 1)))
+        node = vis[name][SHAPE]
+        node.set_object(geometry, material)
+        node.set_transform(correction)
+        vis[name].set_transform(placements[i])
+        drawn.append(i)
+    return drawn
+
+
+def model_animation(vis: meshcat.Visualizer, visual: VisualModel, placements: np.ndarray, dt: float,
+                    drawn: list[int]) -> Animation:
+    """One keyframe per time step and drawn object: node ``robot/<name>`` at oMg(q_k).
+
+    Args:
+        vis: visualizer holding the nodes drawn under ``vis["robot"]``.
+        visual: the rebuilt model; placements: (H+1, n_objects, 4, 4) oMg along the trajectory.
+        dt: time step in seconds; drawn: indices of the objects drawn.
+
+    Returns:
+        A ``meshcat.animation.Animation`` at fps = 1/dt with one clip per drawn object, H+1
+        keyframes each (keyframe k plays at t_k = k dt seconds).
+    """
+    anim = Animation(default_framerate=1.0 / float(dt))
+    for i in drawn:
+        node = vis[ROBOT][visual.names[i]]
+        for k in range(placements.shape[0]):
+            with anim.at_frame(node, k) as frame:
+                frame.set_transform(placements[k, i])
+    return anim
+
+
+def _bounding_radius(obj: pin.GeometryObject) -> float:
+    """Radius in metres of a sphere about the primitive's centre that holds it (0 if not drawn)."""
+    shape = obj.geometry
+    kind = type(shape).__name__
+    if kind == "Box":
+        return float(np.linalg.norm(shape.halfSide))
+    if kind == "Sphere":
+        return float(shape.radius)
+    if kind == "Cylinder":
+        return float(np.hypot(shape.radius, shape.halfLength))
+    if kind == "Capsule":
+        return float(shape.radius + shape.halfLength)
+    return 0.0
+
+
+def _frame_camera(vis: meshcat.Visualizer, placements: np.ndarray, visual: VisualModel, scale: float) -> None:
+    """Put the default camera (looking at the world origin, meshcat's orbit target) just far enough
+    out to see the whole trajectory: 1.7x the largest reach of any object over time (its centre's
+    distance from the origin plus its bounding radius), >= 3 m."""
+    radii = np.array([_bounding_radius(o) for o in visual.geometry.geometryObjects])
+    if placements.size:
+        reach = float((np.linalg.norm(placements[:, :, :3, 3], axis=-1) + radii[None, :]).max())
     else:
-        check_result(result)
+        reach = 1.0
+    d = _CAMERA_DIRECTION / np.linalg.norm(_CAMERA_DIRECTION) * max(3.0, _CAMERA_FIT * scale * reach)
+    # The camera lives in meshcat's y-up "rotated" frame: world (x, y, z) -> (x, z, -y).
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [float(d[0]), float(d[2]), float(-d[1])])
+
+
+def build_satellite(vis: meshcat.Visualizer, scale: float = 1.0) -> None:
+    """Draw the built-in satellite (``satellite.urdf``'s bus, two solar panels and body axes) at
+    the identity attitude under ``vis["robot"]``, and its translucent ghost under
+    ``vis["target_ghost"]``; :func:`build_scene` does this and more for a satellite result.
+
+    Args:
+        vis: a ``meshcat.Visualizer`` (live or recording); nodes are created below it.
+        scale: uniform size factor (1.0: the URDF's size in metres, a 1.0 x 0.8 x 0.6 m bus).
+    """
+    if not scale > 0:
+        raise ValueError(f"scale must be positive, got {scale!r}")
+    visual = load_visual_model(satellite_description())
+    identity = placements_at(visual, np.array([[0.0, 0.0, 0.0, 1.0]]))[0]
+    _draw(vis[ROBOT], visual, identity, scale)
+    _draw(vis[GHOST], visual, identity, scale, ghost=True)
 
 
 def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, play: bool = True) -> Animation:
-    """The whole replay scene: backdrop, bodies and the trajectory animation.
-
-    A multibody result (``result.multibody`` set) replays the full Pinocchio model, root placement
-    and every joint (:func:`geoddp.viz.multibody.build_multibody_scene`). Otherwise: backdrop,
-    satellite, ghost at R_d and the attitude animation, in that order. A result with
-    ``configurations`` but no ``multibody`` description (written before it existed) falls back to
-    the root attitude, with a warning.
+    """The whole replay scene of any result: backdrop, the model's visuals at q_0, the target
+    ghost, the camera, and the trajectory animation, in that order.
 
     Args:
         vis: live or recording visualizer.
-        result: reads ``rotations (H+1, 3, 3)``, ``target_rotation (3, 3)``, ``dt`` (s); for a
-            multibody result ``configurations (H+1, nq)`` and ``multibody`` instead.
-        scale: satellite size factor (the satellite scene only; a multibody model is drawn at the
-            URDF's size in metres).
+        result: any Result: the model comes from ``multibody`` (else the built-in satellite), the
+            configurations from ``configurations (H+1, nq)`` (else ``rotations (H+1, 3, 3)``), the
+            ghost from ``target_rotation (3, 3)``, the frame rate from ``dt`` (s).
+        scale: uniform size factor of the drawing (1.0: the URDF's size in metres); it scales the
+            scene about the world origin, so keyframes stay the model's oMg.
         play: start the animation immediately.
 
     Returns:
-        The animation (H+1 keyframes per animated node at fps = 1/dt).
+        The animation (one clip per drawn visual object, H+1 keyframes each, fps = 1/dt).
+
+    Raises:
+        InputError: naming the parameter, see :func:`geoddp.viz.model.check_replayable`.
+        ValueError: ``scale`` not positive.
     """
-    if is_multibody(result):
-        return build_multibody_scene(vis, result, play=play)
-    if result.configurations is not None:
-        warnings.warn("this multibody result has no model description (Result.multibody): replaying only the "
-                      "root body's attitude", UserWarning, stacklevel=2)
-    check_result(result)
+    if not scale > 0:
+        raise ValueError(f"scale must be positive, got {scale!r}")
+    visual, Q = check_replayable(result)
+    placements = placements_at(visual, Q)
+    # A visualizer may be replayed into again: nothing of an earlier model or ghost may remain.
+    vis[ROBOT].delete()
+    vis[GHOST].delete()
     set_backdrop(vis)
-    build_satellite(vis, scale=scale)
-    return animate_result(vis, result, play=play)
+    drawn = _draw(vis[ROBOT], visual, placements[0], scale)
+    seen = placements
+    q_ghost = ghost_configuration(result, visual, Q)
+    if q_ghost is not None:
+        ghost = placements_at(visual, q_ghost[None])
+        _draw(vis[GHOST], visual, ghost[0], scale, ghost=True)
+        seen = np.concatenate([placements, ghost])
+    _frame_camera(vis, seen, visual, scale)
+    anim = model_animation(vis, visual, placements, result.dt, drawn)
+    vis.set_animation(anim, play=play, repetitions=1)
+    return anim
+
+
+__all__ = ["BACKGROUND_RGB", "GHOST", "ROBOT", "SHAPE", "build_satellite", "build_scene",
+           "check_replayable", "model_animation", "set_backdrop"]

@@ -1,0 +1,315 @@
+"""Layering (issue 11, item 9): every module under src/geoddp imports only from its own floor or
+below, and no set of modules imports itself round in a circle.
+
+The imports are read from the source with :mod:`ast` (nothing is imported), *every* import counts:
+module level, inside functions (lazy), under ``if TYPE_CHECKING:``, and
+``importlib.import_module("geoddp...")`` with a literal name. A relative ``from . import x`` is an
+edge to the module ``x`` if there is one, else to the package itself.
+
+FLOORS places every module: a key is a module or a package (a package places everything under it;
+the root package ``geoddp`` is a key for its ``__init__`` only). A module that no key places fails
+the test, so a new module must be given a floor here. Same-floor imports are allowed; the circle
+check keeps them one-way.
+
+The floors follow DESIGN.md, mapped onto today's module names. Where the code taught otherwise:
+
+* ``integrators``, ``rkmk4`` and ``variational`` are on floor 1, not 2: they are the models' time
+  steppers (``models/multibody.py`` and ``models/satellite.py`` import them).
+* ``data`` (the built-in URDFs and scenes) is on floor 0, not under ``scene/``: the models read
+  ``satellite.urdf`` from it.
+* ``reference`` (scipy's L-BFGS on the same problem) is a second solver: floor 3.
+* ``scene_common`` holds what both scene readers share: floor 4, with them.
+* The root package's ``__init__`` is the public facade, floor 6: nothing inside imports it.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+FLOORS: dict[str, int] = {
+    # 0: leaves: input checks, compiled and numba kernels, package data
+    "geoddp.validate": 0,
+    "geoddp.kernels": 0,
+    "geoddp._core": 0,
+    "geoddp.data": 0,
+    # 1: Lie groups, configuration spaces, models and their time steppers
+    "geoddp.lie": 1,
+    "geoddp.configuration": 1,
+    "geoddp.integrators": 1,
+    "geoddp.rkmk4": 1,
+    "geoddp.variational": 1,
+    "geoddp.models": 1,
+    # 2: costs and problems, and the contract between a problem and the solver
+    "geoddp.contract": 2,
+    "geoddp.costs": 2,
+    "geoddp.multibody_costs": 2,
+    "geoddp.problem": 2,
+    "geoddp.multibody_problem": 2,
+    # 3: solvers and their result
+    "geoddp.solver": 3,
+    "geoddp.result": 3,
+    "geoddp.reference": 3,
+    # 4: scenes (readers, builders, built-in scene builders) and the API
+    "geoddp.scene_common": 4,
+    "geoddp.scene": 4,
+    "geoddp.multibody_scene": 4,
+    "geoddp.multibody_scenes": 4,
+    "geoddp.api": 4,
+    # 5: viewers and figures (read Results)
+    "geoddp.viz": 5,
+    # 6: the command line and the package's public facade
+    "geoddp.cli": 6,
+    "geoddp": 6,
+}
+
+ROOT_PACKAGE = "geoddp"
+
+
+# ------------------------------------------------------------------ reading the imports
+
+
+def discover(src: Path = SRC, package: str = ROOT_PACKAGE) -> dict[str, tuple[Path | None, bool]]:
+    """Module name -> (source path or None for a compiled module, is a package)."""
+    out: dict[str, tuple[Path | None, bool]] = {}
+    for p in sorted((src / package).rglob("*")):
+        rel = p.relative_to(src)
+        if p.suffix == ".py":
+            if p.name == "__init__.py":
+                out[".".join(rel.parent.parts)] = (p, True)
+            else:
+                out[".".join(rel.with_suffix("").parts)] = (p, False)
+        elif p.suffix in (".so", ".pyd"):  # a compiled extension: geoddp/_core.cpython-311-....so
+            out[".".join(rel.parent.parts + (p.name.split(".", 1)[0],))] = (None, False)
+    return out
+
+
+def _nearest(name: str, known: set[str]) -> str | None:
+    """``name`` or its closest enclosing known module (``geoddp.viz.scene.X`` -> ``geoddp.viz.scene``)."""
+    parts = name.split(".")
+    while parts:
+        candidate = ".".join(parts)
+        if candidate in known or candidate in FLOORS:
+            return candidate
+        parts.pop()
+    return None
+
+
+def imports_of(source: str, module: str, is_package: bool, known: set[str]) -> set[str]:
+    """The geoddp modules that ``source`` (the text of ``module``) imports, anywhere in the file."""
+    package = module if is_package else module.rpartition(".")[0]
+    found: set[str] = set()
+
+    def add(name: str) -> None:
+        if name == ROOT_PACKAGE or name.startswith(ROOT_PACKAGE + "."):
+            target = _nearest(name, known)
+            if target is not None and target != module:
+                found.add(target)
+
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                add(alias.name)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            if not (mod == ROOT_PACKAGE or mod.startswith(ROOT_PACKAGE + ".")):
+                continue
+            for alias in node.names:
+                sub = f"{mod}.{alias.name}"
+                # `from . import x`: an edge to the module x if there is one, else to the package.
+                add(sub if sub in known or sub in FLOORS else mod)
+        elif isinstance(node, ast.Call):
+            fn = node.func
+            name = fn.attr if isinstance(fn, ast.Attribute) else fn.id if isinstance(fn, ast.Name) else ""
+            if name in ("import_module", "__import__") and node.args and isinstance(node.args[0], ast.Constant) \
+                    and isinstance(node.args[0].value, str):
+                add(node.args[0].value)
+    return found
+
+
+def import_graph(src: Path = SRC) -> dict[str, set[str]]:
+    """Module -> the geoddp modules it imports (every module under ``src/geoddp``)."""
+    mods = discover(src)
+    known = set(mods)
+    return {m: (imports_of(path.read_text(encoding="utf-8"), m, is_pkg, known) if path else set())
+            for m, (path, is_pkg) in mods.items()}
+
+
+# ------------------------------------------------------------------ the checks
+
+
+def floor_of(module: str, floors: dict[str, int]) -> int | None:
+    """The floor of ``module``: its own key, else its innermost placed package (not the root)."""
+    if module in floors:
+        return floors[module]
+    parts = module.split(".")
+    for n in range(len(parts) - 1, 1, -1):  # stop before the root package: it places only itself
+        key = ".".join(parts[:n])
+        if key in floors:
+            return floors[key]
+    return None
+
+
+def circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Every strongly connected component with more than one module (Tarjan), as a closed path."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(_cycle_path(sorted(comp), graph))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _cycle_path(comp: list[str], graph: dict[str, set[str]]) -> list[str]:
+    """A readable closed path a -> ... -> a through one component (breadth-first from its first module)."""
+    start, members = comp[0], set(comp)
+    prev: dict[str, str] = {}
+    frontier = [start]
+    while frontier:
+        nxt = []
+        for v in frontier:
+            for w in sorted(graph.get(v, ()) & members):
+                if w == start:
+                    path = [v]
+                    while path[-1] != start:
+                        path.append(prev[path[-1]])
+                    return path[::-1] + [start]
+                if w not in prev:
+                    prev[w] = v
+                    nxt.append(w)
+        frontier = nxt
+    return comp + [start]
+
+
+def problems(graph: dict[str, set[str]], floors: dict[str, int]) -> list[str]:
+    """Unplaced modules, upward imports and circles, one message each (empty: the layering holds)."""
+    out = []
+    for m in sorted(set(graph) | {t for ts in graph.values() for t in ts}):
+        if floor_of(m, floors) is None:
+            out.append(f"{m}: not placed on a floor (add it to FLOORS in tests/test_layering.py)")
+    for m in sorted(graph):
+        fm = floor_of(m, floors)
+        for t in sorted(graph[m]):
+            ft = floor_of(t, floors)
+            if fm is not None and ft is not None and ft > fm:
+                out.append(f"upward import: {m} (floor {fm}) imports {t} (floor {ft})")
+    for path in circles(graph):
+        out.append("import circle: " + " -> ".join(path))
+    return out
+
+
+# ------------------------------------------------------------------ the layering of geoddp
+
+
+def test_every_module_is_read():
+    """The scan sees the package (so an empty graph cannot pass) and the imports it should."""
+    graph = import_graph()
+    assert {"geoddp.cli", "geoddp.scene", "geoddp.multibody_scene", "geoddp.viz.scene", "geoddp.validate",
+            "geoddp.data", "geoddp.scene_common"} <= set(graph)
+    assert "geoddp.multibody_scene" in graph["geoddp.scene"]       # lazy, inside functions
+    assert "geoddp.scene_common" in graph["geoddp.multibody_scene"]
+    assert "geoddp.validate" in graph["geoddp.data"]
+    assert "geoddp.viz" in graph["geoddp.cli"]                     # `from . import viz`, lazy
+    assert "geoddp.models.multibody" in graph["geoddp.viz.model"]  # `from ..models.multibody import`
+
+
+def test_no_upward_imports_no_circles_and_every_module_placed():
+    found = problems(import_graph(), FLOORS)
+    assert not found, "\n".join(found)
+
+
+def test_the_table_names_no_ghosts():
+    """Every key of FLOORS is a module or package that exists (or the compiled core)."""
+    mods = set(discover())
+    ghosts = [k for k in FLOORS if k not in mods and not any(m.startswith(k + ".") for m in mods)
+              and k != "geoddp._core"]
+    assert not ghosts, ghosts
+
+
+# ------------------------------------------------------------------ the test can fail
+
+
+def test_a_circle_is_caught():
+    graph = {"p.a": {"p.b"}, "p.b": {"p.c"}, "p.c": {"p.a"}, "p.d": {"p.a"}}
+    floors = {"p.a": 1, "p.b": 1, "p.c": 1, "p.d": 2}
+    found = problems(graph, floors)
+    assert found == ["import circle: p.a -> p.b -> p.c -> p.a"], found
+
+
+def test_an_upward_import_is_caught():
+    graph = {"p.low": {"p.high"}, "p.high": set()}
+    found = problems(graph, {"p.low": 0, "p.high": 3})
+    assert found == ["upward import: p.low (floor 0) imports p.high (floor 3)"], found
+
+
+def test_an_unplaced_module_is_caught():
+    graph = {"geoddp.new_thing": {"geoddp.validate"}, "geoddp.validate": set()}
+    found = problems(graph, FLOORS)
+    assert found == ["geoddp.new_thing: not placed on a floor (add it to FLOORS in tests/test_layering.py)"], found
+
+
+def test_a_package_places_its_modules_but_the_root_places_only_itself():
+    assert floor_of("geoddp.viz.html", FLOORS) == 5 and floor_of("geoddp.solver.loop", FLOORS) == 3
+    assert floor_of("geoddp", FLOORS) == 6 and floor_of("geoddp.unknown", FLOORS) is None
+
+
+@pytest.mark.parametrize("code,expected", [
+    ("def f():\n    from .scene import load_scene\n", {"geoddp.scene"}),                      # lazy
+    ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .api import solve_scene\n", {"geoddp.api"}),
+    ("from . import viz, api\n", {"geoddp.viz", "geoddp.api"}),                                # submodules
+    ("from . import __version__\n", {"geoddp"}),                                                # the package
+    ("import geoddp.viz.scene as s\n", {"geoddp.viz.scene"}),
+    ("from ..result import Result\n", set()),                                                   # too far up
+    ("import importlib\nm = importlib.import_module('geoddp.cli')\n", {"geoddp.cli"}),
+    ("import numpy as np\nfrom pinocchio import SE3\n", set()),                                 # not ours
+])
+def test_the_reader_sees_every_kind_of_import(code, expected):
+    known = {"geoddp", "geoddp.scene", "geoddp.api", "geoddp.viz", "geoddp.viz.scene", "geoddp.validate",
+             "geoddp.cli", "geoddp.result"}
+    assert imports_of(code, "geoddp.validate", False, known) == expected
+
+
+def test_a_synthetic_source_tree_with_a_lazy_circle_fails(tmp_path):
+    """End to end on files: a circle closed only by a function-level import is still a circle."""
+    pkg = tmp_path / "geoddp"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "scene.py").write_text("def build():\n    from .multibody_scene import parse\n")
+    (pkg / "multibody_scene.py").write_text("from .scene import build\n")
+    (pkg / "validate.py").write_text("def f():\n    from . import scene\n")
+    found = problems(import_graph(tmp_path), FLOORS)
+    assert found == ["upward import: geoddp.validate (floor 0) imports geoddp.scene (floor 4)",
+                     "import circle: geoddp.multibody_scene -> geoddp.scene -> geoddp.multibody_scene"], found
