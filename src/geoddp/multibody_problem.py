@@ -84,7 +84,7 @@ class MultibodyProblem:
             Q_out[k + 1], V_out[k + 1] = q1, v1
         return True
 
-    def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int, backend: str | None = None) -> Expansion:
+    def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int, backend: str) -> Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) along a trajectory; ``backend`` is unused:
         multibody derivatives always come from Pinocchio (analytic first order, central
         differences of it for the velocity update's second order)."""
@@ -123,7 +123,7 @@ class MultibodyProblem:
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         """Dynamics expansion and cost derivatives along ``traj``."""
-        exp = self.expansion(traj.q, traj.v, traj.u, order)
+        exp = self.model.expansion(traj.q, traj.v, traj.u, order=order)
         run, term = self.cost_derivatives(traj.q, traj.v, traj.u)
         return Linearisation.from_parts(order, exp, run, term)
 
