@@ -106,3 +106,15 @@ def test_result_accepts_the_pre_generic_keywords():
     r = synthetic_result(horizon=4)
     assert r.q.shape == (5, 3, 3) and r.rotations is r.q and r.model["kind"] == "satellite"
     assert r.integrator == "euler" and r.model["dt"] == r.dt
+
+
+def test_multibody_json_holds_the_urdf_once_and_reads_back(tmp_path):
+    from viz_fixtures import multibody_result
+
+    r = multibody_result()
+    text = r.write_json(tmp_path / "m.json").read_text()
+    d = json.loads(text)
+    assert "urdf_xml" not in d["model"] and d["multibody"]["urdf_xml"] == r.model["urdf_xml"]
+    back = Result.read_json(tmp_path / "m.json")
+    assert back.model.keys() == r.model.keys() and back.multibody == r.multibody
+    assert np.array_equal(back.rotations, r.rotations) and np.array_equal(back.configurations, r.configurations)

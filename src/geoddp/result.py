@@ -472,7 +472,8 @@ class Result:
             "configurations": None if Q is None else np.asarray(Q).tolist(),
             "velocities": None if V is None else np.asarray(V).tolist(),
             "multibody": None if mb is None else dict(mb),
-            "model": _jsonable(self.model),
+            # the description, without what the "multibody" field already holds (the URDF text once)
+            "model": _jsonable({k: val for k, val in self.model.items() if mb is None or k not in mb}),
         }
 
     def write_json(self, path: str | Path) -> Path:
@@ -488,6 +489,8 @@ class Result:
         a = np.asarray
         opt = lambda key: None if d.get(key) is None else a(d[key], dtype=float)  # noqa: E731
         model = dict(d["model"]) if d.get("model") is not None else None
+        if model is not None and d.get("multibody") is not None:
+            model.update(d["multibody"])  # to_dict writes the viewer's keys only once, there
         multibody = (model or {}).get("kind") == "multibody" or d.get("configurations") is not None
         for key in ("target_rotation", "target_angular_velocity"):
             if model is not None and key in model:
