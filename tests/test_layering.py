@@ -36,9 +36,9 @@ FLOORS: dict[str, int] = {
     "geoddp.kernels": 0,
     "geoddp._core": 0,
     "geoddp.data": 0,
+    "geoddp.linalg": 0,
     # 1: Lie groups, configuration spaces, models and their time steppers
     "geoddp.lie": 1,
-    "geoddp.configuration": 1,
     "geoddp.integrators": 1,
     "geoddp.rkmk4": 1,
     "geoddp.variational": 1,

@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp import configuration as cfg
+from geoddp import lie
 from geoddp.models.multibody import FD_STEP, Multibody
 from geoddp.validate import InputError
 from urdfs import urdf
@@ -170,9 +170,9 @@ def test_phi_b_against_pinocchio_derivatives(root, integrator, rng):
         ref = np.vstack([top, np.hstack([Fq, Fv, Fu])])
         got = np.hstack([e.Phi[k], e.B[k]])
         assert np.abs(got - ref).max() < 1e-12
-    # dIntegrate is the per-group Ad_exp(-omega), Jr(omega) of geoddp.configuration.
+    # dIntegrate is the per-group Ad_exp(-omega), Jr(omega) of geoddp.lie.product.
     omega = rng.normal(size=nv)
-    A, Jr = cfg.block_Ad_Jr(mb.groups, nv, omega)
+    A, Jr = lie.block_Ad_Jr(mb.groups, nv, omega)
     assert np.abs(A - pin.dIntegrate(model, Q[0], omega, pin.ARG0)).max() < 1e-12
     assert np.abs(Jr - pin.dIntegrate(model, Q[0], omega, pin.ARG1)).max() < 1e-12
 
@@ -301,56 +301,6 @@ def test_structured_velocity_hessian_equals_differences_along_every_direction(ro
     assert mb._invariant_q_dirs().tolist() == expected
     # along the skipped directions the differences see round-off only
     assert np.abs(ref[:, :, :, expected]).max(initial=0.0) < 1e-8 * np.abs(ref).max()
-
-
-@pytest.mark.parametrize("kind", ["so3", "se3"])
-def test_reconstruction_second_order_term_is_exact_to_third_order(kind, rng):
-    """eta+ = log(exp(-omega) exp(eta) exp(omega + rho)) against
-    Ad_A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [Ad_A eta, Jr rho]: error ~8x per halving."""
-    dim = 3 if kind == "so3" else 6
-    groups = [cfg.JointGroup("j", kind, 0, dim)]
-    if kind == "so3":
-        exp, log = pin.exp3, pin.log3
-        compose = lambda a, b: a @ b  # noqa: E731
-    else:
-        exp, log = (lambda x: pin.exp6(x)), (lambda M: pin.log6(M).vector)
-        compose = lambda a, b: a * b  # noqa: E731
-    ratios = []
-    for _ in range(5):
-        omega = rng.normal(size=dim)
-        A, Jr = cfg.block_Ad_Jr(groups, dim, omega)
-        D, C = cfg.second_order_tensors(groups, dim, omega)
-        d = rng.normal(size=2 * dim)
-        d /= np.linalg.norm(d)
-        errs = []
-        for eps in (4e-2, 2e-2, 1e-2, 5e-3):
-            eta, rho = eps * d[:dim], eps * d[dim:]
-            exact = log(compose(compose(exp(-omega), exp(eta)), exp(omega + rho)))
-            Ae, Jp = A @ eta, Jr @ rho
-            pred = Ae + Jp + 0.5 * np.einsum("ijl,j,l->i", D, rho, rho) + 0.5 * np.einsum("ipq,p,q->i", C, Ae, Jp)
-            errs.append(np.linalg.norm(exact - pred))
-        ratios.append([errs[i] / errs[i + 1] for i in range(3)])
-    ratios = np.array(ratios)
-    assert np.all((ratios > 7.0) & (ratios < 9.0)), ratios
-
-
-def test_se3_dJr_against_richardson(rng):
-    x = rng.normal(size=6)
-    D = cfg.se3_dJr(x)
-
-    def fd(h):
-        return np.stack([(pin.Jexp6(x + h * e) - pin.Jexp6(x - h * e)) / (2 * h) for e in np.eye(6)], axis=-1)
-
-    rich = (4.0 * fd(1e-3) - fd(2e-3)) / 3.0
-    assert np.abs(D - rich).max() < 1e-9
-
-
-def test_se3_structure_constants_are_the_motion_cross_product(rng):
-    x, y = rng.normal(size=6), rng.normal(size=6)
-    _, C = cfg.second_order_tensors([cfg.JointGroup("j", "se3", 0, 6)], 6, np.zeros(6))
-    assert np.abs(np.einsum("ipq,p,q->i", C, x, y) - pin.Motion(x).cross(pin.Motion(y)).vector).max() < 1e-14
-    _, C3 = cfg.second_order_tensors([cfg.JointGroup("j", "so3", 0, 3)], 3, np.zeros(3))
-    assert np.abs(np.einsum("ipq,p,q->i", C3, x[:3], y[:3]) - np.cross(x[:3], y[:3])).max() < 1e-14
 
 
 # ---------------------------------------------------------------------------- integrator order

@@ -7,7 +7,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp import configuration as cfg
+from geoddp import lie
 from geoddp.models.multibody import Multibody
 from geoddp.variational import StepDidNotConverge
 from urdfs import urdf as urdf_file
@@ -49,7 +49,7 @@ def test_rollout_satisfies_the_discrete_euler_lagrange_equations(root, rng):
         rhs = K0.T @ mass(Q[k]) @ V[k] + dt * mb.actuation @ U[k]
         assert np.abs(lhs - rhs).max() < 1e-8 * np.abs(rhs).max()
         # and the configuration moved by the explicit reconstruction q+ = q exp(dt v)
-        assert np.abs(cfg.difference(model, mb.groups, pin.integrate(model, Q[k], dt * V[k]), Q[k + 1])).max() < 1e-14
+        assert np.abs(lie.difference(model, mb.groups, pin.integrate(model, Q[k], dt * V[k]), Q[k + 1])).max() < 1e-14
 
 
 def _world_momentum(mb, Q, V):
@@ -60,7 +60,7 @@ def _world_momentum(mb, Q, V):
     for q, v in zip(Q[:-1], V[:-1]):
         M = pin.crba(mb.pin_model, data, q)
         M = np.triu(M) + np.triu(M, 1).T
-        K = cfg.block_Jr_inv(mb.groups, mb.nv, -mb.dt * v)
+        K = lie.block_Jr_inv(mb.groups, mb.nv, -mb.dt * v)
         p = (K.T @ (M @ v))[:6]
         out.append(pin.XYZQUATToSE3(q[:7]).toDualActionMatrix() @ p)
     return np.array(out)

@@ -1,9 +1,12 @@
-"""Discrete TSO(3) integrators and their first- and second-order expansions (paper Section IV).
+"""Euler integrators on a Lie group x velocities and their first- and second-order expansions
+(paper Section IV), written once for any product group (:mod:`geoddp.lie.product`).
 
-A state g = (R, Omega) moves by a velocity map Omega+ = f(R, Omega, u) and a reconstruction
-R+ = R exp(dt w), where w = Omega (explicit Euler, paper eq. disceq) or w = Omega+ (semi-implicit
-Euler, Crocoddyl's). Perturbations are zeta = (eta, delta Omega) with R = R_bar exp(eta)
-(:class:`geoddp.lie.TSO3`); z = (zeta, delta u) stacks state and control perturbations.
+A state g = (q, v) on G x R^nv moves by a velocity map v+ = f(q, v, u) and a reconstruction
+q+ = q exp(dt w), where w = v (explicit Euler, paper eq. disceq) or w = v+ (semi-implicit Euler,
+Crocoddyl's). The satellite is the instance G = SO(3), q = R, v = Omega (TSO(3),
+:class:`geoddp.lie.TSO3`); a Pinocchio model is the product of its joints' groups. Perturbations
+are zeta = (eta, delta v) with q = q_bar exp(eta); z = (zeta, delta u) stacks state and control
+perturbations.
 
 Exact second-order expansion of the reconstruction. With omega = dt w_bar, A = exp(-omega),
 rho = dt delta w and exp(omega + rho) = exp(omega) exp(nu(rho)):
@@ -17,25 +20,24 @@ with delta w = 0, eta+ = Ad_A eta exactly: there is no eta-eta term. The paper's
 (appendix, eq. etamatrixterms) is an O(dt) approximation of this zero; it is available as
 ``second_order="paper"`` for the explicit Euler scheme, for comparison only.
 
-Array layout over the horizon (N nodes, n = 6 state, m inputs, nz = n + m):
+On a product group, Ad_A, Jr and dJr are block-diagonal over the factors and the bracket
+vanishes across factors and on commutative ones (:func:`expand`).
+
+Array layout over the horizon (N nodes, n = 2 nv state (6 for TSO(3)), m inputs, nz = n + m):
 Phi (N, n, n), B (N, n, m), Theta (N, n, n, n), Gamma (N, n, n, m), Xi (N, n, m, m), with
 zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du^T Xi_i du.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
-from .lie import SO3, hat
+from .lie import NONCOMMUTATIVE, SO3, SO3_ROOT, JointGroup, block_Ad_Jr, group_second_order_tensors, hat
 
 INTEGRATORS = ("euler", "semi_implicit")
 SECOND_ORDER_KINDS = ("exact", "paper")
-
-_LEVI_CIVITA = np.zeros((3, 3, 3))
-for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-    _LEVI_CIVITA[_i, _j, _k] = 1.0
-    _LEVI_CIVITA[_i, _k, _j] = -1.0
 
 
 @dataclass
@@ -61,6 +63,81 @@ def reconstruction_velocity(Omega: np.ndarray, Omega_next: np.ndarray, integrato
     return Omega if integrator == "euler" else Omega_next
 
 
+def expand(
+    groups: Sequence[JointGroup],
+    dt: float,
+    w_bar: np.ndarray,
+    F1: np.ndarray,
+    F2: np.ndarray | None,
+    semi_implicit: bool,
+) -> Expansion:
+    """The expansion of zeta+ = (eta+, dv+) from the velocity map's derivatives, on any product group.
+
+    eta+ = Ad_A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [Ad_A eta, Jr rho] (module docstring), with
+    rho = dt delta w and delta w = delta v (euler) or delta v+ = F1 z + 1/2 F2(z, z) (semi-implicit).
+
+    Args:
+        groups: the configuration group as its factors in tangent order (nv = their total
+            dimension; :func:`geoddp.lie.joint_groups`, or :data:`geoddp.lie.SO3_ROOT` for TSO(3)).
+        dt: time step (s), > 0.
+        w_bar: (N, nv) nominal reconstruction velocity, see :func:`reconstruction_velocity`.
+        F1: (N, nv, nz) Jacobian of v+ w.r.t. z = (eta, dv, du), eta right-trivialised, nz = 2 nv + m.
+        F2: (N, nv, nz, nz) symmetric (0)-Hessians of v+ w.r.t. z, or None for first order.
+        semi_implicit: reconstruct with v+ (True) or v (False).
+
+    Returns:
+        :class:`Expansion` with Phi (N, 2 nv, 2 nv), B (N, 2 nv, m) and, when F2 is given,
+        Theta, Gamma, Xi.
+    """
+    H, nv, nz = F1.shape
+    n = 2 * nv
+    Omega = dt * w_bar
+    # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
+    if semi_implicit:
+        W1 = F1
+    else:
+        W1 = np.zeros((H, nv, nz))
+        W1[:, :, nv : 2 * nv] = np.eye(nv)
+    A = np.empty((H, nv, nv))  # Ad_exp(-omega), block-diagonal
+    Jr = np.empty((H, nv, nv))  # Jr(omega), block-diagonal
+    for k in range(H):
+        # dIntegrate's ARG0 / ARG1, with the exact SE(3) Jr (geoddp.lie.product)
+        A[k], Jr[k] = block_Ad_Jr(groups, nv, Omega[k])
+    JW = Jr @ W1
+    G1 = np.empty((H, n, nz))
+    G1[:, :nv] = dt * JW
+    G1[:, :nv, :nv] += A
+    G1[:, nv:] = F1
+    e = Expansion(Phi=np.ascontiguousarray(G1[:, :, :n]), B=np.ascontiguousarray(G1[:, :, n:]))
+    if F2 is None:
+        return e
+    # dJr and the bracket vanish on commutative factors and across factors, so both terms are
+    # assembled per non-commutative factor s (rows p, a, b in s), on all H nodes at once.
+    G2 = np.zeros((H, n, nz, nz))
+    for g in groups:
+        if g.kind not in NONCOMMUTATIVE:
+            continue
+        s = g.slice
+        D, C = group_second_order_tensors(g.kind, Omega[:, s])  # (H, d, d, d), (d, d, d)
+        Dsym = 0.5 * (D + np.swapaxes(D, 2, 3))
+        Ws = W1[:, None, s, :]  # (H, 1, d, nz)
+        # 1/2 dJr[rho] rho with rho = dt W1 z: dt^2 W1^T Dsym_p W1 for each row p
+        G2[:, s] += (dt * dt) * (np.swapaxes(Ws, 2, 3) @ (Dsym @ Ws))
+        # 1/2 [A eta, Jr rho]_p = z^T Mz_p z with eta = z[:nv] and Jr rho = dt JW z:
+        # Mz_p = dt/2 A^T C_p JW on the (eta in s, z) block
+        Mz = (0.5 * dt) * (np.swapaxes(A[:, None, s, s], 2, 3) @ (C[None] @ JW[:, None, s, :]))  # (H, d, d, nz)
+        G2[:, s, s, :] += Mz
+        G2[:, s, :, s] += np.swapaxes(Mz, 2, 3)
+    if semi_implicit:
+        # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
+        G2[:, :nv] += dt * (Jr @ F2.reshape(H, nv, nz * nz)).reshape(H, nv, nz, nz)
+    G2[:, nv:] = F2
+    e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
+    e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
+    e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
+    return e
+
+
 def assemble(
     dt: float,
     w_bar: np.ndarray,
@@ -69,67 +146,32 @@ def assemble(
     integrator: str,
     second_order: str = "exact",
 ) -> Expansion:
-    """Build the expansion of zeta+ from the velocity map's derivatives.
+    """The satellite's (TSO(3)) expansion: :func:`expand` on SO(3), or the paper's variant.
 
     Args:
         dt: time step (s), > 0.
         w_bar: (N, 3) nominal reconstruction velocity (rad/s), see :func:`reconstruction_velocity`.
-        F1: (N, 3, nz) Jacobian of Omega+ w.r.t. z = (eta, dOmega, du), eta left-trivialised.
+        F1: (N, 3, nz) Jacobian of Omega+ w.r.t. z = (eta, dOmega, du), eta right-trivialised.
         F2: (N, 3, nz, nz) symmetric (0)-Hessians of Omega+ w.r.t. z, or None for first order.
         integrator: "euler" (paper) or "semi_implicit" (Crocoddyl).
-        second_order: "exact" (default) or "paper" (eq. etamatrixterms; euler only).
+        second_order: "exact" (default) or "paper" (eq. etamatrixterms; euler only): the paper's
+            eta rows of Theta replace the exact second-order terms of eta+ (for comparison).
 
     Returns:
         :class:`Expansion` with Phi, B and, when F2 is given, Theta, Gamma, Xi.
     """
-    N, _, nz = F1.shape
-    n = 6
-    omega = dt * w_bar
-    A = np.swapaxes(SO3.exp_batch(omega), 1, 2)  # Ad_{exp(-omega)} = exp(omega)^T
-    Jr = SO3.right_jacobian_batch(omega)
-    # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
-    if integrator == "euler":
-        W1 = np.zeros((N, 3, nz))
-        W1[:, :, 3:6] = np.eye(3)
-    else:
-        W1 = F1
-    P_eta = np.zeros((3, nz))
-    P_eta[:, 0:3] = np.eye(3)
-    G1 = np.empty((N, n, nz))
-    G1[:, 0:3, :] = A @ P_eta + dt * (Jr @ W1)
-    G1[:, 3:6, :] = F1
-    exp = Expansion(Phi=np.ascontiguousarray(G1[:, :, :n]), B=np.ascontiguousarray(G1[:, :, n:]))
-    if F2 is None:
-        return exp
-
-    G2 = np.zeros((N, n, nz, nz))
-    if second_order == "exact":
-        D = SO3.right_jacobian_derivative_batch(omega)
-        Dsym = 0.5 * (D + np.swapaxes(D, 2, 3))
-        JW = Jr @ W1  # (N, 3, nz)
-        W1T = np.swapaxes(W1, 1, 2)[:, None]  # (N, 1, nz, 3)
-        # 1/2 dJr(omega)[rho] rho with rho = dt W1 z  -> Hessian dt^2 W1^T Dsym_i W1 per row i
-        G2[:, 0:3] += (dt * dt) * (W1T @ Dsym @ W1[:, None])
-        # 1/2 [A eta, Jr rho]: bilinear M_i = 1/2 dt (A P_eta)^T eps_i (Jr W1), eps_i[p, q] = eps_ipq
-        AP = A @ P_eta
-        M = (0.5 * dt) * (np.swapaxes(AP, 1, 2)[:, None] @ _LEVI_CIVITA[None] @ JW[:, None])
-        G2[:, 0:3] += M + np.swapaxes(M, 2, 3)
-        if integrator == "semi_implicit":
-            # Jr(omega) rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
-            G2[:, 0:3] += dt * (Jr @ F2.reshape(N, 3, nz * nz)).reshape(N, 3, nz, nz)
-    elif second_order == "paper":
-        if integrator != "euler":
-            raise ValueError(
-                "second_order: 'paper' (eq. etamatrixterms) is derived for the explicit Euler "
-                f"scheme only; got integrator={integrator!r}. Use second_order='exact'."
-            )
-        G2[:, 0:3, 0:6, 0:6] = _paper_theta_eta(dt, w_bar)
-    else:
+    if F2 is not None and second_order not in SECOND_ORDER_KINDS:
         raise ValueError(f"second_order: expected one of {SECOND_ORDER_KINDS}, got {second_order!r}")
-    G2[:, 3:6] = F2
-    exp.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
-    exp.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
-    exp.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
+    if F2 is not None and second_order == "paper" and integrator != "euler":
+        raise ValueError(
+            "second_order: 'paper' (eq. etamatrixterms) is derived for the explicit Euler "
+            f"scheme only; got integrator={integrator!r}. Use second_order='exact'."
+        )
+    exp = expand(SO3_ROOT, dt, w_bar, F1, F2, integrator == "semi_implicit")
+    if F2 is not None and second_order == "paper":
+        exp.Theta[:, 0:3] = _paper_theta_eta(dt, w_bar)
+        exp.Gamma[:, 0:3] = 0.0
+        exp.Xi[:, 0:3] = 0.0
     return exp
 
 

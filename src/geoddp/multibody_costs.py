@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from . import configuration as cfg
+from .lie import product as cfg
 from .costs import CostDerivatives
 from .lie import SE3, SO3
 from .validate import InputError, closest, finite_array, rotation_matrix, spd_matrix

@@ -12,25 +12,26 @@ dexpinv), and (theta, v) obeys an ODE on a vector space. The classical RK4 table
     q+ = q_n exp(theta).
 
 Jr(theta) is ``pin.dIntegrate(model, q, theta, ARG1)`` (block-diagonal over joints), taken from
-:func:`geoddp.configuration.block_Ad_Jr`, which is exact where Pinocchio's SE(3) block is not.
+:func:`geoddp.lie.product.block_Ad_Jr`, which is exact where Pinocchio's SE(3) block is not.
 
 The Jacobian w.r.t. z = (dq, dv, du) (q_n -> q_n exp(dq)) chains the stages' analytic
 derivatives: the tangent of q_i = q_n exp(dq) exp(theta_i) is Ad_exp(-theta_i) dq + Jr dtheta_i
 (``dIntegrate`` ARG0 / ARG1), the acceleration's comes from ``computeABADerivatives``, and
-d(Jr^-1 v) = Jr^-1 (dv - dJr[dtheta] Jr^-1 v) with dJr from :mod:`geoddp.configuration`.
+d(Jr^-1 v) = Jr^-1 (dv - dJr[dtheta] Jr^-1 v) with dJr from :mod:`geoddp.lie.product`.
 """
 from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
 
-from . import configuration as cfg
+from . import lie
+from .linalg import symmetric_from_upper
 
 _C = (0.0, 0.5, 0.5, 1.0)
 _W = (1.0, 2.0, 2.0, 1.0)
 
 
-def step(model: pin.Model, data: pin.Data, groups: list[cfg.JointGroup], q: np.ndarray, v: np.ndarray,
+def step(model: pin.Model, data: pin.Data, groups: list[lie.JointGroup], q: np.ndarray, v: np.ndarray,
          tau: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """One RKMK4 step: q (nq,), v (nv,), tau (nv,) generalised forces, h (s) -> (q+, v+)."""
     theta_sum = np.zeros(model.nv)
@@ -41,7 +42,7 @@ def step(model: pin.Model, data: pin.Data, groups: list[cfg.JointGroup], q: np.n
             theta_i, v_i = np.zeros(model.nv), v
         else:
             theta_i, v_i = c * h * k_theta, v + c * h * k_v
-        k_theta = cfg.block_Jr_inv(groups, model.nv, theta_i) @ v_i
+        k_theta = lie.block_Jr_inv(groups, model.nv, theta_i) @ v_i
         k_v = pin.aba(model, data, pin.integrate(model, q, theta_i), v_i, tau)
         theta_sum += w * k_theta
         v_sum += w * k_v
@@ -49,7 +50,7 @@ def step(model: pin.Model, data: pin.Data, groups: list[cfg.JointGroup], q: np.n
 
 
 def step_jacobian(
-    model: pin.Model, data: pin.Data, groups: list[cfg.JointGroup], q: np.ndarray, v: np.ndarray,
+    model: pin.Model, data: pin.Data, groups: list[lie.JointGroup], q: np.ndarray, v: np.ndarray,
     tau: np.ndarray, actuation: np.ndarray, h: float,
 ) -> np.ndarray:
     """Jacobian (2 nv, 2 nv + m) of the step's zeta+ = (dq+, dv+) w.r.t. z = (dq, dv, du).
@@ -75,15 +76,15 @@ def step_jacobian(
             theta_i, v_i = c * h * k_theta, v + c * h * k_v
             Th_i, V_i = c * h * K_theta, Pv + c * h * K_v
         q_i = pin.integrate(model, q, theta_i)
-        Ad_i, Jr_i = cfg.block_Ad_Jr(groups, nv, theta_i)
+        Ad_i, Jr_i = lie.block_Ad_Jr(groups, nv, theta_i)
         Qtan_i = Ad_i @ Pq + Jr_i @ Th_i  # tangent of q_i at q_i
         pin.computeABADerivatives(model, data, q_i, v_i, tau)
-        Minv = cfg.symmetric_from_upper(data.Minv)
+        Minv = symmetric_from_upper(data.Minv)
         K_v = data.ddq_dq @ Qtan_i + data.ddq_dv @ V_i
         K_v[:, 2 * nv :] += Minv @ actuation
         k_v = data.ddq.copy()
         y = np.linalg.solve(Jr_i, v_i)
-        D, _ = cfg.second_order_tensors(groups, nv, theta_i)
+        D, _ = lie.second_order_tensors(groups, nv, theta_i)
         Mdj = np.einsum("abl,b->al", D, y)  # dJr[dtheta] y = Mdj dtheta
         k_theta = y
         K_theta = np.linalg.solve(Jr_i, V_i - Mdj @ Th_i)
@@ -92,7 +93,7 @@ def step_jacobian(
         A_sum += w * K_v
     theta = (h / 6.0) * theta_sum
     G = np.empty((2 * nv, nz))
-    Ad, Jr = cfg.block_Ad_Jr(groups, nv, theta)
+    Ad, Jr = lie.block_Ad_Jr(groups, nv, theta)
     G[:nv] = Ad @ Pq + Jr @ ((h / 6.0) * Theta_sum)
     G[nv:] = Pv + (h / 6.0) * A_sum
     return G

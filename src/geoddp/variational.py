@@ -38,7 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from . import configuration as cfg
+from . import lie
+from .linalg import symmetric_from_upper
 
 # Central-difference step for the kinetic-energy Hessian (error ~1e-10 relative, as for the ABA
 # second derivatives) and for R_ww, which differentiates a Jacobian that already holds that
@@ -62,7 +63,7 @@ class VariationalEuler:
 
     Attributes:
         model: the Pinocchio model (gravity as the scene wants it).
-        groups: its joint groups (:func:`geoddp.configuration.joint_groups`).
+        groups: its joint groups (:func:`geoddp.lie.product.joint_groups`).
         actuation: (nv, m) input map H (generalised forces per input).
         dt: time step, s.
     """
@@ -89,11 +90,11 @@ class VariationalEuler:
 
     def _K(self, x: np.ndarray) -> np.ndarray:
         """Jr(x)^-1, (nv, nv), block-diagonal over joints."""
-        return cfg.block_Jr_inv(self.groups, self.model.nv, x)
+        return lie.block_Jr_inv(self.groups, self.model.nv, x)
 
     def _dKT(self, x: np.ndarray, K: np.ndarray, p: np.ndarray) -> np.ndarray:
         """d/dx [K(x)^T p] for fixed p, (nv, nv); dK = -K dJr K."""
-        D, _ = cfg.second_order_tensors(self.groups, self.model.nv, x)
+        D, _ = lie.second_order_tensors(self.groups, self.model.nv, x)
         s = K.T @ p
         return -K.T @ np.einsum("jil,j->il", D, s)
 
@@ -111,7 +112,7 @@ class VariationalEuler:
         return Hk - pin.computeGeneralizedGravityDerivatives(self.model, data, q)
 
     def _mass(self, data: pin.Data, q: np.ndarray) -> np.ndarray:
-        return cfg.symmetric_from_upper(pin.crba(self.model, data, q))
+        return symmetric_from_upper(pin.crba(self.model, data, q))
 
     # ------------------------------------------------------------------ step
     def momentum_before(self, data: pin.Data, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -182,7 +183,7 @@ class VariationalEuler:
         model, dt, nv = self.model, self.dt, self.model.nv
         omega = dt * v
         q_next = pin.integrate(model, q, omega)
-        A, Jv = cfg.block_Ad_Jr(self.groups, nv, omega)  # Ad_exp(-dt v): eta -> eta+, and Jr(dt v)
+        A, Jv = lie.block_Ad_Jr(self.groups, nv, omega)  # Ad_exp(-dt v): eta -> eta+, and Jr(dt v)
         K1 = self._K(-dt * y)
         M1 = self._mass(data, q_next)
         D1 = self._D(fdata, q_next, y)

@@ -18,9 +18,9 @@ Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
   derivatives along q (through ``integrate``) for the rest, symmetrised to the (0)-connection
   Hessian (the pip wheel has no second-order ABA derivatives);
 * reconstruction: first order from ``dIntegrate``'s ARG0 = Ad_exp(-omega), ARG1 = Jr(omega)
-  (:func:`geoddp.configuration.block_Ad_Jr`: Pinocchio's SE(3) Jr is inaccurate at small angles);
-  second order exact per joint group (:mod:`geoddp.configuration`), the TSO(3) formula of
-  :mod:`geoddp.integrators` applied to the product group.
+  (:func:`geoddp.lie.product.block_Ad_Jr`: Pinocchio's SE(3) Jr is inaccurate at small angles);
+  second order exact per joint group (:mod:`geoddp.lie.product`): the reconstruction formula
+  written once for any product group, :func:`geoddp.integrators.expand`.
 Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
 """
 from __future__ import annotations
@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .. import configuration as cfg
+from ..lie import product as cfg
+from ..linalg import symmetric_from_upper
 from .. import integrators as integ
 from .. import rkmk4, variational
 from ..validate import InputError, choice, finite_array, positive_float
@@ -153,7 +154,7 @@ class Multibody:
     def local(self, q_bar: np.ndarray, v_bar: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`retract`: zeta = (difference(q_bar, q), v - v_bar), (2 nv,).
 
-        ``pin.difference`` with exact SO(2) entries (:func:`geoddp.configuration.difference`).
+        ``pin.difference`` with exact SO(2) entries (:func:`geoddp.lie.product.difference`).
         """
         return np.concatenate([cfg.difference(self.pin_model, self.groups, q_bar, q), v - v_bar])
 
@@ -260,7 +261,7 @@ class Multibody:
             raw[k, :, :nv] = data.ddq_dq
             raw[k, :, nv : 2 * nv] = data.ddq_dv
             raw[k, :, 2 * nv :] = data.Minv
-        Minv = cfg.symmetric_from_upper(raw[:, :, 2 * nv :])
+        Minv = symmetric_from_upper(raw[:, :, 2 * nv :])
         F1 = np.empty((N, nv, nz))
         F1[:, :, :nv] = dt * raw[:, :, :nv]
         F1[:, :, nv : 2 * nv] = np.eye(nv) + dt * raw[:, :, nv : 2 * nv]
@@ -291,7 +292,7 @@ class Multibody:
         # Gq[k, p, c, j]: derivative of column c of the velocity Jacobian along q_j (zero off dirs)
         Gq = np.zeros((N, nv, nz, nv))
         Gq[:, :, : 2 * nv, dirs] = dt * np.moveaxis(D[..., : 2 * nv], 1, -1)
-        Gq[:, :, 2 * nv :, dirs] = dt * np.moveaxis(cfg.symmetric_from_upper(D[..., 2 * nv :]) @ Hm, 1, -1)
+        Gq[:, :, 2 * nv :, dirs] = dt * np.moveaxis(symmetric_from_upper(D[..., 2 * nv :]) @ Hm, 1, -1)
         F2 = np.zeros((N, nv, nz, nz))
         F2[:, :, :nv, :nv] = 0.5 * (Gq[:, :, :nv] + np.swapaxes(Gq[:, :, :nv], 2, 3))
         F2[:, :, nv:, :nv] = Gq[:, :, nv:]
@@ -353,50 +354,5 @@ class Multibody:
         else:
             F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
         W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
-        Omega = dt * W
-        # First-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit).
-        if self.semi_implicit:
-            W1 = F1
-        else:
-            W1 = np.zeros((H, nv, nz))
-            W1[:, :, nv : 2 * nv] = np.eye(nv)
-        A = np.empty((H, nv, nv))  # Ad_exp(-omega), block-diagonal
-        Jr = np.empty((H, nv, nv))  # Jr(omega), block-diagonal
-        for k in range(H):
-            # dIntegrate's ARG0 / ARG1, with the exact SE(3) Jr (geoddp.configuration)
-            A[k], Jr[k] = cfg.block_Ad_Jr(self.groups, nv, Omega[k])
-        JW = Jr @ W1
-        G1 = np.empty((H, n, nz))
-        G1[:, :nv] = dt * JW
-        G1[:, :nv, :nv] += A
-        G1[:, nv:] = F1
-        e = integ.Expansion(Phi=np.ascontiguousarray(G1[:, :, :n]), B=np.ascontiguousarray(G1[:, :, n:]))
-        if F2 is None:
-            return e
-        # eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
-        # (geoddp.integrators, module docstring; any Lie group, here the product of joints).
-        # dJr and the bracket vanish on commutative joints and across joints, so both terms are
-        # assembled per non-commutative joint group s (rows p, a, b in s), on all H nodes at once.
-        G2 = np.zeros((H, n, nz, nz))
-        for g in self.groups:
-            if g.kind not in ("so3", "se3"):
-                continue
-            s = g.slice
-            D, C = cfg.group_second_order_tensors(g.kind, Omega[:, s])  # (H, d, d, d), (d, d, d)
-            Dsym = 0.5 * (D + np.swapaxes(D, 2, 3))
-            Ws = W1[:, None, s, :]  # (H, 1, d, nz)
-            # 1/2 dJr[rho] rho with rho = dt W1 z: dt^2 W1^T Dsym_p W1 for each row p
-            G2[:, s] += (dt * dt) * (np.swapaxes(Ws, 2, 3) @ (Dsym @ Ws))
-            # 1/2 [A eta, Jr rho]_p = z^T Mz_p z with eta = z[:nv] and Jr rho = dt JW z:
-            # Mz_p = dt/2 A^T C_p JW on the (eta in s, z) block
-            Mz = (0.5 * dt) * (np.swapaxes(A[:, None, s, s], 2, 3) @ (C[None] @ JW[:, None, s, :]))  # (H, d, d, nz)
-            G2[:, s, s, :] += Mz
-            G2[:, s, :, s] += np.swapaxes(Mz, 2, 3)
-        if self.semi_implicit:
-            # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
-            G2[:, :nv] += dt * (Jr @ F2.reshape(H, nv, nz * nz)).reshape(H, nv, nz, nz)
-        G2[:, nv:] = F2
-        e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
-        e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
-        e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
-        return e
+        # the exact second-order reconstruction on the product of the joints' groups
+        return integ.expand(self.groups, dt, W, F1, F2, self.semi_implicit)

@@ -1,11 +1,8 @@
-"""Lie groups over Pinocchio's operators: SO(3), SE(3) and the tangent bundle TSO(3).
+"""The rotation group SO(3): hat/vee, exp/log, right Jacobians, their derivative and inverse.
 
-Conventions (Pinocchio's): everything is right / local (body frame).
-* ``exp``/``log`` are the group exponential and its inverse (``pin.exp3``, ``pin.log3``, ...).
-* The *right Jacobian* ``Jr(x)`` satisfies ``exp(x + d) = exp(x) exp(Jr(x) d + O(d^2))``.
-  It is ``pin.Jexp3`` and the paper's ``dexp_{-x}``. Its inverse is ``pin.Jlog3(exp3(x))``.
-* ``Ad(R) = R`` for SO(3); ``ad(x) = hat(x)``.
-* SE(3) twists are ``[linear; angular]`` (Pinocchio's Motion order).
+Conventions (Pinocchio's, see :mod:`geoddp.lie`): right / local (body frame); ``Ad(R) = R``,
+``ad(x) = hat(x)``; ``Jr(x)`` with ``exp(x + d) = exp(x) exp(Jr(x) d + O(d^2))`` is ``pin.Jexp3``
+and the paper's ``dexp_{-x}``, its inverse ``pin.Jlog3(exp3(x))``.
 
 The closed forms below have Taylor branches chosen so that neither cancellation nor truncation
 error exceeds ~1e-15 relative anywhere in [0, pi]: they never return NaN near the identity,
@@ -18,7 +15,7 @@ from math import factorial
 import numpy as np
 import pinocchio as pin
 
-from . import kernels
+from .. import kernels
 
 _EYE3 = np.eye(3)
 
@@ -99,6 +96,8 @@ class SO3:
     """The rotation group. Elements are 3x3 matrices, tangent vectors are (3,) body-frame."""
 
     dim = 3
+    #: bracket tensor C (3, 3, 3): [x, y]_i = C[i, p, q] x_p y_q (x cross y); C[i, p, q] = hat(e_p)[i, q]
+    structure_constants = np.moveaxis(hat(np.eye(3)), 0, 1)
 
     @staticmethod
     def exp(x: np.ndarray) -> np.ndarray:
@@ -123,10 +122,21 @@ class SO3:
         return out
 
     @staticmethod
+    def compose(R1: np.ndarray, R2: np.ndarray) -> np.ndarray:
+        """Group product R1 R2, (3, 3)."""
+        return np.asarray(R1, dtype=float) @ np.asarray(R2, dtype=float)
+
+    @staticmethod
+    def inverse(R: np.ndarray) -> np.ndarray:
+        """R^-1 = R^T, (3, 3)."""
+        return np.asarray(R, dtype=float).T.copy()
+
+    @staticmethod
     def right_jacobian(x: np.ndarray) -> np.ndarray:
         """Right Jacobian Jr(x) (3, 3): exp(x + d) = exp(x) exp(Jr(x) d). Equals ``pin.Jexp3``
-        and the paper's dexp_{-x}."""
-        return pin.Jexp3(np.asarray(x, dtype=float))
+        and the paper's dexp_{-x}, but with a Taylor branch: ``pin.Jexp3``'s (1 - cos t)/t^2
+        cancels below ~1e-4 rad (compiled: :func:`geoddp.kernels.so3_right_jacobian`)."""
+        return kernels.so3_right_jacobian(np.ascontiguousarray(x, dtype=float), False)
 
     @staticmethod
     def right_jacobian_inv(x: np.ndarray) -> np.ndarray:
@@ -136,7 +146,7 @@ class SO3:
     @staticmethod
     def left_jacobian(x: np.ndarray) -> np.ndarray:
         """Left Jacobian Jl(x) = Jr(-x) = Ad_exp(x) Jr(x), the paper's dexp_x."""
-        return pin.Jexp3(-np.asarray(x, dtype=float))
+        return SO3.right_jacobian(-np.asarray(x, dtype=float))
 
     @staticmethod
     def Ad(R: np.ndarray) -> np.ndarray:
@@ -144,22 +154,17 @@ class SO3:
         return np.asarray(R, dtype=float).copy()
 
     @staticmethod
+    def Ad_exp_neg(x: np.ndarray) -> np.ndarray:
+        """Ad_{exp(-x)} = exp(x)^T (3, 3): how a right step by exp(x) moves a body-frame
+        perturbation (``dIntegrate``'s ARG0)."""
+        return pin.exp3(np.asarray(x, dtype=float)).T
+
+    @staticmethod
     def ad(x: np.ndarray) -> np.ndarray:
         """Adjoint of so(3) on itself: ad_x y = [x, y] = x cross y, i.e. hat(x)."""
         return hat(x)
 
     # --- batched closed forms (N, 3) ---
-    @staticmethod
-    def exp_batch(X: np.ndarray) -> np.ndarray:
-        """(N, 3) -> (N, 3, 3) rotations, Rodrigues with a NaN-free small-angle branch."""
-        X = np.asarray(X, dtype=float)
-        t = np.linalg.norm(X, axis=-1)
-        safe = np.where(t > 0.0, t, 1.0)
-        sinc = np.where(t > 1e-4, np.sin(safe) / safe, 1.0 - t * t / 6.0)
-        a, _, _, _ = _coefficients(t)
-        K = hat(X)
-        return _EYE3 + sinc[:, None, None] * K + a[:, None, None] * (K @ K)
-
     @staticmethod
     def right_jacobian_batch(X: np.ndarray) -> np.ndarray:
         """(N, 3) -> (N, 3, 3) Jr(x) = I - a(t) hat(x) + b(t) hat(x)^2."""
@@ -211,85 +216,3 @@ class SO3:
         # with y = Ji eta; D[p, a, b] = dJr[p, a]/dx_b.
         T = -np.einsum("nkp,npab,naj,nbl->nkjl", Ji, D, Ji, Ji)
         return 0.5 * (T + np.swapaxes(T, -1, -2))
-
-
-class SE3:
-    """Rigid motions. Elements are ``pin.SE3``; twists are (6,) [linear; angular] (body frame)."""
-
-    dim = 6
-
-    @staticmethod
-    def exp(x: np.ndarray) -> pin.SE3:
-        """(6,) twist -> SE3 (``pin.exp6``)."""
-        return pin.exp6(np.asarray(x, dtype=float))
-
-    @staticmethod
-    def log(M: pin.SE3) -> np.ndarray:
-        """SE3 -> (6,) twist (``pin.log6``)."""
-        return pin.log6(M).vector
-
-    @staticmethod
-    def right_jacobian(x: np.ndarray) -> np.ndarray:
-        """(6, 6) right Jacobian: exp(x + d) = exp(x) exp(Jr d + O(d^2)), x (6,) [linear; angular].
-
-        Jr(x) = [[Jr3(w), Q(-v, -w)], [0, Jr3(w)]] with Barfoot's Q (State Estimation for
-        Robotics, eq. 7.86), whose coefficients use their Taylor series below |w| = 0.6
-        (compiled: :func:`geoddp.kernels.se3_right_jacobian`).
-        Why not ``pin.Jexp6``: in Pinocchio 4.1 it loses up to 3e-5 absolute in the coupling
-        block for 1e-5 < |w| < 1e-2 (cancellation without a Taylor branch); so do
-        ``pin.Jlog6`` and the free-flyer ``dIntegrate`` / ``dDifference`` (measured against
-        the series sum_k (-ad_x)^k / (k+1)!). This form is exact to ~1e-16 there (tested).
-        """
-        return kernels.se3_right_jacobian(np.ascontiguousarray(x, dtype=float), False)
-
-    @staticmethod
-    def right_jacobian_inv(x: np.ndarray) -> np.ndarray:
-        """(6, 6) inverse right Jacobian, |angular part| < 2 pi: [[K, -K Q K], [0, K]] with
-        K = Jr3(w)^-1 (block inverse of :meth:`right_jacobian`; exact where ``pin.Jlog6`` is not)."""
-        return kernels.se3_right_jacobian(np.ascontiguousarray(x, dtype=float), True)
-
-    @staticmethod
-    def log_jacobian(M: pin.SE3) -> np.ndarray:
-        """(6, 6) d log(M exp(d)) / d d at d = 0, i.e. Jr(log M)^-1 (``pin.Jlog6``, but exact near
-        the identity; see :meth:`right_jacobian`)."""
-        return SE3.right_jacobian_inv(pin.log6(M).vector)
-
-    @staticmethod
-    def Ad(M: pin.SE3) -> np.ndarray:
-        """(6, 6) adjoint action matrix (``SE3.action``)."""
-        return M.action
-
-    @staticmethod
-    def ad(x: np.ndarray) -> np.ndarray:
-        """(6, 6) ad_x, the Motion cross product ``Motion(x).action``."""
-        return pin.Motion(np.asarray(x, dtype=float)).action
-
-
-class TSO3:
-    """The satellite state space G = SO(3) x R^3 with g = (R, Omega) (paper, Section IV).
-
-    Tangent vectors are the paper's zeta = (eta, delta_xi) stacked as (6,): the first block acts
-    on SO(3) by right multiplication, the second on R^3 by addition. This is the one place the
-    ordering is defined.
-    """
-
-    nx = 6
-    ETA = slice(0, 3)
-    XI = slice(3, 6)
-
-    @staticmethod
-    def retract(R: np.ndarray, Omega: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """g exp(zeta) = (R exp(eta), Omega + delta_xi)."""
-        zeta = np.asarray(zeta, dtype=float)
-        return R @ pin.exp3(zeta[TSO3.ETA]), Omega + zeta[TSO3.XI]
-
-    @staticmethod
-    def local(R_bar: np.ndarray, Omega_bar: np.ndarray, R: np.ndarray, Omega: np.ndarray) -> np.ndarray:
-        """zeta = log(g_bar^-1 g) = (log(R_bar^T R), Omega - Omega_bar), (6,)."""
-        return np.concatenate([pin.log3(R_bar.T @ R), Omega - Omega_bar])
-
-    @staticmethod
-    def local_batch(R_bar: np.ndarray, Omega_bar: np.ndarray, R: np.ndarray, Omega: np.ndarray) -> np.ndarray:
-        """Batched :meth:`local`: (N,3,3),(N,3),(N,3,3),(N,3) -> (N, 6)."""
-        E = np.einsum("nji,njk->nik", R_bar, R)
-        return np.concatenate([SO3.log_batch(E), Omega - Omega_bar], axis=1)

@@ -8,7 +8,10 @@ reconstruction of :mod:`geoddp.integrators` needs is block-diagonal over joints:
     eta+ = Ad_A eta + Jr(omega) rho + 1/2 dJr(omega)[rho] rho + 1/2 [Ad_A eta, Jr(omega) rho] + O(3)
 
 with omega = dt w_bar, A = exp(-omega), rho = dt delta w (derived for any Lie group in the
-module docstring of :mod:`geoddp.integrators`). The joint groups Pinocchio uses are
+module docstring of :mod:`geoddp.integrators`, which assembles it once, for any product of the
+groups here: :func:`geoddp.integrators.expand`). A product group is a sequence of
+:class:`JointGroup` factors in tangent order (:func:`joint_groups` reads it off a ``pin.Model``);
+the functions below are its operations. The joint groups Pinocchio uses are
 
 * ``"vector"``: R^k with addition (revolute and prismatic joints, translation, SphericalZYX,
   which Pinocchio integrates additively), and ``"so2"``: revolute-unbounded joints, (cos, sin)
@@ -18,8 +21,11 @@ module docstring of :mod:`geoddp.integrators`). The joint groups Pinocchio uses 
   Jr, dJr from :class:`geoddp.lie.SO3`.
 * ``"se3"``: the free-flyer joint; q = (translation, quaternion), body-frame twists (6,) in
   Pinocchio's [linear; angular] order, q+ = q exp6(v); ad = ``Motion(x).action``,
-  Jr from :meth:`geoddp.lie.SE3.right_jacobian`, dJr by central differences of it (see
-  :func:`se3_dJr`).
+  Jr from :meth:`geoddp.lie.SE3.right_jacobian`, dJr by central differences of it
+  (:meth:`geoddp.lie.SE3.right_jacobian_derivative_batch`).
+
+The satellite's state space TSO(3) = SO(3) x R^3 is the instance with one spherical factor
+(:data:`SO3_ROOT`) and its velocities: :class:`TSO3`.
 
 Why our own Jr rather than ``pin.Jexp6`` / ``dIntegrate(ARG1)`` / ``dDifference``: Pinocchio 4.1
 loses up to 3e-5 absolute in the SE(3) Jacobians' coupling block for joint rotations between
@@ -35,8 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from . import kernels
-from .lie import SE3, SO3, hat
+from .se3 import SE3
+from .so3 import SO3
 
 _VECTOR_SHORTNAMES = frozenset(
     ["JointModelR" + a for a in "XYZ"]
@@ -50,14 +56,8 @@ _VECTOR_SHORTNAMES = frozenset(
 )
 _SO2_SHORTNAMES = frozenset(["JointModelRUB" + a for a in "XYZ"] + ["JointModelRevoluteUnboundedUnaligned"])
 KINDS = ("vector", "so2", "so3", "se3")
-
-# Structure constants C[i, p, q] = [e_p, e_q]_i of each non-commutative joint algebra.
-_SO3_C = np.moveaxis(hat(np.eye(3)), 0, 1)  # hat(e_p) e_q = e_p x e_q; C[i, p, q] = hat(e_p)[i, q]
-_SE3_C = np.stack([pin.Motion(e).action for e in np.eye(6)], axis=1)  # C[:, p, :] = ad_{e_p}
-
-# Central-difference step for dJr of SE(3): truncation ~ h^2 |Jexp6'''| / 6 ~ 1e-11,
-# round-off ~ 1e-16 / h ~ 1e-11 (tested against Richardson extrapolation).
-_SE3_DJR_STEP = 1e-5
+#: the non-commutative joint groups; "vector" and "so2" have Ad = Jr = I and dJr = [.,.] = 0
+NONCOMMUTATIVE = {"so3": SO3, "se3": SE3}
 
 
 @dataclass(frozen=True)
@@ -74,12 +74,6 @@ class JointGroup:
     @property
     def slice(self) -> slice:
         return slice(self.idx_v, self.idx_v + self.nv)
-
-
-def symmetric_from_upper(M: np.ndarray) -> np.ndarray:
-    """The symmetric matrices (..., n, n) whose upper triangles are those of M: Pinocchio fills
-    only the upper triangle of the mass matrix (``crba``) and of ``Minv``."""
-    return np.triu(M) + np.swapaxes(np.triu(M, 1), -1, -2)
 
 
 def joint_groups(model: pin.Model) -> list[JointGroup]:
@@ -125,25 +119,6 @@ def difference(model: pin.Model, groups: list[JointGroup], q0: np.ndarray, q1: n
     return d
 
 
-def se3_dJr(x: np.ndarray) -> np.ndarray:
-    """D (6, 6, 6) with D[i, j, l] = d Jr(x)[i, j] / d x_l for SE(3).
-
-    Central differences of the closed-form :meth:`geoddp.lie.SE3.right_jacobian` (error ~1e-10,
-    tested); x (6,) [linear; angular].
-    """
-    return se3_dJr_batch(np.asarray(x, dtype=float)[None])[0]
-
-
-def se3_dJr_batch(X: np.ndarray) -> np.ndarray:
-    """:func:`se3_dJr` at N points: X (N, 6) -> (N, 6, 6, 6), one flat pass of the closed-form Jr."""
-    X = np.asarray(X, dtype=float)
-    h = _SE3_DJR_STEP
-    steps = h * np.eye(6)
-    pts = np.stack([X[:, None, :] + steps, X[:, None, :] - steps], axis=1).reshape(-1, 6)  # [n, sign, l]
-    J = np.array([SE3.right_jacobian(x) for x in pts]).reshape(X.shape[0], 2, 6, 6, 6)  # [n, sign, l, i, j]
-    return np.moveaxis((J[:, 0] - J[:, 1]) / (2.0 * h), 1, -1)
-
-
 def block_Ad_Jr(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Ad_{exp(-omega)} and Jr(omega), each (nv, nv) block-diagonal; omega (nv,).
 
@@ -153,13 +128,11 @@ def block_Ad_Jr(groups: list[JointGroup], nv: int, omega: np.ndarray) -> tuple[n
     A = np.eye(nv)
     J = np.eye(nv)
     for g in groups:
-        s, w = g.slice, omega[g.slice]
-        if g.kind == "so3":
-            A[s, s] = pin.exp3(w).T
-            J[s, s] = kernels.so3_right_jacobian(w, False)
-        elif g.kind == "se3":
-            A[s, s] = pin.exp6(-w).action
-            J[s, s] = SE3.right_jacobian(w)
+        G = NONCOMMUTATIVE.get(g.kind)
+        if G is not None:
+            s, w = g.slice, omega[g.slice]
+            A[s, s] = G.Ad_exp_neg(w)
+            J[s, s] = G.right_jacobian(w)
     return A, J
 
 
@@ -167,11 +140,9 @@ def block_Jr_inv(groups: list[JointGroup], nv: int, omega: np.ndarray) -> np.nda
     """Jr(omega)^-1, (nv, nv) block-diagonal; omega (nv,), rotations below 2 pi per joint."""
     K = np.eye(nv)
     for g in groups:
-        s, w = g.slice, omega[g.slice]
-        if g.kind == "so3":
-            K[s, s] = SO3.right_jacobian_inv(w)
-        elif g.kind == "se3":
-            K[s, s] = SE3.right_jacobian_inv(w)
+        G = NONCOMMUTATIVE.get(g.kind)
+        if G is not None:
+            K[g.slice, g.slice] = G.right_jacobian_inv(omega[g.slice])
     return K
 
 
@@ -191,10 +162,9 @@ def group_second_order_tensors(kind: str, omega: np.ndarray) -> tuple[np.ndarray
     / d omega_l, and C (d, d, d) with [x, y]_i = C[i, p, q] x_p y_q. Vector and SO(2) joints
     have D = 0 and C = 0 (commutative).
     """
-    if kind == "so3":
-        return SO3.right_jacobian_derivative_batch(omega), _SO3_C
-    if kind == "se3":
-        return se3_dJr_batch(omega), _SE3_C
+    G = NONCOMMUTATIVE.get(kind)
+    if G is not None:
+        return G.right_jacobian_derivative_batch(omega), G.structure_constants
     raise ValueError(f"expected a non-commutative group kind ('so3' or 'se3'), got {kind!r}")
 
 
@@ -209,9 +179,40 @@ def second_order_tensors(groups: list[JointGroup], nv: int, omega: np.ndarray) -
     D = np.zeros((nv, nv, nv))
     C = np.zeros((nv, nv, nv))
     for g in groups:
-        if g.kind in ("so3", "se3"):
+        if g.kind in NONCOMMUTATIVE:
             s = g.slice
             Dg, Cg = group_second_order_tensors(g.kind, omega[None, s])
             D[s, s, s] = Dg[0]
             C[s, s, s] = Cg
     return D, C
+
+
+#: SO(3) as a product group: one spherical joint (the satellite's configuration space)
+SO3_ROOT: tuple[JointGroup, ...] = (JointGroup("root_joint", "so3", 0, 3, 0),)
+
+
+class TSO3:
+    """The satellite state space G = SO(3) x R^3 with g = (R, Omega) (paper, Section IV).
+
+    The configuration factor is the product group :data:`SO3_ROOT` (R as a rotation matrix rather
+    than Pinocchio's quaternion); the velocity factor is R^3 with addition.
+
+    Tangent vectors are the paper's zeta = (eta, delta_xi) stacked as (6,): the first block acts
+    on SO(3) by right multiplication, the second on R^3 by addition. This is the one place the
+    ordering is defined.
+    """
+
+    nx = 6
+    ETA = slice(0, 3)
+    XI = slice(3, 6)
+
+    @staticmethod
+    def retract(R: np.ndarray, Omega: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """g exp(zeta) = (R exp(eta), Omega + delta_xi)."""
+        zeta = np.asarray(zeta, dtype=float)
+        return R @ SO3.exp(zeta[TSO3.ETA]), Omega + zeta[TSO3.XI]
+
+    @staticmethod
+    def local(R_bar: np.ndarray, Omega_bar: np.ndarray, R: np.ndarray, Omega: np.ndarray) -> np.ndarray:
+        """zeta = log(g_bar^-1 g) = (log(R_bar^T R), Omega - Omega_bar), (6,)."""
+        return np.concatenate([SO3.log(R_bar.T @ R), Omega - Omega_bar])
