@@ -112,6 +112,24 @@ def test_180deg_saddle_is_escaped_to_a_genuine_minimum(expansion):
     assert "saddle" in r.message
 
 
+@pytest.mark.parametrize("expansion", EXPANSIONS)
+def test_history_has_one_entry_per_accepted_step_escapes_included(expansion):
+    """The recorder appends once per accepted step, the escape step included: per-step histories
+    have ``iterations`` entries, per-iterate ones ``iterations + 1``, and the escape is recorded
+    as a second-order step of length |alpha| that lowers J by what the escape info says."""
+    r = solve_scene(HARD / "target_180deg_x.toml", verbose=False, expansion=expansion, record_controls=True)
+    n = r.iterations
+    assert len(r.reg_history) == len(r.step_history) == len(r.expansion_history) == n
+    assert len(r.cost_history) == len(r.grad_norm_history) == len(r.time_history) == n + 1
+    assert r.control_history.shape == (n + 1, r.horizon, r.controls.shape[1])
+    assert np.array_equal(r.control_history[-1], r.controls)
+    (esc,) = r.extra["saddle_escapes"]
+    i = esc["iteration"]
+    assert r.expansion_history[i] == "second" and r.step_history[i] == abs(esc["alpha"])
+    assert r.cost_history[i] == esc["cost_before"] and r.cost_history[i + 1] == esc["cost_after"]
+    assert np.all(np.diff(r.cost_history) <= 0.0)
+
+
 def test_saddle_not_reported_converged_when_the_escape_has_no_budget():
     """With max_iter = 1 the escape step is the only iteration: the solve must not claim convergence."""
     r = solve_scene(HARD / "target_180deg_x.toml", verbose=False, max_iter=1)
@@ -138,21 +156,21 @@ def test_negative_curvature_matches_the_true_cost_at_the_saddle():
     """The escape direction's predicted curvature (eigenvalue of the numpy-mirrored Q_uu) agrees
     with the true J along the escape curve: J(alpha) - J(0) ~ alpha^2 / 2 * eigenvalue."""
     from geoddp import kernels
-    from geoddp.solver import _backward, _Linearisation, _node_quu, _Workspace
+    from geoddp.solver.backward import Workspace, backward, node_quu
 
-    problem = build_problem(load_scene(HARD / "target_180deg_x.toml"))
+    problem = build_problem(load_scene(HARD / "target_180deg_x.toml"), backend="analytic")
     H, m = problem.horizon, problem.nu
     U = np.zeros((H, m))
     R, Om = problem.rollout(U)
     J0 = problem.cost(R, Om, U)
-    ws = _Workspace(problem, R, Om)
-    lin = _Linearisation(problem, R, Om, U, 2, "analytic")
-    node, _, _ = _backward(lin, ws, 0.0)
+    ws = Workspace(H, m, problem.nx)
+    lin = problem.linearise(problem.trajectory(U), 2)
+    node, _, _ = backward(lin, ws, 0.0)
     assert node >= 0
-    w, V = np.linalg.eigh(_node_quu(lin, node))
+    w, V = np.linalg.eigh(node_quu(lin, node))
     assert w[0] < 0.0
     for k in (node + 1, H - 1):  # the kernel factorised every later node: the mirror must agree
-        assert np.linalg.eigvalsh(_node_quu(lin, k))[0] > 0.0
+        assert np.linalg.eigvalsh(node_quu(lin, k))[0] > 0.0
     K = ws.K.copy()
     K[: node + 1] = 0.0
     kff = np.zeros((H, m))

@@ -43,7 +43,8 @@ FLOORS: dict[str, int] = {
     "geoddp.rkmk4": 1,
     "geoddp.variational": 1,
     "geoddp.models": 1,
-    # 2: costs and problems (the contract the solver sees)
+    # 2: costs and problems, and the contract between a problem and the solver
+    "geoddp.contract": 2,
     "geoddp.costs": 2,
     "geoddp.multibody_costs": 2,
     "geoddp.problem": 2,

@@ -90,10 +90,9 @@ def test_first_order_converges_linearly(paper_solves):
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
 def test_all_backends_give_the_same_iterates(integrator):
     """The compiled fast path against the numpy reference (1e-12) and Pinocchio (1e-8)."""
-    p = paper_problem(horizon=60, dt=0.05, integrator=integrator)
-    c = solve(p, SolverOptions(verbose=False, backend="compiled"))
-    a = solve(p, SolverOptions(verbose=False, backend="analytic"))
-    b = solve(p, SolverOptions(verbose=False, backend="pinocchio"))
+    # the backend is a model choice, made when the problem is built
+    c, a, b = (solve(paper_problem(horizon=60, dt=0.05, integrator=integrator, backend=be), SolverOptions(verbose=False))
+               for be in ("compiled", "analytic", "pinocchio"))
     assert c.iterations == a.iterations == b.iterations
     assert np.allclose(c.cost_history, a.cost_history, rtol=1e-12, atol=0)
     assert np.abs(c.controls - a.controls).max() <= 1e-12 * np.abs(a.controls).max()
@@ -128,7 +127,7 @@ def test_feedback_gains_predict_the_response_to_a_perturbation(paper, paper_solv
     assert closed < open_
 
 
-def _random_problem(seed: int, integrator: str):
+def _random_problem(seed: int, integrator: str, backend: str = "compiled"):
     import pinocchio as pin
 
     from geoddp.problem import satellite_problem
@@ -139,7 +138,7 @@ def _random_problem(seed: int, integrator: str):
     return satellite_problem(inertia=inertia, actuation=rng.normal(size=(3, 2)) + np.eye(3)[:, :2], dt=0.02,
                              horizon=80, R_d=pin.exp3(rng.normal(size=3)), R0=pin.exp3(rng.normal(size=3)),
                              Omega0=rng.normal(size=3), S_u=np.diag([0.2, 0.5]), S_R=np.diag([50.0, 80.0, 60.0]),
-                             S_Omega=20.0, attitude_kind="geodesic", integrator=integrator)
+                             S_Omega=20.0, attitude_kind="geodesic", integrator=integrator, backend=backend)
 
 
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
@@ -150,11 +149,11 @@ def test_fast_path_equals_pinocchio_path_on_a_random_scene(integrator):
     second-order terms, the Pinocchio path's velocity Hessians are central differences of its
     analytic first derivatives (the pip wheel has no second-order ABA derivatives), so agreement
     is at their accuracy, 1e-9; the numpy reference of the same closed forms agrees to 1e-12."""
-    p = _random_problem(7, integrator)
+    p, pp, pa = (_random_problem(7, integrator, be) for be in ("compiled", "pinocchio", "analytic"))
     for exp in ("first", "switch"):
-        c = solve(p, SolverOptions(expansion=exp, verbose=False, backend="compiled"))
-        pn = solve(p, SolverOptions(expansion=exp, verbose=False, backend="pinocchio"))
-        a = solve(p, SolverOptions(expansion=exp, verbose=False, backend="analytic"))
+        c = solve(p, SolverOptions(expansion=exp, verbose=False))
+        pn = solve(pp, SolverOptions(expansion=exp, verbose=False))
+        a = solve(pa, SolverOptions(expansion=exp, verbose=False))
         assert c.iterations == pn.iterations == a.iterations
         assert np.allclose(c.cost_history, a.cost_history, rtol=1e-12, atol=0)
         assert np.abs(c.controls - a.controls).max() <= 1e-12 * np.abs(a.controls).max()

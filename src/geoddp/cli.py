@@ -20,6 +20,7 @@ def _parser() -> argparse.ArgumentParser:
     from .data import scene_names
     from .models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
     from .multibody_scenes import NAMES as MULTIBODY_SCENES
+    from .solver.options import EXPANSIONS
 
     scene_help = ("scene file (TOML: satellite, or [model] kind = \"multibody\") or a built-in scene's name: "
                   + ", ".join(scene_names()))
@@ -28,7 +29,7 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve a scene and write its results")
     run.add_argument("scene", help=scene_help)
-    run.add_argument("--expansion", choices=["first", "second", "switch"], help="override [solver].expansion")
+    run.add_argument("--expansion", choices=list(EXPANSIONS), help="override [solver].expansion")
     run.add_argument("--json", type=Path, help="write the result as JSON here")
     run.add_argument("--html", type=Path, help="write a self-contained animated HTML replay here")
     run.add_argument("--plots", type=Path, help="write PNG figures into this directory")
@@ -39,7 +40,7 @@ def _parser() -> argparse.ArgumentParser:
     mb.add_argument("--integrator", choices=list(MULTIBODY_INTEGRATORS),
                     help="override the scene's integrator (the files: semi_implicit); variational: the "
                     "paper's forward variational Euler (implicit)")
-    mb.add_argument("--expansion", choices=["first", "second", "switch"], help="override [solver].expansion")
+    mb.add_argument("--expansion", choices=list(EXPANSIONS), help="override [solver].expansion")
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
     mb.add_argument("--html", type=Path, help="write a self-contained animated HTML replay of the whole model "
                     "(root position and orientation and every joint)")
@@ -124,9 +125,10 @@ def _visualise(result, args) -> None:
 
 def _compare(args) -> int:
     from .api import solve_scene
+    from .solver.options import EXPANSIONS
 
     results = {}
-    for exp in ("first", "second", "switch"):
+    for exp in EXPANSIONS:
         results[exp] = solve_scene(args.scene, verbose=False, expansion=exp, record_controls=True)
     print("| expansion | iters | J* | ||grad|| | att. err (deg) | time (ms) | status |")
     print("|---|---|---|---|---|---|---|")

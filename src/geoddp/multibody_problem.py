@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .contract import Linearisation, Trajectory
 from .costs import CostDerivatives
 from .integrators import Expansion
 from .models.multibody import Multibody
@@ -104,26 +105,46 @@ class MultibodyProblem:
         H = self.horizon
         return self.running.derivatives(Q[:H], V[:H], controls), self.terminal.derivatives(Q[H:], V[H:], None)
 
-    def trajectory_fields(self, Q: np.ndarray, V: np.ndarray) -> dict:
-        """Result fields: the root body's attitude and body rate (identity and zero for a fixed
-        root), the target attitude of a terminal frame-placement term, the full (Q, V), and the
-        model description the viewer rebuilds the model from (:meth:`model_description`)."""
-        root = self.model.root
-        N = Q.shape[0]
-        if root == "free_flyer":
-            quat, rate = Q[:, 3:7], V[:, 3:6]
-        elif root == "spherical":
-            quat, rate = Q[:, 0:4], V[:, 0:3]
-        else:
-            quat, rate = np.tile([0.0, 0.0, 0.0, 1.0], (N, 1)), np.zeros((N, 3))
-        R = np.array([pin.Quaternion(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix() for q in quat])
+    @property
+    def dt(self) -> float:
+        """Time step in seconds."""
+        return self.model.dt
+
+    # ------------------------------------------------------------ the solver's contract
+    # (geoddp.contract.OptimalControlProblem): thin adapters over the array methods above.
+    def trajectory(self, controls: np.ndarray) -> Trajectory:
+        """(H, m) controls -> Trajectory(q = Q (H+1, nq), v = V (H+1, nv), u)."""
+        Q, V = self.rollout(controls)
+        return Trajectory(Q, V, controls)
+
+    def trajectory_cost(self, traj: Trajectory) -> float:
+        """Total cost J of a trajectory."""
+        return self.cost(traj.q, traj.v, traj.u)
+
+    def linearise(self, traj: Trajectory, order: int) -> Linearisation:
+        """Dynamics expansion and cost derivatives along ``traj``."""
+        exp = self.model.expansion(traj.q, traj.v, traj.u, order=order)
+        run, term = self.cost_derivatives(traj.q, traj.v, traj.u)
+        return Linearisation.from_parts(order, exp, run, term)
+
+    def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
+        """:meth:`rollout_closed_loop` around ``traj`` into new arrays; None if non-finite."""
+        Q, V, U = np.empty_like(traj.q), np.empty_like(traj.v), np.empty_like(traj.u)
+        if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, Q, V, U):
+            return None
+        return Trajectory(Q, V, U)
+
+    def describe(self) -> dict:
+        """Model description for the Result: kind "multibody", dt, integrator, the
+        :meth:`model_description` keys (urdf, urdf_xml, root, nq, nv) and the target attitude of
+        a terminal frame-placement term (``target_rotation`` (3, 3), identity without one;
+        ``target_angular_velocity`` zero)."""
         R_d = np.eye(3)
         for t in getattr(self.terminal, "terms", []):
             if isinstance(t, FramePlacement):
                 R_d = t.M_ref[-1, :3, :3].copy()  # (K, 4, 4) references; the last is the final node's
-        return dict(rotations=R, angular_velocities=np.array(rate), target_rotation=R_d,
-                    target_angular_velocity=np.zeros(3), configurations=Q, velocities=V,
-                    multibody=self.model_description())
+        return {"kind": "multibody", "dt": self.model.dt, "integrator": self.model.integrator,
+                **self.model_description(), "target_rotation": R_d, "target_angular_velocity": np.zeros(3)}
 
     def model_description(self) -> dict:
         """``Result.multibody``: the URDF (absolute path and its text as solved), the root joint

@@ -193,11 +193,11 @@ class MultibodySceneSpec:
     integrator: str
     running_costs: tuple[CostTermSpec, ...]
     terminal_costs: tuple[CostTermSpec, ...]
-    expansion: str = "switch"
-    switch_ratio: float = 0.1
-    tol: float = 1e-8
-    grad_tol: float = 1e-10
-    max_iter: int = 200
+    expansion: str = DEFAULT_EXPANSION
+    switch_ratio: float = DEFAULT_SWITCH_RATIO
+    tol: float = DEFAULT_TOL
+    grad_tol: float = DEFAULT_GRAD_TOL
+    max_iter: int = DEFAULT_MAX_ITER
     second_order: str = "exact"
     initial_controls: np.ndarray | None = None
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
+from .contract import Linearisation, Trajectory
 from .costs import (
     AngularVelocityQuadratic,
     AttitudeChordal,
@@ -59,14 +60,48 @@ class Problem:
         """Dimension of the tangent state zeta = (eta, dOmega)."""
         return 6
 
-    def trajectory_fields(self, R: np.ndarray, Omega: np.ndarray) -> dict:
-        """The trajectory and its target as :class:`geoddp.result.Result` fields."""
+    @property
+    def dt(self) -> float:
+        """Time step in seconds."""
+        return self.model.dt
+
+    # ------------------------------------------------------------ the solver's contract
+    # (geoddp.contract.OptimalControlProblem): thin adapters over the array methods below.
+    def trajectory(self, controls: np.ndarray) -> Trajectory:
+        """(H, m) controls -> Trajectory(q = R (H+1, 3, 3), v = Omega (H+1, 3), u)."""
+        R, Om = self.rollout(controls)
+        return Trajectory(R, Om, controls)
+
+    def trajectory_cost(self, traj: Trajectory) -> float:
+        """Total cost J of a trajectory (paper eq. J)."""
+        return self.cost(traj.q, traj.v, traj.u)
+
+    def linearise(self, traj: Trajectory, order: int) -> Linearisation:
+        """Dynamics expansion (with the model's backend) and cost derivatives along ``traj``."""
+        exp = self.expansion(traj.q, traj.v, traj.u, order)
+        run, term = self.cost_derivatives(traj.q, traj.v, traj.u)
+        return Linearisation.from_parts(order, exp, run, term)
+
+    def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
+        """:meth:`rollout_closed_loop` around ``traj`` into new arrays; None if non-finite."""
+        R, Om, U = np.empty_like(traj.q), np.empty_like(traj.v), np.empty_like(traj.u)
+        if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, R, Om, U):
+            return None
+        return Trajectory(R, Om, U)
+
+    def describe(self) -> dict:
+        """Model description for the Result: kind "satellite", dt, integrator, inertia (3, 3),
+        actuation (3, m), urdf (str or None) and the target R_d (3, 3), Omega_d (3,) of the
+        terminal cost (identity and zero without such terms)."""
         R_d, Omega_d = np.eye(3), np.zeros(3)
         for t in self.terminal.terms:
             R_d = getattr(t, "R_d", R_d)
             Omega_d = getattr(t, "Omega_d", Omega_d)
-        return dict(rotations=R, angular_velocities=Omega, target_rotation=np.array(R_d),
-                    target_angular_velocity=np.array(Omega_d))
+        m = self.model
+        return {"kind": "satellite", "dt": m.dt, "integrator": m.integrator, "inertia": m.inertia.copy(),
+                "actuation": m.actuation.copy(), "urdf": None if m.urdf is None else str(m.urdf),
+                "target_rotation": np.array(R_d, dtype=float),
+                "target_angular_velocity": np.array(Omega_d, dtype=float)}
 
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
         """Validated (H, m) float64 copy of a control sequence."""
@@ -92,8 +127,9 @@ class Problem:
             m.inertia, m.inertia_inv, m.actuation, m.dt, m.semi_implicit, R_out, Omega_out, u_out,
         )
 
-    def expansion(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int, backend: str):
-        """The model's expansion along a trajectory (see :meth:`Satellite.expansion`)."""
+    def expansion(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int, backend: str | None = None):
+        """The model's expansion along a trajectory (see :meth:`Satellite.expansion`); ``backend``
+        defaults to the model's."""
         return self.model.expansion(R, Omega, controls, order=order, backend=backend)
 
     def cost(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray) -> float:
@@ -134,15 +170,17 @@ def satellite_problem(
     integrator: str = "euler",
     second_order: str = "exact",
     urdf=None,
+    backend: str = "compiled",
 ) -> Problem:
     """Build the paper's satellite problem (eqs. disceqs, optprobR, costR) from numbers.
 
     Weights accept a scalar, a vector (diagonal) or a matrix. Units: inertia kg m^2, dt s,
-    angles rad, rates rad/s.
+    angles rad, rates rad/s. ``backend`` picks the model's derivative backend
+    (:attr:`Satellite.backend`).
     """
     actuation = np.eye(3) if actuation is None else actuation
     model = Satellite(inertia=inertia, actuation=actuation, dt=dt, integrator=integrator,
-                      second_order=second_order, urdf=urdf)
+                      second_order=second_order, urdf=urdf, backend=backend)
     attitude_kind = choice(attitude_kind, "cost.attitude_kind", ATTITUDE_KINDS)
     Attitude = AttitudeChordal if attitude_kind == "chordal" else AttitudeGeodesic
     m = model.nu

@@ -2,22 +2,35 @@
 
 A :class:`Result` is what the solver hands downstream: the viewer, the figures and the JSON
 writer read it and never call back into the solver. Everything is numpy arrays or builtins.
+
+It is generic: the state trajectory (q, v) as the problem's :class:`~geoddp.contract.Trajectory`
+holds it, the controls and gains, the histories, the status, and the problem's model description
+(:meth:`~geoddp.contract.OptimalControlProblem.describe`). The satellite's views (rotations,
+quaternions, angular velocities, the target and the attitude error) are properties derived from
+the state and the description, for a multibody from its root joint. The JSON keeps every field it
+has had (files written before the generic Result still load) and adds ``model``.
 """
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-STATUS_CONVERGED_COST = "converged: |J_i - J_(i-1)| <= tol"
-STATUS_CONVERGED_GRAD = "converged: gradient norm <= grad_tol"
-STATUS_MAX_ITER = "stopped: max_iter reached"
-STATUS_NO_DESCENT = "stopped: line search found no descent step"
-STATUS_MAX_REG = "stopped: regularisation exceeded its maximum"
-STATUS_SADDLE = "stopped: stationary point that is not a minimum (reduced Hessian indefinite)"
+# The status strings live with the solver that sets them; re-exported here, where they were first.
+from .solver.status import (  # noqa: F401
+    STATUS_CONVERGED_COST,
+    STATUS_CONVERGED_GRAD,
+    STATUS_MAX_ITER,
+    STATUS_MAX_REG,
+    STATUS_NO_DESCENT,
+    STATUS_SADDLE,
+)
+
+# Keys of the model description that make up ``Result.multibody`` (what the viewer rebuilds from).
+_MULTIBODY_KEYS = ("urdf", "urdf_xml", "root", "nq", "nv")
 
 
 def rotations_to_quaternions(rotations: np.ndarray) -> np.ndarray:
@@ -58,26 +71,83 @@ def rotations_to_quaternions(rotations: np.ndarray) -> np.ndarray:
     return q
 
 
-@dataclass
-class Result:
-    """Solution of a geometric DDP solve on TSO(3).
+def _root_rotations_and_rates(q: np.ndarray, v: np.ndarray, root: str) -> tuple[np.ndarray, np.ndarray]:
+    """Root body attitude (N, 3, 3) and body rate (N, 3) of Pinocchio states q (N, nq), v (N, nv)."""
+    import pinocchio as pin
 
-    Shapes use H = horizon (number of control steps) and m = number of inputs.
+    N = q.shape[0]
+    if root == "free_flyer":
+        quat, rate = q[:, 3:7], v[:, 3:6]
+    elif root == "spherical":
+        quat, rate = q[:, 0:4], v[:, 0:3]
+    else:
+        quat, rate = np.tile([0.0, 0.0, 0.0, 1.0], (N, 1)), np.zeros((N, 3))
+    R = np.array([pin.Quaternion(c[3], c[0], c[1], c[2]).normalized().toRotationMatrix() for c in quat])
+    return R, np.array(rate)
+
+
+class _WriteThrough(dict):
+    """The ``Result.multibody`` dict: a view of some keys of the model description that writes
+    changes back to it (code that edits ``result.multibody[...]`` in place keeps working)."""
+
+    def __init__(self, model: dict[str, Any], keys: tuple[str, ...]) -> None:
+        super().__init__({k: model[k] for k in keys if k in model})
+        self._model = model
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        super().__setitem__(key, value)
+        self._model[key] = value
+
+    def __delitem__(self, key: str) -> None:
+        super().__delitem__(key)
+        self._model.pop(key, None)
+
+    def pop(self, key: str, *default: Any) -> Any:
+        self._model.pop(key, None)
+        return super().pop(key, *default)
+
+    def update(self, *args: Any, **kw: Any) -> None:
+        super().update(*args, **kw)
+        self._model.update(*args, **kw)
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, dict):
+        return {k: _jsonable(val) for k, val in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(val) for val in x]
+    return x
+
+
+@dataclass(init=False)
+class Result:
+    """Solution of a geometric DDP solve.
+
+    Shapes use H = horizon (number of control steps), m = number of inputs and nx = the dimension
+    of the tangent state (6 on TSO(3), 2 nv for a multibody).
 
     Attributes:
         times: (H+1,) time stamps in seconds, ``k * dt``.
-        rotations: (H+1, 3, 3) body-to-world attitudes R_k.
-        angular_velocities: (H+1, 3) body-frame angular velocities Omega_k in rad/s.
-        controls: (H, m) inputs u_k (torque units of the actuation matrix).
+        q: (H+1, ...) configuration part of the state: rotation matrices (H+1, 3, 3) on TSO(3),
+            Pinocchio configurations (H+1, nq) for a multibody.
+        v: (H+1, nv) velocities: body angular velocity Omega (rad/s) on TSO(3), generalised
+            velocities for a multibody.
+        model: the problem's model description (``kind``, ``dt``, ``integrator``,
+            ``target_rotation``, ``target_angular_velocity``; a multibody adds ``urdf``,
+            ``urdf_xml``, ``root``, ``nq``, ``nv``).
+        controls: (H, m) inputs u_k (units of the actuation).
         feedforward: (H, m) the last backward pass's k_k = Q_uu^-1 Q_u.
-        feedback: (H, m, 6) the last backward pass's K_k = Q_uu^-1 Q_ug; the control law is
-            u = u_k - gamma k_k - K_k zeta with zeta = (log(R_k^T R), Omega - Omega_k).
-        target_rotation: (3, 3) desired terminal attitude R_d.
-        target_angular_velocity: (3,) desired terminal angular velocity Omega_d in rad/s.
+        feedback: (H, m, nx) the last backward pass's K_k = Q_uu^-1 Q_ux; the control law is
+            u = u_k - gamma k_k - K_k zeta with zeta = difference(x_k, x) ((log(R_k^T R),
+            Omega - Omega_k) on TSO(3)).
         cost: final total cost J.
         iterations: number of accepted iterations.
         converged: True only when a stopping test on |dJ| or on the gradient passed.
-        status: one of the STATUS_* strings of this module.
+        status: one of the STATUS_* strings of :mod:`geoddp.solver.status`.
         message: human-readable detail on the status.
         cost_history: (iterations+1,) J at the initial guess and after each accepted iteration.
         grad_norm_history: (iterations+1,) ||dJ/dU|| at the same iterates.
@@ -87,31 +157,34 @@ class Result:
         expansion_history: (iterations,) "first" or "second" per iteration (a saddle escape, which
             uses the exact second-order check, is recorded as "second").
         control_history: (iterations+1, H, m) controls per iterate (only when recorded).
-        configurations: (H+1, nq) Pinocchio configurations of a multibody solve (None on TSO(3));
-            then ``rotations``/``angular_velocities`` describe the root body.
-        velocities: (H+1, nv) generalised velocities of a multibody solve (None on TSO(3)).
-        multibody: what the viewer needs to rebuild a multibody model without the solver (None on
-            TSO(3)): ``{"urdf": absolute path (str), "urdf_xml": the URDF text as solved (str),
-            "root": "free_flyer" | "spherical" | "fixed", "nq": int, "nv": int}``.
         time_history: (iterations+1,) wall time in seconds from the start of the solve at which
             each iterate of cost_history was reached (0 for the initial guess).
         solve_time_s: wall time of the solve in seconds.
         timings: breakdown in seconds (derivatives, backward, forward, ...).
         expansion: the expansion option used (first | second | switch).
-        integrator: the integrator used (euler | semi_implicit).
         dt: time step in seconds.
         extra: free-form additions; the solver puts ``"saddle_escapes"`` here (a list of dicts with
             iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle.
+
+    Views (properties): ``rotations`` (H+1, 3, 3) body-to-world attitudes (the root body's for a
+    multibody; identity for a fixed root), ``angular_velocities`` (H+1, 3) body rates (rad/s),
+    ``quaternions`` (H+1, 4), ``target_rotation`` (3, 3), ``target_angular_velocity`` (3,),
+    ``attitude_error_deg``, ``angular_velocity_error``, ``integrator``, and for a multibody
+    ``configurations`` (= q), ``velocities`` (= v) and ``multibody`` (the viewer's description:
+    urdf, urdf_xml, root, nq, nv); these three are None on TSO(3).
+
+    The constructor also accepts the pre-generic keywords (``rotations``, ``angular_velocities``,
+    ``target_rotation``, ``target_angular_velocity``, ``configurations``, ``velocities``,
+    ``multibody``, ``integrator``) and builds q, v and the description from them.
     """
 
     times: np.ndarray
-    rotations: np.ndarray
-    angular_velocities: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    model: dict[str, Any]
     controls: np.ndarray
     feedforward: np.ndarray
     feedback: np.ndarray
-    target_rotation: np.ndarray
-    target_angular_velocity: np.ndarray
     cost: float
     iterations: int
     converged: bool
@@ -125,19 +198,222 @@ class Result:
     solve_time_s: float
     timings: dict[str, float]
     expansion: str
-    integrator: str
     dt: float
-    control_history: np.ndarray | None = None
-    time_history: np.ndarray | None = None
-    configurations: np.ndarray | None = None
-    velocities: np.ndarray | None = None
-    multibody: dict[str, Any] | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
+    control_history: np.ndarray | None
+    time_history: np.ndarray | None
+    extra: dict[str, Any]
 
+    def __init__(
+        self,
+        *,
+        times: np.ndarray,
+        controls: np.ndarray,
+        feedforward: np.ndarray,
+        feedback: np.ndarray,
+        cost: float,
+        iterations: int,
+        converged: bool,
+        status: str,
+        message: str,
+        cost_history: np.ndarray,
+        grad_norm_history: np.ndarray,
+        reg_history: np.ndarray,
+        step_history: np.ndarray,
+        expansion_history: list[str],
+        solve_time_s: float,
+        timings: dict[str, float],
+        expansion: str,
+        dt: float,
+        q: np.ndarray | None = None,
+        v: np.ndarray | None = None,
+        model: dict[str, Any] | None = None,
+        control_history: np.ndarray | None = None,
+        time_history: np.ndarray | None = None,
+        extra: dict[str, Any] | None = None,
+        # pre-generic keywords
+        rotations: np.ndarray | None = None,
+        angular_velocities: np.ndarray | None = None,
+        target_rotation: np.ndarray | None = None,
+        target_angular_velocity: np.ndarray | None = None,
+        configurations: np.ndarray | None = None,
+        velocities: np.ndarray | None = None,
+        multibody: dict[str, Any] | None = None,
+        integrator: str | None = None,
+    ) -> None:
+        self.times = times
+        self.controls = controls
+        self.feedforward = feedforward
+        self.feedback = feedback
+        self.cost = cost
+        self.iterations = iterations
+        self.converged = converged
+        self.status = status
+        self.message = message
+        self.cost_history = cost_history
+        self.grad_norm_history = grad_norm_history
+        self.reg_history = reg_history
+        self.step_history = step_history
+        self.expansion_history = expansion_history
+        self.solve_time_s = solve_time_s
+        self.timings = timings
+        self.expansion = expansion
+        self.dt = dt
+        self.control_history = control_history
+        self.time_history = time_history
+        self.extra = {} if extra is None else extra
+        model = {} if model is None else dict(model)
+        if q is None:
+            if configurations is not None:
+                q, v = configurations, velocities
+                model.setdefault("kind", "multibody")
+            else:
+                q, v = rotations, angular_velocities
+        if multibody is not None:
+            model.setdefault("kind", "multibody")
+            for k, val in multibody.items():
+                model.setdefault(k, val)
+        model.setdefault("kind", "satellite")
+        model.setdefault("dt", dt)
+        if integrator is not None:
+            model["integrator"] = integrator
+        if target_rotation is not None:
+            model["target_rotation"] = target_rotation
+        if target_angular_velocity is not None:
+            model["target_angular_velocity"] = target_angular_velocity
+        self.q, self.v, self.model = q, v, model
+        # Root views given explicitly for a multibody without a description (nothing to derive from).
+        self._root_views = (rotations, angular_velocities)
+        self._view_override: dict[str, Any] = {}  # multibody root views assigned after construction
+
+    # ------------------------------------------------------------------ generic
     @property
     def horizon(self) -> int:
         """Number of control steps H."""
         return int(self.controls.shape[0])
+
+    @property
+    def integrator(self) -> str:
+        """The integrator used (euler | semi_implicit | rk4 | variational)."""
+        return str(self.model.get("integrator", ""))
+
+    @integrator.setter
+    def integrator(self, value: str) -> None:
+        self.model["integrator"] = value
+
+    @property
+    def grad_norm(self) -> float:
+        """Gradient norm at the final iterate."""
+        return float(self.grad_norm_history[-1])
+
+    @property
+    def is_multibody(self) -> bool:
+        return self.model.get("kind") == "multibody"
+
+    @property
+    def configurations(self) -> np.ndarray | None:
+        """(H+1, nq) Pinocchio configurations of a multibody solve (None on TSO(3))."""
+        return self.q if self.is_multibody else None
+
+    @configurations.setter
+    def configurations(self, value: np.ndarray | None) -> None:
+        if value is None and not self.is_multibody:
+            return
+        self._pin_root_views()
+        self.model["kind"] = "multibody"
+        self.q = value
+
+    @property
+    def velocities(self) -> np.ndarray | None:
+        """(H+1, nv) generalised velocities of a multibody solve (None on TSO(3))."""
+        return self.v if self.is_multibody else None
+
+    @velocities.setter
+    def velocities(self, value: np.ndarray | None) -> None:
+        if value is None and not self.is_multibody:
+            return
+        self._pin_root_views()
+        self.model["kind"] = "multibody"
+        self.v = value
+
+    @property
+    def multibody(self) -> dict[str, Any] | None:
+        """What the viewer needs to rebuild a multibody model without the solver (None on TSO(3)
+        or without a description): ``{"urdf": absolute path (str), "urdf_xml": the URDF text as
+        solved (str), "root": "free_flyer" | "spherical" | "fixed", "nq": int, "nv": int}``."""
+        if not self.is_multibody or "root" not in self.model:
+            return None
+        return _WriteThrough(self.model, _MULTIBODY_KEYS)
+
+    @multibody.setter
+    def multibody(self, value: dict[str, Any] | None) -> None:
+        for k in _MULTIBODY_KEYS:
+            self.model.pop(k, None)
+        if value is not None:
+            self.model["kind"] = "multibody"
+            self.model.update(value)
+
+    # ------------------------------------------------------------------ satellite views
+    def _attitude(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self.is_multibody:
+            return self.q, self.v
+        if "root" in self.model and self.q is not None and self.v is not None:
+            R, w = _root_rotations_and_rates(np.asarray(self.q), np.asarray(self.v), self.model["root"])
+        else:
+            R, w = self._root_views
+            N = np.shape(self.times)[0]
+            R = np.tile(np.eye(3), (N, 1, 1)) if R is None else R
+            w = np.zeros((N, 3)) if w is None else w
+        return self._view_override.get("rotations", R), self._view_override.get("angular_velocities", w)
+
+    def _pin_root_views(self) -> None:
+        # Before the state of a multibody changes by assignment, keep the root views it had (an
+        # assigned state may be partial, as the viewer's input checks exercise).
+        if self.is_multibody and self.q is not None and self.v is not None:
+            R, w = self._attitude()
+            self._view_override.setdefault("rotations", R)
+            self._view_override.setdefault("angular_velocities", w)
+
+    @property
+    def rotations(self) -> np.ndarray:
+        """(H+1, 3, 3) body-to-world attitudes R_k (the root body's for a multibody)."""
+        return self._attitude()[0]
+
+    @rotations.setter
+    def rotations(self, value: np.ndarray) -> None:
+        if self.is_multibody:
+            self._view_override["rotations"] = value
+        else:
+            self.q = value
+
+    @property
+    def angular_velocities(self) -> np.ndarray:
+        """(H+1, 3) body-frame angular velocities Omega_k in rad/s (the root body's)."""
+        return self._attitude()[1]
+
+    @angular_velocities.setter
+    def angular_velocities(self, value: np.ndarray) -> None:
+        if self.is_multibody:
+            self._view_override["angular_velocities"] = value
+        else:
+            self.v = value
+
+    @property
+    def target_rotation(self) -> np.ndarray:
+        """(3, 3) desired terminal attitude R_d."""
+        return np.asarray(self.model.get("target_rotation", np.eye(3)), dtype=float)
+
+    @target_rotation.setter
+    def target_rotation(self, value: np.ndarray) -> None:
+        self.model["target_rotation"] = value
+
+    @property
+    def target_angular_velocity(self) -> np.ndarray:
+        """(3,) desired terminal angular velocity Omega_d in rad/s."""
+        return np.asarray(self.model.get("target_angular_velocity", np.zeros(3)), dtype=float)
+
+    @target_angular_velocity.setter
+    def target_angular_velocity(self, value: np.ndarray) -> None:
+        self.model["target_angular_velocity"] = value
 
     @property
     def quaternions(self) -> np.ndarray:
@@ -156,13 +432,12 @@ class Result:
         """||Omega_H - Omega_d|| in rad/s."""
         return float(np.linalg.norm(self.angular_velocities[-1] - self.target_angular_velocity))
 
-    @property
-    def grad_norm(self) -> float:
-        """Gradient norm at the final iterate."""
-        return float(self.grad_norm_history[-1])
-
+    # ------------------------------------------------------------------ JSON
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary (arrays as nested lists)."""
+        """JSON-ready dictionary (arrays as nested lists): every field the JSON has ever had, plus
+        ``model`` (the description)."""
+        R, w = self._attitude()
+        Q, V, mb = self.configurations, self.velocities, self.multibody
         return {
             "cost": self.cost,
             "iterations": self.iterations,
@@ -185,18 +460,20 @@ class Result:
             "timings": dict(self.timings),
             "times": self.times.tolist(),
             "controls": self.controls.tolist(),
-            "quaternions": self.quaternions.tolist(),
-            "angular_velocities": self.angular_velocities.tolist(),
-            "rotations": self.rotations.tolist(),
+            "quaternions": rotations_to_quaternions(R).tolist(),
+            "angular_velocities": np.asarray(w).tolist(),
+            "rotations": np.asarray(R).tolist(),
             "feedforward": self.feedforward.tolist(),
             "feedback": self.feedback.tolist(),
             "target_rotation": self.target_rotation.tolist(),
             "target_angular_velocity": self.target_angular_velocity.tolist(),
             "control_history": None if self.control_history is None else self.control_history.tolist(),
             "time_history": None if self.time_history is None else self.time_history.tolist(),
-            "configurations": None if self.configurations is None else self.configurations.tolist(),
-            "velocities": None if self.velocities is None else self.velocities.tolist(),
-            "multibody": None if self.multibody is None else dict(self.multibody),
+            "configurations": None if Q is None else np.asarray(Q).tolist(),
+            "velocities": None if V is None else np.asarray(V).tolist(),
+            "multibody": None if mb is None else dict(mb),
+            # the description, without what the "multibody" field already holds (the URDF text once)
+            "model": _jsonable({k: val for k, val in self.model.items() if mb is None or k not in mb}),
         }
 
     def write_json(self, path: str | Path) -> Path:
@@ -208,17 +485,24 @@ class Result:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Result":
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`; also reads dictionaries written before ``model`` existed."""
         a = np.asarray
+        opt = lambda key: None if d.get(key) is None else a(d[key], dtype=float)  # noqa: E731
+        model = dict(d["model"]) if d.get("model") is not None else None
+        if model is not None and d.get("multibody") is not None:
+            model.update(d["multibody"])  # to_dict writes the viewer's keys only once, there
+        multibody = (model or {}).get("kind") == "multibody" or d.get("configurations") is not None
+        for key in ("target_rotation", "target_angular_velocity"):
+            if model is not None and key in model:
+                model[key] = a(model[key], dtype=float)
         return cls(
             times=a(d["times"], dtype=float),
-            rotations=a(d["rotations"], dtype=float),
-            angular_velocities=a(d["angular_velocities"], dtype=float),
+            q=a(d["configurations"] if multibody else d["rotations"], dtype=float),
+            v=a(d["velocities"] if multibody else d["angular_velocities"], dtype=float),
+            model=model,
             controls=a(d["controls"], dtype=float),
             feedforward=a(d["feedforward"], dtype=float),
             feedback=a(d["feedback"], dtype=float),
-            target_rotation=a(d["target_rotation"], dtype=float),
-            target_angular_velocity=a(d["target_angular_velocity"], dtype=float),
             cost=float(d["cost"]),
             iterations=int(d["iterations"]),
             converged=bool(d["converged"]),
@@ -232,17 +516,20 @@ class Result:
             solve_time_s=float(d["solve_time_s"]),
             timings=dict(d["timings"]),
             expansion=str(d["expansion"]),
-            integrator=str(d["integrator"]),
             dt=float(d["dt"]),
-            control_history=None if d.get("control_history") is None else a(d["control_history"], dtype=float),
-            time_history=None if d.get("time_history") is None else a(d["time_history"], dtype=float),
-            configurations=None if d.get("configurations") is None else a(d["configurations"], dtype=float),
-            velocities=None if d.get("velocities") is None else a(d["velocities"], dtype=float),
-            multibody=None if d.get("multibody") is None else dict(d["multibody"]),
+            control_history=opt("control_history"),
+            time_history=opt("time_history"),
+            # pre-generic files: the description is rebuilt from these (ignored when model is set,
+            # except the root views of a multibody without a description)
+            rotations=a(d["rotations"], dtype=float) if multibody else None,
+            angular_velocities=a(d["angular_velocities"], dtype=float) if multibody else None,
+            target_rotation=None if model is not None else a(d["target_rotation"], dtype=float),
+            target_angular_velocity=None if model is not None else a(d["target_angular_velocity"], dtype=float),
+            multibody=None if model is not None or d.get("multibody") is None else dict(d["multibody"]),
+            integrator=None if model is not None else str(d["integrator"]),
         )
 
     @classmethod
     def read_json(cls, path: str | Path) -> "Result":
-        """Read a file written by :meth:`write_json`."""
+        """Read a file written by :meth:`write_json` (or by any earlier version)."""
         return cls.from_dict(json.loads(Path(path).read_text()))
-

@@ -18,12 +18,15 @@ from .validate import InputError
 __all__ = ["EXPANSIONS", "DEFAULT_EXPANSION", "DEFAULT_SWITCH_RATIO", "DEFAULT_TOL", "DEFAULT_GRAD_TOL",
            "DEFAULT_MAX_ITER", "check_urdf"]
 
-EXPANSIONS = ("first", "second", "switch")
-DEFAULT_EXPANSION = "switch"
-DEFAULT_SWITCH_RATIO = 0.1
-DEFAULT_TOL = 1e-8
-DEFAULT_GRAD_TOL = 1e-10
-DEFAULT_MAX_ITER = 200
+# The solver's defaults and expansions have one home, geoddp.solver.options: re-exported here.
+from .solver.options import (  # noqa: E402
+    DEFAULT_EXPANSION,
+    DEFAULT_GRAD_TOL,
+    DEFAULT_MAX_ITER,
+    DEFAULT_SWITCH_RATIO,
+    DEFAULT_TOL,
+    EXPANSIONS,
+)
 
 
 def check_urdf(path: Any, name: str, base_dir: Path) -> Path:

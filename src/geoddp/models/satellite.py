@@ -60,6 +60,9 @@ class Satellite:
         second_order: "exact" (default) or "paper" expansion of the reconstruction.
         urdf: URDF of one rigid body (its inertia is replaced by ``inertia``). By default the
             built-in ``satellite.urdf`` (package data, :mod:`geoddp.data`).
+        backend: derivative backend used by :meth:`expansion` unless a call names another:
+            "compiled" (numba, default), "analytic" (numpy reference) or "pinocchio" (per-node
+            Pinocchio calls, the source of truth). A model choice, made when the model is built.
     """
 
     inertia: np.ndarray
@@ -68,6 +71,7 @@ class Satellite:
     integrator: str = "euler"
     second_order: str = "exact"
     urdf: Path | None = None
+    backend: str = "compiled"
     pin_model: pin.Model = field(init=False, repr=False)
     inertia_inv: np.ndarray = field(init=False, repr=False)
 
@@ -77,6 +81,7 @@ class Satellite:
         self.dt = positive_float(self.dt, "dt")
         self.integrator = choice(self.integrator, "integrator", integ.INTEGRATORS)
         self.second_order = choice(self.second_order, "second_order", integ.SECOND_ORDER_KINDS)
+        self.backend = choice(self.backend, "backend", BACKENDS)
         if self.second_order == "paper" and self.integrator != "euler":
             raise ValueError("second_order: 'paper' is derived for integrator 'euler' only")
         if self.urdf is None:
@@ -208,14 +213,15 @@ class Satellite:
         return F1, F2
 
     def expansion(
-        self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int = 1, backend: str = "compiled"
+        self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int = 1, backend: str | None = None
     ) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
 
-        R (H+1, 3, 3), Omega (H+1, 3), controls (H, m). See :mod:`geoddp.integrators`.
+        R (H+1, 3, 3), Omega (H+1, 3), controls (H, m); ``backend`` defaults to the model's.
+        See :mod:`geoddp.integrators`.
         """
         H = controls.shape[0]
-        backend = choice(backend, "backend", BACKENDS)
+        backend = self.backend if backend is None else choice(backend, "backend", BACKENDS)
         if backend == "compiled" and self.second_order == "exact":
             return self._expansion_compiled(Omega, H, order)
         if backend == "compiled":

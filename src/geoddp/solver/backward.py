@@ -1,0 +1,110 @@
+"""The backward pass (paper eqs. Qfunctions, dustar, backv, vfinal) and the cost gradient (Lemma
+lemm:psi): thin wrappers over the compiled kernels, plus the regularisation loop around them."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import kernels
+from ..contract import Linearisation
+from .options import SolverOptions
+
+
+class Workspace:
+    """Per-solve buffers (Crocoddyl's 'data'): allocated once, reused every iteration.
+
+    k (H, m) feedforward and K (H, m, nx) feedback gains of the last backward pass, grad (H, m)
+    the last gradient, quu_eig (H,) the smallest eigenvalue of each node's regularised Q_uu.
+    """
+
+    def __init__(self, horizon: int, nu: int, nx: int) -> None:
+        H, m = horizon, nu
+        self.k = np.zeros((H, m))
+        self.K = np.zeros((H, m, nx))
+        self.grad = np.zeros((H, m))
+        self.quu_eig = np.zeros(H)
+        # placeholders for first-order passes: the kernel never indexes them (memory stays O(H))
+        self.empty_theta = np.zeros((0, nx, nx, nx))
+        self.empty_gamma = np.zeros((0, nx, nx, m))
+        self.empty_xi = np.zeros((0, nx, m, m))
+
+
+def backward(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float, float]:
+    """One backward pass with Q_uu + reg I; gains into ws.k, ws.K.
+
+    Returns (failed node or -1, d1, d2): the model's decrease for a step gamma is
+    -(gamma d1 - gamma^2 / 2 d2) (so d1 - d2 / 2 at gamma = 1).
+    """
+    second = lin.order == 2
+    return kernels.backward_pass(
+        lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+        lin.Theta if second else ws.empty_theta,
+        lin.Gamma if second else ws.empty_gamma,
+        lin.Xi if second else ws.empty_xi,
+        second, reg, ws.k, ws.K, ws.quu_eig,
+    )
+
+
+def gradient(lin: Linearisation, ws: Workspace) -> np.ndarray:
+    """dJ/dU (H, m) by the psi recursion of Lemma lemm:psi, into ws.grad (first-order terms only)."""
+    kernels.gradient(lin.Phi, lin.B, lin.l_x, lin.l_u, lin.lf_x, ws.grad)
+    return ws.grad
+
+
+def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions) -> tuple[float, float, float, int]:
+    """Backward pass restarted from k = H with a larger lambda while Q_uu + lambda I is not
+    positive definite (Remark rem:theta): lambda <- max(reg_increase lambda, reg_min).
+
+    Returns (lambda, d1, d2, restarts); lambda > opt.reg_max means it gave up.
+    """
+    restarts = 0
+    while True:
+        failed, d1, d2 = backward(lin, ws, lam)
+        if failed < 0:
+            break
+        restarts += 1
+        lam = max(lam * opt.reg_increase, opt.reg_min)
+        if lam > opt.reg_max:
+            break
+    return lam, d1, d2, restarts
+
+
+def factorisable_gains(lin: Linearisation, ws: Workspace, opt: SolverOptions) -> None:
+    """Gains for the user where the lambda = 0 pass failed: the smallest lambda >= reg_min (on the
+    reg_increase grid, up to reg_max) whose Q_uu factorises."""
+    lam = opt.reg_min
+    while backward(lin, ws, lam)[0] >= 0 and lam < opt.reg_max:
+        lam *= opt.reg_increase
+
+
+def _upper_sym(A: np.ndarray) -> np.ndarray:
+    # kernels.backward_pass reads only the upper triangle of its symmetric blocks; mirror that.
+    return np.triu(A) + np.triu(A, 1).T
+
+
+def node_quu(lin: Linearisation, node: int) -> np.ndarray:
+    """Q_uu (lambda = 0) at ``node``: numpy mirror of kernels.backward_pass from H-1 down to node.
+
+    Only used on the (rare) saddle path, where the compiled pass stops at the failing node without
+    returning its Q_uu. Nodes > node factorised there, so the recursion is well defined.
+    """
+    second = lin.order == 2
+    Vx, Vxx = lin.lf_x.copy(), _upper_sym(lin.lf_xx)
+    for k in range(lin.Phi.shape[0] - 1, node - 1, -1):
+        P, Bk = lin.Phi[k], lin.B[k]
+        Qx = lin.l_x[k] + P.T @ Vx
+        Qu = lin.l_u[k] + Bk.T @ Vx
+        Qxx = lin.l_xx[k] + P.T @ Vxx @ P
+        Qux = lin.l_ux[k] + Bk.T @ Vxx @ P
+        Quu = lin.l_uu[k] + Bk.T @ Vxx @ Bk
+        if second:
+            Qxx = Qxx + np.einsum("i,iab->ab", Vx, lin.Theta[k])
+            Qux = Qux + np.einsum("i,iac->ca", Vx, lin.Gamma[k])
+            Quu = Quu + np.einsum("i,iab->ab", Vx, lin.Xi[k])
+        Qxx, Quu = _upper_sym(Qxx), _upper_sym(Quu)
+        if k == node:
+            return Quu
+        kk = np.linalg.solve(Quu, Qu)
+        KK = np.linalg.solve(Quu, Qux)
+        Vx = Qx - Qux.T @ kk
+        Vxx = _upper_sym(Qxx - Qux.T @ KK)
+    raise AssertionError("unreachable")

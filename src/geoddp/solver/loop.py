@@ -1,0 +1,271 @@
+"""Algorithm 1 of the paper: DDP on Lie groups, as a short loop over named steps.
+
+One iteration: expand dynamics and costs along the nominal trajectory (first or second order,
+Section IV; :meth:`_Solve.direction`), run the backward recursion (eqs. Qfunctions, dustar, backv,
+vfinal) with Q_uu regularisation (:mod:`.backward`), then a forward pass with line search on gamma
+(eq. dustar, step 'steph'; :mod:`.forward`), a stopping test and the regularisation update.
+
+Decisions the paper leaves open, and why:
+* Regularisation (Remark rem:theta): when Q_uu + lambda I is not positive definite at some node,
+  lambda <- max(1.9 lambda, reg_min) and the backward pass *restarts* from k = H. Continuing from
+  the failing node would mix value functions of different lambda; with the second-order expansion
+  the first iterations need this to produce descent directions. After an accepted step with
+  gamma >= 0.5, lambda <- lambda / 10 (and to 0 below reg_min) so that the last iterations run
+  unregularised and keep their superlinear rate.
+* Line search: gamma in {1, 1/3, 1/9, ...} until J <= J_bar (the paper's test); if gamma falls
+  below min_step, lambda is raised and the iteration is redone; past reg_max the solve stops.
+* Stopping: |J_i - J_(i-1)| <= tol after an accepted step, or ||dJ/dU|| <= grad_tol (gradient by
+  Lemma lemm:psi), or max_iter. A final backward pass at the returned iterate, with the exact
+  second-order expansion and lambda = 0, gives the feedback gains and tells whether the point is
+  a strict local minimum: for exact second-order DDP, all Q_uu positive definite is equivalent to
+  a positive definite Hessian of J(U). A stationary point that fails this test is reported as a
+  saddle, never as converged, unless a step along negative curvature (:mod:`.saddle`) escapes it.
+
+The solver talks to the problem only through :class:`geoddp.contract.OptimalControlProblem`.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+import numpy as np
+
+from .. import kernels
+from ..contract import Linearisation, OptimalControlProblem, Trajectory
+from ..result import Result
+from .backward import Workspace, backward, factorisable_gains, gradient, regularised_backward
+from .forward import line_search
+from .history import History
+from .options import SolverOptions
+from .saddle import MAX_ESCAPES, escape_saddle
+from .status import (
+    STATUS_CONVERGED_COST,
+    STATUS_CONVERGED_GRAD,
+    STATUS_MAX_ITER,
+    STATUS_MAX_REG,
+    STATUS_NO_DESCENT,
+    STATUS_SADDLE,
+)
+
+_EPS = np.finfo(float).eps
+
+
+def cost_gradient(problem: OptimalControlProblem, controls: np.ndarray) -> tuple[float, np.ndarray]:
+    """J(U) and dJ/dU (H, m) by the psi recursion of Lemma lemm:psi (exact, not a DDP step)."""
+    U = problem.check_controls(controls, "controls")
+    traj = problem.trajectory(U)
+    ws = Workspace(problem.horizon, problem.nu, problem.nx)
+    return problem.trajectory_cost(traj), gradient(problem.linearise(traj, 1), ws).copy()
+
+
+def _print_header(out: TextIO) -> None:
+    # One row per iteration: the nominal iterate's J and gradient, then the step taken from it.
+    out.write(f"{'iter':>4} {'cost':>20} {'|grad|':>10} {'dJ':>11} {'lambda':>9} {'gamma':>7} {'exp':>6} {'restarts':>8}\n")
+
+
+def _print_row(out: TextIO, it, J, g, dJ, lam, gamma, exp_name, restarts) -> None:
+    out.write(f"{it:4d} {J:20.14e} {g:10.3e} {dJ:11.3e} {lam:9.2e} {gamma:7.4f} {exp_name:>6} {restarts:8d}\n")
+    out.flush()
+
+
+class _Solve:
+    """The state of one solve: the iterate, lambda, the counters, the recorder and the buffers."""
+
+    def __init__(self, problem: OptimalControlProblem, opt: SolverOptions, U: np.ndarray) -> None:
+        self.problem, self.opt = problem, opt
+        self.out = opt.stream or sys.stdout
+        self.t_start = time.perf_counter()
+        self.timings = {"derivatives": 0.0, "backward": 0.0, "forward": 0.0, "final_check": 0.0}
+        self.traj: Trajectory = problem.trajectory(U)
+        self.ws = Workspace(problem.horizon, problem.nu, problem.nx)
+        self.J = problem.trajectory_cost(self.traj)
+        if not np.isfinite(self.J):
+            raise FloatingPointError("the initial guess gives a non-finite cost: check the initial controls")
+        self.J0 = self.J
+        self.hist = History(self.J, U, self.t_start, opt.record_controls)
+        self.use_second = opt.expansion == "second"
+        self.lam = opt.reg_init
+        self.it = 0
+        self.status, self.message, self.converged = STATUS_MAX_ITER, f"reached max_iter = {opt.max_iter}", False
+        self.escapes: list[dict] = []
+        self.checked: Linearisation | None = None  # exact (order 2) linearisation at the iterate, if checked there
+        self.checked_node = -1  # its lambda = 0 backward pass outcome (gains stay in ws.k, ws.K)
+        if opt.verbose:
+            _print_header(self.out)
+
+    # ------------------------------------------------------------------ steps
+    def expansion_order(self) -> int:
+        """The switch rule: second order once J_i / J_0 < switch_ratio or after switch_after iterations."""
+        opt = self.opt
+        if opt.expansion == "switch" and not self.use_second and (
+            (self.J0 > 0 and self.J / self.J0 < opt.switch_ratio) or self.it >= opt.switch_after
+        ):
+            self.use_second = True
+        return 2 if self.use_second else 1
+
+    def direction(self, order: int) -> tuple[Linearisation, float]:
+        """Linearise at the iterate; returns it and ||dJ/dU|| (recorded once per iterate)."""
+        t0 = time.perf_counter()
+        lin = self.problem.linearise(self.traj, order)
+        gnorm = float(np.linalg.norm(gradient(lin, self.ws)))
+        self.timings["derivatives"] += time.perf_counter() - t0
+        self.hist.gradient(gnorm)
+        return lin, gnorm
+
+    def stop(self, status: str, message: str, converged: bool = False) -> None:
+        self.status, self.message, self.converged = status, message, converged
+
+    def escaped(self, lin2: Linearisation | None = None) -> bool:
+        """A stopping test passed at the iterate: run the final check's exact lambda = 0 pass now
+        (unless the caller hands in ``lin2``, where that very pass just succeeded) and, at a
+        saddle, take an escape step as an iteration. True after an escape; False means stop
+        (``checked`` then holds the check's linearisation for the final check)."""
+        t0 = time.perf_counter()
+        if lin2 is None:
+            lin2 = self.problem.linearise(self.traj, 2)
+            failed = backward(lin2, self.ws, 0.0)[0]
+        else:
+            failed = -1
+        self.checked, self.checked_node = lin2, failed
+        step = None
+        if failed >= 0 and len(self.escapes) < MAX_ESCAPES:
+            step = escape_saddle(self.problem, lin2, failed, self.ws, self.traj, self.J)
+        self.timings["final_check"] += time.perf_counter() - t0
+        if step is None or self.it >= self.opt.max_iter:
+            return False
+        if self.hist.needs_gradient():  # the gradient of an iterate reached by a step
+            self.hist.gradient(float(np.linalg.norm(gradient(lin2, self.ws))))
+        traj, J_new, info = step
+        info.update(iteration=self.it, cost_before=float(self.J), cost_after=float(J_new))
+        self.escapes.append(info)
+        if self.opt.verbose:
+            _print_row(self.out, self.it, self.J, self.hist.grad[-1], J_new - self.J, self.lam, abs(info["alpha"]), "escape", 0)
+        self.accept(traj, J_new, self.lam, abs(info["alpha"]), "second")
+        self.checked = None
+        return True
+
+    def accept(self, traj: Trajectory, J: float, lam: float, step: float, expansion: str) -> None:
+        self.traj, self.J = traj, J
+        self.it += 1
+        self.hist.accept(J, lam, step, expansion, traj.u)
+
+    def iterate(self) -> bool:
+        """One iteration of Algorithm 1. Returns False when the solve stops."""
+        opt, ws = self.opt, self.ws
+        order = self.expansion_order()
+        lin, gnorm = self.direction(order)
+        if gnorm <= opt.grad_tol:
+            if self.escaped():
+                return True
+            self.stop(STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= grad_tol", True)
+            return False
+
+        t0 = time.perf_counter()
+        self.lam, d1, d2, restarts = regularised_backward(lin, ws, self.lam, opt)
+        self.timings["backward"] += time.perf_counter() - t0
+        lam_used, quu_min = self.lam, float(ws.quu_eig.min())
+        if self.lam > opt.reg_max:
+            self.stop(STATUS_MAX_REG, f"Q_uu not positive definite with lambda up to {opt.reg_max:.1e}")
+            return False
+
+        # At machine-precision stationarity the model's full-step decrease is below the round-off
+        # of J: no trial step can show a decrease, so stop here (after the exact check) instead of
+        # shrinking gamma through a dozen rollouts.
+        full_step_decrease = d1 - 0.5 * d2
+        if abs(full_step_decrease) <= 4.0 * _EPS * abs(self.J) and lam_used <= 1e-3 * quu_min:
+            if self.escaped(lin if (lin.order == 2 and lam_used == 0.0) else None):
+                return True
+            self.stop(STATUS_CONVERGED_COST, f"predicted decrease {abs(full_step_decrease):.1e} below the round-off of J", True)
+            return False
+
+        t0 = time.perf_counter()
+        found = line_search(self.problem, self.traj, self.J, ws.k, ws.K, opt)
+        self.timings["forward"] += time.perf_counter() - t0
+        if found is None:
+            # No descent along this direction: be more conservative and redo the iteration.
+            self.lam = max(self.lam * 10.0, opt.reg_min)
+            if self.lam > opt.reg_max:
+                self.stop(STATUS_NO_DESCENT, "no gamma >= min_step decreased J, even with maximal regularisation")
+                return False
+            return True
+
+        traj, J_new, gamma = found
+        dJ = J_new - self.J
+        exp_name = "second" if self.use_second else "first"
+        if opt.verbose:
+            _print_row(self.out, self.it, self.J, gnorm, dJ, self.lam, gamma, exp_name, restarts)
+        self.accept(traj, J_new, self.lam, gamma, exp_name)
+        if gamma >= 0.5:
+            self.lam = self.lam / 10.0 if self.lam / 10.0 >= opt.reg_min else 0.0
+        # A small |dJ| after a damped step says nothing about optimality. The cost test counts
+        # only after an undamped Newton-like step: gamma = 1 (or a model decrease below tol) and
+        # lambda negligible against Q_uu (with S_u = 1e-8, lambda = 0.03 would dominate Q_uu and
+        # shrink every step to a gradient step with a tiny dJ, far from the optimum) ...
+        undamped = (gamma == 1.0 or abs(full_step_decrease) <= opt.tol) and lam_used <= 1e-3 * quu_min
+        # ... unless J no longer changes beyond round-off: no step can make progress then.
+        at_roundoff = abs(dJ) <= 4.0 * _EPS * abs(self.J)
+        if abs(dJ) <= opt.tol and (undamped or at_roundoff):
+            if self.escaped():
+                return True
+            self.stop(STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True)
+            return False
+        return True
+
+    def final_check(self) -> float:
+        """Exact second-order expansion, lambda = 0, at the returned iterate: the user's gains and
+        the minimum test (a converged point that fails it is a saddle). Returns ||dJ/dU||."""
+        t0 = time.perf_counter()
+        lin = self.checked if self.checked is not None else self.problem.linearise(self.traj, 2)
+        gnorm = float(np.linalg.norm(gradient(lin, self.ws)))
+        self.hist.gradient(gnorm)
+        # the check already ran this exact lambda = 0 pass when a stopping test passed here
+        failed = self.checked_node if self.checked is not None else backward(lin, self.ws, 0.0)[0]
+        if failed >= 0:
+            factorisable_gains(lin, self.ws, self.opt)  # gains for the user need a factorisable Q_uu
+        self.timings["final_check"] += time.perf_counter() - t0
+        if self.converged and failed >= 0:
+            self.stop(STATUS_SADDLE, f"stationary (||dJ/dU|| = {gnorm:.3e}) but Q_uu is not positive definite at node "
+                      f"{failed} with the exact second-order expansion: the reduced Hessian is indefinite")
+        if self.escapes:
+            self.message += f"; escaped {len(self.escapes)} saddle point(s) along negative curvature"
+        if (self.status == STATUS_CONVERGED_COST and self.converged
+                and gnorm > max(self.opt.grad_tol, 1e-6 * max(1.0, abs(self.J)))):
+            self.message += f"; note ||dJ/dU|| = {gnorm:.3e} at the final iterate"
+        return gnorm
+
+    def result(self, gnorm: float) -> Result:
+        """Assemble the Result from the trajectory, the recorder and the problem's description."""
+        solve_time = time.perf_counter() - self.t_start
+        if self.opt.verbose:
+            self.out.write(f"{self.status} ({self.message}); J = {self.J:.12e}, ||grad|| = {gnorm:.3e}, "
+                           f"{self.it} iterations, {solve_time*1e3:.1f} ms\n")
+        p = self.problem
+        return Result(
+            times=np.arange(p.horizon + 1) * p.dt, q=self.traj.q, v=self.traj.v, model=p.describe(),
+            controls=self.traj.u, feedforward=self.ws.k.copy(), feedback=self.ws.K.copy(),
+            cost=float(self.J), iterations=self.it, converged=self.converged, status=self.status,
+            message=self.message, **self.hist.arrays(), solve_time_s=solve_time, timings=self.timings,
+            expansion=self.opt.expansion, dt=p.dt,
+            extra={"saddle_escapes": self.escapes} if self.escapes else {},
+        )
+
+
+def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
+          initial_controls: np.ndarray | None = None) -> Result:
+    """Solve ``problem`` with geometric DDP (Algorithm 1) and return a :class:`Result`.
+
+    Args:
+        problem: anything satisfying :class:`geoddp.contract.OptimalControlProblem`
+            (:class:`geoddp.problem.Problem`, :class:`geoddp.multibody_problem.MultibodyProblem`).
+        options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
+        initial_controls: (H, m) initial guess; zeros by default (as in the paper).
+    """
+    opt = options or SolverOptions()
+    U = (np.zeros((problem.horizon, problem.nu)) if initial_controls is None
+         else problem.check_controls(initial_controls))
+    kernels.warm_up()  # before the clock starts: solve_time_s measures the solve, not numba's loading
+    s = _Solve(problem, opt, U)
+    while s.it < opt.max_iter and s.iterate():
+        pass
+    return s.result(s.final_check())

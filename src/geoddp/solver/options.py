@@ -1,0 +1,86 @@
+"""Solver options: the only home of every solver default and of the list of expansions.
+
+Scene readers take their ``[solver]`` defaults from here (:data:`DEFAULT_EXPANSION`, ...), so a
+default changes in one place. Options are validated where they enter; the solver trusts them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TextIO
+
+from ..validate import InputError, choice, nonnegative_float, positive_float, positive_int
+
+EXPANSIONS = ("first", "second", "switch")
+
+DEFAULT_EXPANSION = "switch"
+DEFAULT_SWITCH_RATIO = 0.1
+DEFAULT_SWITCH_AFTER = 5
+DEFAULT_TOL = 1e-8
+DEFAULT_GRAD_TOL = 1e-10
+DEFAULT_MAX_ITER = 200
+DEFAULT_REG_INIT = 0.0
+DEFAULT_REG_MIN = 1e-8
+DEFAULT_REG_MAX = 1e10
+DEFAULT_REG_INCREASE = 1.9  # the paper's factor
+DEFAULT_STEP_FACTOR = 1.0 / 3.0  # the paper's h
+DEFAULT_MIN_STEP = 1e-10
+
+
+@dataclass
+class SolverOptions:
+    """Options of :func:`geoddp.solver.solve`.
+
+    Attributes:
+        expansion: "first" (Phi, B only), "second" (with Theta, Gamma, Xi) or "switch" (first
+            until J_i / J_0 < switch_ratio, then second; the paper's proposal), or after
+            ``switch_after`` first-order iterations, whichever comes first.
+        switch_ratio: sigma of the switch rule, in (0, 1).
+        switch_after: also switch after this many first-order iterations. The paper's test alone
+            never fires when the optimum keeps most of the initial cost (a tumbling start,
+            1:1000 inertia, an underactuated body), where first order then grinds on at a
+            linear rate for tens of iterations.
+        tol: stop when |J_i - J_(i-1)| <= tol.
+        grad_tol: stop when ||dJ/dU||_2 <= grad_tol.
+        max_iter: maximum number of accepted iterations.
+        reg_init, reg_min, reg_max: Q_uu regularisation lambda (start, floor, ceiling).
+        reg_increase: factor on lambda when Q_uu is not positive definite (paper: 1.9).
+        step_factor: line-search factor h (paper: 1/3); min_step: smallest gamma tried.
+        verbose: print the per-iteration table.
+        record_controls: keep the controls of every iterate in the result.
+        stream: where the table goes (sys.stdout when None).
+
+    The derivative backend is not an option of the solver: it is chosen when the model is built
+    (``satellite_problem(..., backend=...)``, ``solve_scene(..., backend=...)``).
+    """
+
+    expansion: str = DEFAULT_EXPANSION
+    switch_ratio: float = DEFAULT_SWITCH_RATIO
+    switch_after: int = DEFAULT_SWITCH_AFTER
+    tol: float = DEFAULT_TOL
+    grad_tol: float = DEFAULT_GRAD_TOL
+    max_iter: int = DEFAULT_MAX_ITER
+    reg_init: float = DEFAULT_REG_INIT
+    reg_min: float = DEFAULT_REG_MIN
+    reg_max: float = DEFAULT_REG_MAX
+    reg_increase: float = DEFAULT_REG_INCREASE
+    step_factor: float = DEFAULT_STEP_FACTOR
+    min_step: float = DEFAULT_MIN_STEP
+    verbose: bool = True
+    record_controls: bool = False
+    stream: TextIO | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self.expansion = choice(self.expansion, "expansion", EXPANSIONS)
+        self.switch_ratio = positive_float(self.switch_ratio, "switch_ratio")
+        if not self.switch_ratio < 1.0:
+            raise InputError("switch_ratio", f"expected a number in (0, 1), got {self.switch_ratio}")
+        self.switch_after = positive_int(self.switch_after, "switch_after")
+        self.tol = nonnegative_float(self.tol, "tol")
+        self.grad_tol = nonnegative_float(self.grad_tol, "grad_tol")
+        self.max_iter = positive_int(self.max_iter, "max_iter")
+        self.reg_init = nonnegative_float(self.reg_init, "reg_init")
+        self.reg_min = positive_float(self.reg_min, "reg_min")
+        self.reg_max = positive_float(self.reg_max, "reg_max")
+        self.reg_increase = positive_float(self.reg_increase, "reg_increase")
+        self.step_factor = positive_float(self.step_factor, "step_factor")
+        self.min_step = positive_float(self.min_step, "min_step")
