@@ -30,7 +30,8 @@ from .solver.status import (  # noqa: F401
 )
 
 # Keys of the model description that make up ``Result.multibody`` (what the viewer rebuilds from).
-_MULTIBODY_KEYS = ("urdf", "urdf_xml", "root", "nq", "nv")
+# the last two are optional: the viewer's mesh search path and frame-target triads
+_MULTIBODY_KEYS = ("urdf", "urdf_xml", "root", "nq", "nv", "package_dirs", "frame_targets")
 
 
 def rotations_to_quaternions(rotations: np.ndarray) -> np.ndarray:
