@@ -17,6 +17,7 @@ import pinocchio as pin
 from .contract import Linearisation, Trajectory
 from .costs import CostDerivatives
 from .integrators import Expansion
+from .models import compiled
 from .models.multibody import Multibody
 from .multibody_costs import FramePlacement, MultibodyCostSum
 from .validate import InputError, finite_array, positive_int
@@ -71,8 +72,19 @@ class MultibodyProblem:
         gamma: float, Q_out: np.ndarray, V_out: np.ndarray, u_out: np.ndarray,
     ) -> bool:
         """Forward pass of Algorithm 1 (eq. dustar): u_k = u_bar_k - gamma k_k - K_k zeta_k with
-        zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite."""
+        zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite.
+
+        Shapes: Q_bar, Q_out (H+1, nq); V_bar, V_out (H+1, nv); u_bar, k_ff, u_out (H, m);
+        K_fb (H, m, 2 nv). With the compiled backend the whole pass runs in C++."""
         model, data = self.model, self._data
+        if model.backend == "compiled":
+            H, nq, nv, m = self.horizon, model.nq, model.nv, model.nu
+            ca, co = compiled.check_array, compiled.check_output
+            return compiled._core.rollout_closed_loop(
+                model.pin_model, model.actuation, model.dt, compiled.INTEGRATORS[model.integrator], self.q0, self.v0,
+                ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
+                ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
+                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)))
         Q_out[0], V_out[0] = self.q0, self.v0
         for k in range(self.horizon):
             zeta = model.local(Q_bar[k], V_bar[k], Q_out[k], V_out[k])
@@ -85,9 +97,9 @@ class MultibodyProblem:
         return True
 
     def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int, backend: str) -> Expansion:
-        """Phi, B (and Theta, Gamma, Xi for order 2) along a trajectory; ``backend`` is unused:
-        multibody derivatives always come from Pinocchio (analytic first order, central
-        differences of it for the velocity update's second order)."""
+        """Phi, B (and Theta, Gamma, Xi for order 2) along a trajectory; ``backend`` (the
+        satellite's derivative option) is unused: the multibody model's own backend, chosen
+        when it was built, computes them (:class:`geoddp.models.multibody.Multibody`)."""
         return self.model.expansion(Q, V, controls, order=order)
 
     def cost(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray) -> float:
@@ -129,7 +141,8 @@ class MultibodyProblem:
 
     def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
         """:meth:`rollout_closed_loop` around ``traj`` into new arrays; None if non-finite."""
-        Q, V, U = np.empty_like(traj.q), np.empty_like(traj.v), np.empty_like(traj.u)
+        # fresh C-contiguous outputs (empty_like would copy a nominal's layout, e.g. a transposed guess)
+        Q, V, U = np.empty(traj.q.shape), np.empty(traj.v.shape), np.empty(traj.u.shape)
         if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, Q, V, U):
             return None
         return Trajectory(Q, V, U)
