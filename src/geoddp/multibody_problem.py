@@ -16,6 +16,7 @@ import pinocchio as pin
 
 from .costs import CostDerivatives
 from .integrators import Expansion
+from .models import compiled
 from .models.multibody import Multibody
 from .multibody_costs import FramePlacement, MultibodyCostSum
 from .validate import InputError, finite_array, positive_int
@@ -70,8 +71,19 @@ class MultibodyProblem:
         gamma: float, Q_out: np.ndarray, V_out: np.ndarray, u_out: np.ndarray,
     ) -> bool:
         """Forward pass of Algorithm 1 (eq. dustar): u_k = u_bar_k - gamma k_k - K_k zeta_k with
-        zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite."""
+        zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite.
+
+        Shapes: Q_bar, Q_out (H+1, nq); V_bar, V_out (H+1, nv); u_bar, k_ff, u_out (H, m);
+        K_fb (H, m, 2 nv). With the compiled backend the whole pass runs in C++."""
         model, data = self.model, self._data
+        if model.backend == "compiled":
+            H, nq, nv, m = self.horizon, model.nq, model.nv, model.nu
+            ca, co = compiled.check_array, compiled.check_output
+            return compiled._core.rollout_closed_loop(
+                model.pin_model, model.actuation, model.dt, compiled.INTEGRATORS[model.integrator], self.q0, self.v0,
+                ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
+                ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
+                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)))
         Q_out[0], V_out[0] = self.q0, self.v0
         for k in range(self.horizon):
             zeta = model.local(Q_bar[k], V_bar[k], Q_out[k], V_out[k])

@@ -22,9 +22,18 @@ Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
   second order exact per joint group (:mod:`geoddp.configuration`), the TSO(3) formula of
   :mod:`geoddp.integrators` applied to the product group.
 Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
+
+Backends (chosen when the model is built, ``backend=``): "compiled" runs the rollout and the
+whole expansion in the C++ core (:mod:`geoddp.models.compiled`): the same quantities, with the
+velocity update's second order exact from Pinocchio's ``ComputeRNEASecondOrderDerivatives`` (no
+differences) and SE(3)'s dJr exact; "python" is the code below, kept as the oracle. "auto" (the
+default) picks "compiled" for the euler and semi_implicit integrators when the extension imports,
+"python" otherwise (rk4 and variational always run in Python for now); the environment variable
+GEODDP_MULTIBODY_BACKEND=python makes "auto" pick "python".
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,11 +43,13 @@ import pinocchio as pin
 from .. import configuration as cfg
 from .. import integrators as integ
 from .. import rkmk4, variational
-from ..validate import InputError, choice, finite_array, positive_float
+from ..validate import InputError, choice, finite_array, nonnegative_int, positive_float
+from . import compiled
 
 ROOTS = ("free_flyer", "spherical", "fixed")
 INTEGRATORS = integ.INTEGRATORS + ("rk4", "variational")
 SECOND_ORDER_KINDS = ("exact",)
+BACKENDS = ("auto", "compiled", "python")
 # Central-difference step for the second derivatives of the velocity update: the error is
 # ~h^2 |f'''| / 6 + eps |f'| / h; h = 1e-5 balances them near 1e-10 relative (tested against a
 # Richardson-extrapolated difference).
@@ -65,6 +76,11 @@ class Multibody:
             (the paper's forward variational Euler, implicit; :mod:`geoddp.variational`).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
+        backend: "auto" (default: "compiled" when the integrator is euler or semi_implicit and
+            geoddp._core imports, else "python"), "compiled" or "python" (the oracle). Holds the
+            resolved choice after construction.
+        threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
+            core's default (``geoddp._core.default_threads()``).
     """
 
     urdf: str | Path
@@ -74,6 +90,8 @@ class Multibody:
     integrator: str = "euler"
     gravity: bool = True
     second_order: str = "exact"
+    backend: str = "auto"
+    threads: int = 0
     pin_model: pin.Model = field(init=False, repr=False)
     groups: list = field(init=False, repr=False)
     _variational: variational.VariationalEuler | None = field(init=False, repr=False, default=None)
@@ -83,6 +101,18 @@ class Multibody:
         self.dt = positive_float(self.dt, "dt")
         self.integrator = choice(self.integrator, "integrator", INTEGRATORS)
         self.second_order = choice(self.second_order, "second_order", SECOND_ORDER_KINDS)
+        self.backend = choice(self.backend, "backend", BACKENDS)
+        self.threads = nonnegative_int(self.threads, "threads")
+        supported = self.integrator in compiled.INTEGRATORS
+        if self.backend == "auto":
+            # GEODDP_MULTIBODY_BACKEND=python forces the oracle everywhere (scene files, CLI).
+            forced = os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto")
+            self.backend = "compiled" if supported and compiled.available() and forced != "python" else "python"
+        elif self.backend == "compiled":
+            if not supported:
+                raise InputError("backend", f"expected 'python' or 'auto' for integrator {self.integrator!r} (the compiled "
+                                 "core runs 'euler' and 'semi_implicit'), got 'compiled'")
+            compiled.require()
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
         if not isinstance(self.urdf, (str, Path)):
@@ -191,6 +221,8 @@ class Multibody:
         q0, v0 = self.check_state(q0, v0)
         U = self.check_controls(controls)
         H = U.shape[0]
+        if self.backend == "compiled":
+            return compiled._core.rollout(self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, U)
         data = self.pin_model.createData()
         Q = np.empty((H + 1, self.nq))
         V = np.empty((H + 1, self.nv))
@@ -343,6 +375,10 @@ class Multibody:
         V = finite_array(V, "V", (H + 1, self.nv))
         if order not in (1, 2):
             raise InputError("order", f"expected 1 or 2, got {order!r}")
+        if self.backend == "compiled":
+            Phi, B, Theta, Gamma, Xi = compiled._core.expansion(
+                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, order, self.threads)
+            return integ.Expansion(Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi)
         nv, m, dt = self.nv, self.nu, self.dt
         n, nz = 2 * nv, 2 * nv + m
         if self.integrator == "rk4":

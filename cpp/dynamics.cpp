@@ -1,0 +1,387 @@
+// Multibody dynamics kernels (see dynamics.hpp). One translation unit holds every Pinocchio
+// template instantiation the core needs, to keep the compile time small.
+#include "dynamics.hpp"
+
+#include <pinocchio/algorithm/aba-derivatives.hpp>
+#include <pinocchio/algorithm/aba.hpp>
+#include <pinocchio/algorithm/joint-configuration.hpp>
+#include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
+#include <pinocchio/multibody.hpp>
+#include <pinocchio/spatial.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+#include "lie.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+typedef Eigen::Map<const Eigen::VectorXd> CVecMap;
+typedef Eigen::Map<Eigen::VectorXd> VecMap;
+typedef Eigen::Map<const RowMat> CMatMap;
+typedef Eigen::Map<RowMat> MatMap;
+
+std::vector<JointGroup> joint_groups(const Model& model) {
+  std::vector<JointGroup> out;
+  for (pinocchio::JointIndex j = 1; j < (pinocchio::JointIndex)model.njoints; ++j) {
+    const auto& jm = model.joints[j];
+    const std::string name = jm.shortname();
+    JointGroup g{VECTOR, jm.idx_v(), jm.nv(), jm.idx_q()};
+    if (name == "JointModelFreeFlyer") {
+      g.kind = SE3;
+    } else if (name == "JointModelSpherical") {
+      g.kind = SO3;
+    } else if (jm.nq() == 2 && jm.nv() == 1) {
+      g.kind = SO2;  // revolute unbounded: (cos, sin)
+    } else if (jm.nq() == jm.nv() && name != "JointModelComposite") {
+      g.kind = VECTOR;
+    } else {
+      throw std::invalid_argument("joint " + model.names[j] + " of type " + name + " is not supported");
+    }
+    out.push_back(g);
+  }
+  return out;
+}
+
+int default_threads() {
+  // Measured on 2 cores (benchmarks/core_dynamics.py): see the report; one worker per core.
+  const unsigned hc = std::thread::hardware_concurrency();
+  return hc == 0 ? 1 : (int)std::min(hc, 2u);
+}
+
+// Runs fn(begin, end, worker) on contiguous chunks of [0, N) with up to `threads` workers.
+template <typename Fn>
+static void parallel_for(int N, int threads, Fn fn) {
+  int T = threads <= 0 ? default_threads() : threads;
+  T = std::max(1, std::min(T, N));
+  if (T == 1) {
+    fn(0, N, 0);
+    return;
+  }
+  std::vector<std::thread> pool;
+  std::vector<std::exception_ptr> errors(T);
+  for (int t = 0; t < T; ++t) {
+    const int b = (int)((long)N * t / T), e = (int)((long)N * (t + 1) / T);
+    pool.emplace_back([&, b, e, t]() {
+      try {
+        fn(b, e, t);
+      } catch (...) {
+        errors[t] = std::current_exception();
+      }
+    });
+  }
+  for (auto& th : pool) th.join();
+  for (auto& err : errors)
+    if (err) std::rethrow_exception(err);
+}
+
+static inline bool all_finite(const Eigen::VectorXd& x) { return x.allFinite(); }
+
+// One explicit / semi-implicit Euler step (geoddp.models.multibody.Multibody._step).
+static void step(const Setup& s, pinocchio::Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                 const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1) {
+  const Model& model = *s.model;
+  pinocchio::aba(model, data, q, v, tau);
+  v1 = v + s.dt * data.ddq;
+  const Eigen::VectorXd w = s.dt * (s.integrator == SEMI_IMPLICIT ? v1 : v);
+  pinocchio::integrate(model, q, w, q1);
+}
+
+void rollout(const Setup& s, const double* q0, const double* v0, const double* U, int N, double* Q, double* V) {
+  const Model& model = *s.model;
+  const int nq = model.nq, nv = model.nv, m = s.m;
+  pinocchio::Data data(model);
+  CMatMap Hm(s.H, nv, m);
+  MatMap Qm(Q, N + 1, nq), Vm(V, N + 1, nv);
+  CMatMap Um(U, N, m);
+  Qm.row(0) = CVecMap(q0, nq).transpose();
+  Vm.row(0) = CVecMap(v0, nv).transpose();
+  Eigen::VectorXd q(nq), v(nv), q1(nq), v1(nv), tau(nv);
+  for (int k = 0; k < N; ++k) {
+    q = Qm.row(k).transpose();
+    v = Vm.row(k).transpose();
+    tau = Hm * Um.row(k).transpose();
+    step(s, data, q, v, tau, q1, v1);
+    Qm.row(k + 1) = q1.transpose();
+    Vm.row(k + 1) = v1.transpose();
+  }
+}
+
+// difference(q0, q1) with exact SO(2) entries (geoddp.configuration.difference).
+static void difference(const Model& model, const std::vector<JointGroup>& groups, const Eigen::VectorXd& q0,
+                       const Eigen::VectorXd& q1, Eigen::VectorXd& d) {
+  pinocchio::difference(model, q0, q1, d);
+  for (const JointGroup& g : groups) {
+    if (g.kind != SO2) continue;
+    const double c0 = q0[g.idx_q], s0 = q0[g.idx_q + 1], c1 = q1[g.idx_q], s1 = q1[g.idx_q + 1];
+    d[g.idx_v] = std::atan2(c0 * s1 - s0 * c1, c0 * c1 + s0 * s1);
+  }
+}
+
+bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, const double* Qbar,
+                         const double* Vbar, const double* Ubar, const double* kff, const double* K,
+                         double gamma, int N, double* Qout, double* Vout, double* Uout) {
+  const Model& model = *s.model;
+  const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv;
+  const std::vector<JointGroup> groups = joint_groups(model);
+  pinocchio::Data data(model);
+  CMatMap Hm(s.H, nv, m);
+  CMatMap Qb(Qbar, N + 1, nq), Vb(Vbar, N + 1, nv), Ub(Ubar, N, m), kf(kff, N, m);
+  MatMap Qo(Qout, N + 1, nq), Vo(Vout, N + 1, nv), Uo(Uout, N, m);
+  Qo.row(0) = CVecMap(q0, nq).transpose();
+  Vo.row(0) = CVecMap(v0, nv).transpose();
+  Eigen::VectorXd q(nq), v(nv), q1(nq), v1(nv), tau(nv), zeta(n), dq(nv), u(m), qb(nq);
+  for (int k = 0; k < N; ++k) {
+    q = Qo.row(k).transpose();
+    v = Vo.row(k).transpose();
+    qb = Qb.row(k).transpose();
+    difference(model, groups, qb, q, dq);
+    zeta.head(nv) = dq;
+    zeta.tail(nv) = v - Vb.row(k).transpose();
+    CMatMap Kk(K + (size_t)k * m * n, m, n);
+    u = Ub.row(k).transpose() - gamma * kf.row(k).transpose() - Kk * zeta;
+    Uo.row(k) = u.transpose();
+    tau = Hm * u;
+    step(s, data, q, v, tau, q1, v1);
+    if (!all_finite(q1) || !all_finite(v1)) return false;
+    Qo.row(k + 1) = q1.transpose();
+    Vo.row(k + 1) = v1.transpose();
+  }
+  return true;
+}
+
+// Each of `rows` rows of X (rows, nz*nz) is an (nz, nz) matrix: make it exactly symmetric (the
+// products forming it round differently in (a, b) and (b, a)).
+static void symmetrise_rows(double* X, int rows, int nz) {
+  for (int r = 0; r < rows; ++r) {
+    double* x = X + (size_t)r * nz * nz;
+    for (int a = 0; a < nz; ++a)
+      for (int b = a + 1; b < nz; ++b) {
+        const double v = 0.5 * (x[(size_t)a * nz + b] + x[(size_t)b * nz + a]);
+        x[(size_t)a * nz + b] = v;
+        x[(size_t)b * nz + a] = v;
+      }
+  }
+}
+
+// ------------------------------------------------------------------ velocity update derivatives
+// Per-worker scratch: Pinocchio data and the node's buffers.
+struct NodeWork {
+  pinocchio::Data data;
+  Eigen::MatrixXd Minv, aq, av, au, T;
+  Eigen::VectorXd q, v, tau, a;
+  explicit NodeWork(const Model& model, int m)
+      : data(model), Minv(model.nv, model.nv), aq(model.nv, model.nv), av(model.nv, model.nv),
+        au(model.nv, m), q(model.nq), v(model.nv), tau(model.nv), a(model.nv) {}
+};
+
+// F1 (nv, nz) and, if F2 != nullptr, F2 (nv, nz*nz) row-major [p][a*nz + b] at one node.
+//
+// a(q, v, u) solves ID(q, v, a) = H u with ID RNEA (affine in a, slope M(q)). Differentiating
+// twice along z = (dq, dv, du) (dq through integrate, right-trivialised):
+//   ID_z + M a_z = [0 0 H]
+//   ID_zz + ID_za a_z + a_z^T ID_az + M a_zz = 0      (ID_aa = 0)
+// so a_zz = -Minv (ID_zz + ID_za a_z + (ID_za a_z)^T), where ID_za is only the (q, a) block
+// dM/dq (M does not depend on v) and ID_zz has the (q, q), (q, v), (v, v) blocks of RNEA's
+// second derivatives. The q-q block of RNEA is a derivative on the group (not symmetric in a
+// free flyer's rotation block): its symmetric part is the (0)-Hessian geoddp uses, as in the
+// Python path. Pinocchio's tensors (checked against differences of its analytic first
+// derivatives in tests/test_core_dynamics.py): d2tau_dqdq(i, j, k), d2tau_dvdv(i, j, k),
+// d2tau_dqdv(i, q_j, v_k), d2tau_dadq(i, a_j, q_k) = d M(i, j) / d q_k.
+static void node_velocity_derivatives(const Setup& s, NodeWork& w, double* F1, double* F2) {
+  const Model& model = *s.model;
+  const int nv = model.nv, m = s.m, nz = 2 * nv + m;
+  const double dt = s.dt;
+  CMatMap Hm(s.H, nv, m);
+  pinocchio::Data& data = w.data;
+  pinocchio::computeABADerivatives(model, data, w.q, w.v, w.tau);
+  w.Minv = data.Minv;
+  w.Minv.triangularView<Eigen::StrictlyLower>() = w.Minv.transpose();
+  w.aq = data.ddq_dq;
+  w.av = data.ddq_dv;
+  w.au = w.Minv * Hm;
+  w.a = data.ddq;
+  MatMap F1m(F1, nv, nz);
+  F1m.leftCols(nv) = dt * w.aq;
+  F1m.middleCols(nv, nv) = dt * w.av;
+  F1m.middleCols(nv, nv).diagonal().array() += 1.0;
+  F1m.rightCols(m) = dt * w.au;
+  if (F2 == nullptr) return;
+
+  pinocchio::ComputeRNEASecondOrderDerivatives(model, data, w.q, w.v, w.a);
+  const auto& Iqq = data.d2tau_dqdq;
+  const auto& Ivv = data.d2tau_dvdv;
+  const auto& Iqv = data.d2tau_dqdv;
+  const auto& dM = data.d2tau_dadq;
+  // T (nv, nz*nz): ID_zz + ID_za a_z + (ID_za a_z)^T, symmetric in (a, b).
+  w.T.setZero(nv, (Eigen::Index)nz * nz);
+  Eigen::MatrixXd az(nv, nz);
+  az.leftCols(nv) = w.aq;
+  az.middleCols(nv, nv) = w.av;
+  az.rightCols(m) = w.au;
+  Eigen::RowVectorXd dMrow(nv), P(nz);
+  for (int i = 0; i < nv; ++i) {
+    double* Ti = w.T.data();  // column-major (nv, nz*nz): T(i, c) at Ti[i + nv*c]
+    auto Tat = [&](int a, int b) -> double& { return Ti[i + (size_t)nv * ((size_t)a * nz + b)]; };
+    for (int j = 0; j < nv; ++j) {
+      // P = sum_l dM(i, l, j) a_z(l, :): the (q_j, z) entries of ID_za a_z
+      for (int l = 0; l < nv; ++l) dMrow[l] = dM(i, l, j);
+      P.noalias() = dMrow * az;
+      for (int b = 0; b < nz; ++b) {
+        Tat(j, b) += P[b];
+        Tat(b, j) += P[b];
+      }
+      for (int k = 0; k < nv; ++k) {
+        Tat(j, k) += 0.5 * (Iqq(i, j, k) + Iqq(i, k, j));
+        Tat(j, nv + k) += Iqv(i, j, k);
+        Tat(nv + k, j) += Iqv(i, j, k);
+        Tat(nv + j, nv + k) += 0.5 * (Ivv(i, j, k) + Ivv(i, k, j));
+      }
+    }
+  }
+  MatMap F2m(F2, nv, (Eigen::Index)nz * nz);
+  F2m.noalias() = (-dt) * (w.Minv * w.T);
+  symmetrise_rows(F2, nv, nz);
+}
+
+void velocity_derivatives(const Setup& s, const double* Q, const double* V, const double* U, int N, int order,
+                          int threads, double* F1, double* F2) {
+  const Model& model = *s.model;
+  const int nq = model.nq, nv = model.nv, m = s.m, nz = 2 * nv + m;
+  CMatMap Hm(s.H, nv, m);
+  parallel_for(N, threads, [&](int b, int e, int) {
+    NodeWork w(model, m);
+    for (int k = b; k < e; ++k) {
+      w.q = CVecMap(Q + (size_t)k * nq, nq);
+      w.v = CVecMap(V + (size_t)k * nv, nv);
+      w.tau = Hm * CVecMap(U + (size_t)k * m, m);
+      node_velocity_derivatives(s, w, F1 + (size_t)k * nv * nz,
+                                order >= 2 ? F2 + (size_t)k * nv * nz * nz : nullptr);
+    }
+  });
+}
+
+// ------------------------------------------------------------------ reconstruction
+void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* omega, double* A, double* Jr,
+                 double* D) {
+  MatMap Am(A, nv, nv), Jm(Jr, nv, nv);
+  Am.setIdentity();
+  Jm.setIdentity();
+  if (D != nullptr) std::fill(D, D + (size_t)nv * nv * nv, 0.0);
+  for (const JointGroup& g : groups) {
+    const int o = g.idx_v;
+    if (g.kind == SO3) {
+      const lie::Vec3 w = CVecMap(omega + o, 3);
+      Am.block<3, 3>(o, o) = pinocchio::exp3(w).transpose();
+      Jm.block<3, 3>(o, o) = lie::so3_jr(w);
+      if (D != nullptr) {
+        lie::Mat3 Dl[3];
+        lie::so3_djr(w, Dl);
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            for (int l = 0; l < 3; ++l) D[((size_t)(o + i) * nv + (o + j)) * nv + (o + l)] = Dl[l](i, j);
+      }
+    } else if (g.kind == SE3) {
+      const Eigen::Matrix<double, 6, 1> w = CVecMap(omega + o, 6);
+      Am.block<6, 6>(o, o) = pinocchio::exp6(pinocchio::Motion(-w)).toActionMatrix();
+      Jm.block<6, 6>(o, o) = lie::se3_jr(w);
+      if (D != nullptr) {
+        lie::Mat6 Dl[6];
+        lie::se3_djr(w, Dl);
+        for (int i = 0; i < 6; ++i)
+          for (int j = 0; j < 6; ++j)
+            for (int l = 0; l < 6; ++l) D[((size_t)(o + i) * nv + (o + j)) * nv + (o + l)] = Dl[l](i, j);
+      }
+    }
+  }
+}
+
+void expansion(const Setup& s, const double* Q, const double* V, const double* U, int N, int order, int threads,
+               double* Phi, double* B, double* Theta, double* Gamma, double* Xi) {
+  const Model& model = *s.model;
+  const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv, nz = n + m;
+  const double dt = s.dt;
+  const bool semi = s.integrator == SEMI_IMPLICIT;
+  const std::vector<JointGroup> groups = joint_groups(model);
+  lie::Mat3 C3[3];
+  lie::Mat6 C6[6];
+  lie::so3_structure(C3);
+  lie::se3_structure(C6);
+  CMatMap Hm(s.H, nv, m);
+  parallel_for(N, threads, [&](int b0, int e0, int) {
+    NodeWork w(model, m);
+    RowMat F1(nv, nz), F2(order >= 2 ? nv : 0, (Eigen::Index)nz * nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
+    RowMat A(nv, nv), Jr(nv, nv), G2(order >= 2 ? n : 0, (Eigen::Index)nz * nz);
+    std::vector<double> Dt(order >= 2 ? (size_t)nv * nv * nv : 0);
+    Eigen::VectorXd omega(nv);
+    for (int k = b0; k < e0; ++k) {
+      w.q = CVecMap(Q + (size_t)k * nq, nq);
+      w.v = CVecMap(V + (size_t)k * nv, nv);
+      w.tau = Hm * CVecMap(U + (size_t)k * m, m);
+      node_velocity_derivatives(s, w, F1.data(), order >= 2 ? F2.data() : nullptr);
+      // reconstruction velocity w_bar: v_k (euler) or v_{k+1} (semi-implicit)
+      omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
+      block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), order >= 2 ? Dt.data() : nullptr);
+      // first-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit)
+      if (semi) {
+        W1 = F1;
+      } else {
+        W1.setZero();
+        W1.middleCols(nv, nv).setIdentity();
+      }
+      JW.noalias() = Jr * W1;
+      G1.topRows(nv) = dt * JW;
+      G1.topLeftCorner(nv, nv) += A;
+      G1.bottomRows(nv) = F1;
+      MatMap(Phi + (size_t)k * n * n, n, n) = G1.leftCols(n);
+      MatMap(B + (size_t)k * n * m, n, m) = G1.rightCols(m);
+      if (order < 2) continue;
+      // eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
+      // (geoddp.integrators' module docstring; per non-commutative joint group).
+      G2.setZero();
+      for (const JointGroup& g : groups) {
+        if (g.kind != SO3 && g.kind != SE3) continue;
+        const int o = g.idx_v, d = g.nv;
+        const RowMat Ws = W1.middleRows(o, d);
+        const RowMat JWs = JW.middleRows(o, d);
+        const RowMat As = A.block(o, o, d, d);
+        for (int p = 0; p < d; ++p) {
+          // 1/2 dJr[rho] rho: dt^2 Ws^T Dsym_p Ws, Dsym_p(a, b) = sym D[p, a, b]
+          RowMat Ds(d, d), Cp(d, d);
+          for (int a = 0; a < d; ++a)
+            for (int c = 0; c < d; ++c)
+              Ds(a, c) = 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] +
+                                Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
+          Eigen::Map<RowMat> G2p(G2.row(o + p).data(), nz, nz);
+          G2p.noalias() += (dt * dt) * (Ws.transpose() * Ds * Ws);
+          // 1/2 [A eta, Jr rho]_p = z^T Mz_p z, Mz_p = dt/2 A^T C_p JW on the (eta in s, z) block
+          if (g.kind == SO3) Cp = C3[p]; else Cp = C6[p];
+          const RowMat Mz = (0.5 * dt) * (As.transpose() * Cp * JWs);
+          G2p.middleRows(o, d) += Mz;
+          G2p.middleCols(o, d) += Mz.transpose();
+        }
+      }
+      if (semi) G2.topRows(nv).noalias() += dt * (Jr * F2);
+      G2.bottomRows(nv) = F2;
+      symmetrise_rows(G2.data(), n, nz);
+      double* Th = Theta + (size_t)k * n * n * n;
+      double* Ga = Gamma + (size_t)k * n * n * m;
+      double* X = Xi + (size_t)k * n * m * m;
+      for (int i = 0; i < n; ++i) {
+        const double* g2 = G2.row(i).data();
+        for (int a = 0; a < n; ++a) {
+          for (int c = 0; c < n; ++c) Th[((size_t)i * n + a) * n + c] = g2[(size_t)a * nz + c];
+          for (int c = 0; c < m; ++c) Ga[((size_t)i * n + a) * m + c] = g2[(size_t)a * nz + n + c];
+        }
+        for (int a = 0; a < m; ++a)
+          for (int c = 0; c < m; ++c) X[((size_t)i * m + a) * m + c] = g2[(size_t)(n + a) * nz + n + c];
+      }
+    }
+  });
+}
+
+}  // namespace dyn
+}  // namespace geoddp

@@ -1,0 +1,171 @@
+// geoddp._core: the compiled multibody kernels (arrays in, arrays out).
+//
+// Names, shapes, dtypes: every array is float64, C-contiguous; see dynamics.hpp. Argument
+// checking for users happens on the Python side (geoddp.models.compiled); the checks here only
+// guard memory safety. The GIL is released while a kernel runs.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <pinocchio/config.hpp>
+
+#include <string>
+
+#include "dynamics.hpp"
+#include "pin_model.hpp"
+
+namespace py = pybind11;
+using geoddp::dyn::Setup;
+typedef py::array_t<double, py::array::c_style | py::array::forcecast> Arr;
+
+static void check_shape(const Arr& a, std::initializer_list<long> shape, const char* name) {
+  bool ok = a.ndim() == (py::ssize_t)shape.size();
+  int i = 0;
+  for (long s : shape) {
+    if (!ok) break;
+    if (s >= 0 && a.shape(i) != s) ok = false;
+    ++i;
+  }
+  if (!ok) throw py::value_error(std::string(name) + ": wrong shape");
+}
+
+static Setup make_setup(const pinocchio::Model& model, const Arr& H, double dt, int integrator) {
+  check_shape(H, {model.nv, -1}, "actuation");
+  if (integrator != 0 && integrator != 1) throw py::value_error("integrator: expected 0 (euler) or 1 (semi_implicit)");
+  return Setup{&model, H.data(), (int)H.shape(1), dt, (geoddp::dyn::Integrator)integrator};
+}
+
+static Arr empty(std::vector<py::ssize_t> shape) { return Arr(shape); }
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "geoddp's compiled multibody kernels over Pinocchio (C++17)";
+  // The extension must run with the pin it was compiled against (pinocchio::Model's layout).
+  py::module_ pin = py::module_::import("pinocchio");
+  const std::string runtime = py::str(pin.attr("__version__"));
+  if (runtime != PINOCCHIO_VERSION)
+    throw py::import_error("geoddp._core was built against pin " + std::string(PINOCCHIO_VERSION) +
+                           " but pin " + runtime +
+                           " is installed; rebuild it with: pip install --no-build-isolation --force-reinstall --no-deps -e .");
+  m.attr("PINOCCHIO_VERSION") = PINOCCHIO_VERSION;
+  m.attr("EULER") = 0;
+  m.attr("SEMI_IMPLICIT") = 1;
+
+  m.def("default_threads", &geoddp::dyn::default_threads, "Worker threads used when threads <= 0.");
+
+  m.def(
+      "rollout",
+      [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0, const Arr& U) {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        Setup s = make_setup(model, H, dt, integrator);
+        check_shape(q0, {model.nq}, "q0");
+        check_shape(v0, {model.nv}, "v0");
+        check_shape(U, {-1, s.m}, "U");
+        const int N = (int)U.shape(0);
+        Arr Q = empty({N + 1, model.nq}), V = empty({N + 1, model.nv});
+        {
+          py::gil_scoped_release nogil;
+          geoddp::dyn::rollout(s, q0.data(), v0.data(), U.data(), N, Q.mutable_data(), V.mutable_data());
+        }
+        return py::make_tuple(Q, V);
+      },
+      py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("q0"), py::arg("v0"),
+      py::arg("U"),
+      "Open-loop rollout: q0 (nq,), v0 (nv,), U (N, m) -> Q (N+1, nq), V (N+1, nv).");
+
+  m.def(
+      "rollout_closed_loop",
+      [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0, const Arr& Qbar,
+         const Arr& Vbar, const Arr& Ubar, const Arr& kff, const Arr& K, double gamma, py::array_t<double> Qout,
+         py::array_t<double> Vout, py::array_t<double> Uout) {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        Setup s = make_setup(model, H, dt, integrator);
+        const int N = (int)Ubar.shape(0), nq = model.nq, nv = model.nv;
+        check_shape(q0, {nq}, "q0");
+        check_shape(v0, {nv}, "v0");
+        check_shape(Qbar, {N + 1, nq}, "Q_bar");
+        check_shape(Vbar, {N + 1, nv}, "V_bar");
+        check_shape(Ubar, {N, s.m}, "u_bar");
+        check_shape(kff, {N, s.m}, "k");
+        check_shape(K, {N, s.m, 2 * nv}, "K");
+        for (auto* o : {&Qout, &Vout, &Uout})
+          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
+        if (Qout.ndim() != 2 || Qout.shape(0) != N + 1 || Qout.shape(1) != nq) throw py::value_error("Q_out: wrong shape");
+        if (Vout.ndim() != 2 || Vout.shape(0) != N + 1 || Vout.shape(1) != nv) throw py::value_error("V_out: wrong shape");
+        if (Uout.ndim() != 2 || Uout.shape(0) != N || Uout.shape(1) != s.m) throw py::value_error("u_out: wrong shape");
+        bool ok;
+        {
+          py::gil_scoped_release nogil;
+          ok = geoddp::dyn::rollout_closed_loop(s, q0.data(), v0.data(), Qbar.data(), Vbar.data(), Ubar.data(),
+                                                kff.data(), K.data(), gamma, N, Qout.mutable_data(),
+                                                Vout.mutable_data(), Uout.mutable_data());
+        }
+        return ok;
+      },
+      py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("q0"), py::arg("v0"),
+      py::arg("Q_bar"), py::arg("V_bar"), py::arg("u_bar"), py::arg("k"), py::arg("K"), py::arg("gamma"),
+      py::arg("Q_out").noconvert(), py::arg("V_out").noconvert(), py::arg("u_out").noconvert(),
+      "Forward pass u = u_bar - gamma k - K zeta into Q_out (N+1, nq), V_out (N+1, nv), u_out (N, m); "
+      "False if a state became non-finite.");
+
+  m.def(
+      "velocity_derivatives",
+      [](py::handle pm, const Arr& H, double dt, const Arr& Q, const Arr& V, const Arr& U, int order, int threads) -> py::tuple {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        Setup s = make_setup(model, H, dt, 0);
+        const int N = (int)U.shape(0), nv = model.nv, nz = 2 * nv + s.m;
+        check_shape(Q, {N, model.nq}, "Q");
+        check_shape(V, {N, nv}, "V");
+        check_shape(U, {N, s.m}, "U");
+        Arr F1 = empty({N, nv, nz});
+        Arr F2 = order >= 2 ? empty({N, nv, nz, nz}) : empty({0});
+        {
+          py::gil_scoped_release nogil;
+          geoddp::dyn::velocity_derivatives(s, Q.data(), V.data(), U.data(), N, order, threads, F1.mutable_data(),
+                                            order >= 2 ? F2.mutable_data() : nullptr);
+        }
+        if (order < 2) return py::make_tuple(F1, py::none());
+        return py::make_tuple(F1, F2);
+      },
+      py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("Q"), py::arg("V"), py::arg("U"),
+      py::arg("order") = 1, py::arg("threads") = 0,
+      "Derivatives of v+ = v + dt aba(q, v, H u) at N nodes: F1 (N, nv, nz), F2 (N, nv, nz, nz) or None.");
+
+  m.def(
+      "expansion",
+      [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& Q, const Arr& V, const Arr& U, int order,
+         int threads) -> py::tuple {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        Setup s = make_setup(model, H, dt, integrator);
+        const int N = (int)U.shape(0), nv = model.nv, n = 2 * nv, mm = s.m;
+        check_shape(Q, {N + 1, model.nq}, "Q");
+        check_shape(V, {N + 1, nv}, "V");
+        check_shape(U, {N, mm}, "U");
+        Arr Phi = empty({N, n, n}), B = empty({N, n, mm});
+        Arr Th = order >= 2 ? empty({N, n, n, n}) : empty({0});
+        Arr Ga = order >= 2 ? empty({N, n, n, mm}) : empty({0});
+        Arr Xi = order >= 2 ? empty({N, n, mm, mm}) : empty({0});
+        {
+          py::gil_scoped_release nogil;
+          geoddp::dyn::expansion(s, Q.data(), V.data(), U.data(), N, order, threads, Phi.mutable_data(),
+                                 B.mutable_data(), Th.mutable_data(), Ga.mutable_data(), Xi.mutable_data());
+        }
+        if (order < 2) return py::make_tuple(Phi, B, py::none(), py::none(), py::none());
+        return py::make_tuple(Phi, B, Th, Ga, Xi);
+      },
+      py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("Q"), py::arg("V"),
+      py::arg("U"), py::arg("order") = 1, py::arg("threads") = 0,
+      "Phi (N, n, n), B (N, n, m), and for order 2 Theta (N, n, n, n), Gamma (N, n, n, m), Xi (N, n, m, m).");
+
+  m.def(
+      "block_ad_jr",
+      [](py::handle pm, const Arr& omega) {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        const int nv = model.nv;
+        check_shape(omega, {nv}, "omega");
+        const auto groups = geoddp::dyn::joint_groups(model);
+        Arr A = empty({nv, nv}), J = empty({nv, nv}), D = empty({nv, nv, nv});
+        geoddp::dyn::block_ad_jr(groups, nv, omega.data(), A.mutable_data(), J.mutable_data(), D.mutable_data());
+        return py::make_tuple(A, J, D);
+      },
+      py::arg("model"), py::arg("omega"),
+      "Ad_exp(-omega) (nv, nv), Jr(omega) (nv, nv) and D (nv, nv, nv), D[i, j, l] = d Jr[i, j] / d omega_l.");
+}
