@@ -17,10 +17,12 @@
 //   rotation:    the same on SO(3) with the angular rows of J and H
 //   translation: sum_r w_r H^LWA_r (LOCAL_WORLD_ALIGNED rows: the world position's Hessian)
 //   state:       -Ji^T D_g Ji per non-commutative joint (free flyer, spherical); 0 elsewhere.
-// dJr is differentiated exactly by forward-mode dual numbers through the closed form of Jr
-// (Taylor branches included), so every term stays finite at the identity and up to a rotation
-// angle of pi (Jr and Jr^-1 are analytic for angles below 2 pi).
+// dJr is exact: closed form on SO(3), forward-mode dual numbers through the closed form of Jr on
+// SE(3) (lie.hpp, shared with the dynamics kernels; Taylor branches included), so every term stays
+// finite at the identity and up to a rotation angle of pi (Jr, Jr^-1 analytic below 2 pi).
 #include "costs.hpp"
+
+#include "lie.hpp"
 
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
@@ -38,231 +40,9 @@ namespace geoddp
   {
     namespace
     {
-      // ---------------------------------------------------------------- dual numbers
-      // value + eps * derivative, eps^2 = 0: one directional derivative per evaluation.
-      struct Dual
-      {
-        double v, d;
-        Dual(double v_ = 0.0, double d_ = 0.0)
-        : v(v_)
-        , d(d_)
-        {
-        }
-      };
-      inline Dual operator+(Dual a, Dual b)
-      {
-        return {a.v + b.v, a.d + b.d};
-      }
-      inline Dual operator-(Dual a, Dual b)
-      {
-        return {a.v - b.v, a.d - b.d};
-      }
-      inline Dual operator-(Dual a)
-      {
-        return {-a.v, -a.d};
-      }
-      inline Dual operator*(Dual a, Dual b)
-      {
-        return {a.v * b.v, a.v * b.d + a.d * b.v};
-      }
-      inline Dual operator/(Dual a, Dual b)
-      {
-        return {a.v / b.v, (a.d * b.v - a.v * b.d) / (b.v * b.v)};
-      }
-      inline Dual sin(Dual a)
-      {
-        return {std::sin(a.v), std::cos(a.v) * a.d};
-      }
-      inline Dual cos(Dual a)
-      {
-        return {std::cos(a.v), -std::sin(a.v) * a.d};
-      }
-      inline Dual sqrt(Dual a)
-      {
-        const double s = std::sqrt(a.v);  // only called away from 0 (Taylor branches there)
-        return {s, 0.5 * a.d / s};
-      }
-      inline double value(double x)
-      {
-        return x;
-      }
-      inline double value(Dual x)
-      {
-        return x.v;
-      }
-      using std::cos;
-      using std::sin;
-      using std::sqrt;
-
-      template<typename S>
-      using M3 = S[3][3];
-
-      template<typename S>
-      S poly(const double * c, int n, S t2)
-      {
-        S out = S(c[n - 1]);
-        for (int i = n - 2; i >= 0; --i)
-          out = out * t2 + S(c[i]);
-        return out;
-      }
-
-      double factorial(int n)
-      {
-        double f = 1.0;
-        for (int i = 2; i <= n; ++i)
-          f *= i;
-        return f;
-      }
-
-      // Series coefficients (in t^2), 8 terms each: the truncation error of the values and of
-      // their derivatives is below 1e-17 inside the branches (t < 0.25, t < 0.6).
-      struct Series
-      {
-        double a[8], b[8];            // Jr3 = I - a K + b K^2
-        double jrinv[7];              // Jr3^-1 = I + K/2 + c K^2 (geoddp.kernels._JRINV_C)
-        double q1[8], q2[8], q3[8];   // Barfoot's Q coefficients
-        Series()
-        {
-          for (int k = 0; k < 8; ++k)
-          {
-            const double sg = (k % 2 == 0) ? 1.0 : -1.0;
-            a[k] = sg / factorial(2 * k + 2);
-            b[k] = sg / factorial(2 * k + 3);
-            q1[k] = sg / factorial(2 * k + 3);
-            q2[k] = sg / factorial(2 * (k + 2));                        // k + 2 = 2..9
-            q3[k] = sg * (k + 1) / factorial(2 * (k + 2) + 1);
-          }
-          const double c[7] = {1.0 / 12,          1.0 / 720,
-                               1.0 / 30240,       1.0 / 1209600,
-                               1.0 / 47900160,    691.0 / 1307674368000.0,
-                               1.0 / 74724249600.0};
-          for (int k = 0; k < 7; ++k)
-            jrinv[k] = c[k];
-        }
-      };
-      const Series & series()
-      {
-        static const Series s;
-        return s;
-      }
-
-      template<typename S>
-      void hat(const S * x, M3<S> & K)
-      {
-        K[0][0] = S(0.0);
-        K[1][1] = S(0.0);
-        K[2][2] = S(0.0);
-        K[0][1] = -x[2];
-        K[0][2] = x[1];
-        K[1][0] = x[2];
-        K[1][2] = -x[0];
-        K[2][0] = -x[1];
-        K[2][1] = x[0];
-      }
-
-      template<typename S>
-      void mul(const M3<S> & A, const M3<S> & B, M3<S> & C)
-      {
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            C[i][j] = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
-      }
-
-      // Jr(x) = I - a(t) hat(x) + b(t) hat(x)^2 of SO(3).
-      template<typename S>
-      void so3_jr(const S * x, M3<S> & J)
-      {
-        const Series & c = series();
-        const S t2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-        S a, b;
-        if (value(t2) < 0.0625)  // t < 0.25
-        {
-          a = poly(c.a, 8, t2);
-          b = poly(c.b, 8, t2);
-        }
-        else
-        {
-          const S t = sqrt(t2);
-          const S h = sin(S(0.5) * t) / (S(0.5) * t);
-          a = S(0.5) * h * h;
-          b = (t - sin(t)) / (t2 * t);
-        }
-        M3<S> K, K2;
-        hat(x, K);
-        mul(K, K, K2);
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            J[i][j] = S(i == j ? 1.0 : 0.0) - a * K[i][j] + b * K2[i][j];
-      }
-
-      // Barfoot's Q(rho, phi), the coupling block of the SE(3) left Jacobian
-      // (geoddp.kernels._se3_coupling).
-      template<typename S>
-      void se3_coupling(const S * r, const S * p, M3<S> & Q)
-      {
-        const Series & c = series();
-        const S t2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
-        S c1, c2, c3;
-        if (value(t2) < 0.36)  // t < 0.6
-        {
-          c1 = poly(c.q1, 8, t2);
-          c2 = poly(c.q2, 8, t2);
-          c3 = poly(c.q3, 8, t2);
-        }
-        else
-        {
-          const S t = sqrt(t2);
-          const S s = sin(t), co = cos(t);
-          c1 = (t - s) / (t2 * t);
-          c2 = (t2 + S(2.0) * co - S(2.0)) / (S(2.0) * t2 * t2);
-          c3 = (S(2.0) * t - S(3.0) * s + t * co) / (S(2.0) * t2 * t2 * t);
-        }
-        M3<S> P, R, PR, RP, PRP, PPR, RPP, PRPP, PPRP;
-        hat(p, P);
-        hat(r, R);
-        mul(P, R, PR);
-        mul(R, P, RP);
-        mul(PR, P, PRP);
-        mul(P, PR, PPR);
-        mul(RP, P, RPP);
-        mul(PRP, P, PRPP);
-        mul(P, PRP, PPRP);
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            Q[i][j] = S(0.5) * R[i][j] + c1 * (PR[i][j] + RP[i][j] + PRP[i][j])
-                      + c2 * (PPR[i][j] + RPP[i][j] - S(3.0) * PRP[i][j])
-                      + c3 * (PRPP[i][j] + PPRP[i][j]);
-      }
-
-      // Jr(x) of SE(3) = [[Jr3(w), Q(-v, -w)], [0, Jr3(w)]], x = [v; w].
-      template<typename S>
-      void se3_jr(const S * x, S (&J)[6][6])
-      {
-        M3<S> J3, Q;
-        so3_jr(x + 3, J3);
-        const S mv[3] = {-x[0], -x[1], -x[2]};
-        const S mw[3] = {-x[3], -x[4], -x[5]};
-        se3_coupling(mv, mw, Q);
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-          {
-            J[i][j] = J3[i][j];
-            J[i + 3][j + 3] = J3[i][j];
-            J[i][j + 3] = Q[i][j];
-            J[i + 3][j] = S(0.0);
-          }
-      }
-
-      Matrix3 coupling(const Eigen::Vector3d & r, const Eigen::Vector3d & p)
-      {
-        M3<double> Q;
-        se3_coupling(r.data(), p.data(), Q);
-        Matrix3 out;
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            out(i, j) = Q[i][j];
-        return out;
-      }
+      // Series of c(t) in Jr3(x)^-1 = I + hat(x)/2 + c(t) hat(x)^2 (geoddp.kernels._JRINV_C).
+      const double JRINV_C[7] = {1.0 / 12,        1.0 / 720,      1.0 / 30240,           1.0 / 1209600,
+                                 1.0 / 47900160,  691.0 / 1307674368000.0, 1.0 / 74724249600.0};
 
       void check(bool ok, const std::string & what)
       {
@@ -306,15 +86,10 @@ namespace geoddp
     } // namespace
 
     // ------------------------------------------------------------------ closed forms
+    // Jr and dJr come from lie.hpp (shared with the dynamics kernels); the inverses live here.
     Matrix3 so3_right_jacobian(const Eigen::Vector3d & x)
     {
-      M3<double> J;
-      so3_jr(x.data(), J);
-      Matrix3 out;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-          out(i, j) = J[i][j];
-      return out;
+      return lie::so3_jr(x);
     }
 
     Matrix3 so3_right_jacobian_inv(const Eigen::Vector3d & x)
@@ -323,30 +98,33 @@ namespace geoddp
       const double t = x.norm();
       double c;
       if (t < 0.25)
-        c = poly(series().jrinv, 7, t * t);
+        c = lie::poly(JRINV_C, 7, t * t);
       else
         c = 1.0 / (t * t) - std::cos(0.5 * t) / (2.0 * t * std::sin(0.5 * t));
-      Matrix3 K;
-      K << 0.0, -x[2], x[1], x[2], 0.0, -x[0], -x[1], x[0], 0.0;
+      const Matrix3 K = lie::hat(x);
       return Matrix3::Identity() + 0.5 * K + c * (K * K);
     }
 
     Matrix6 se3_right_jacobian(const Vector6 & x)
     {
-      double J[6][6];
-      se3_jr(x.data(), J);
-      Matrix6 out;
-      for (int i = 0; i < 6; ++i)
-        for (int j = 0; j < 6; ++j)
-          out(i, j) = J[i][j];
-      return out;
+      return lie::se3_jr(x);
     }
 
     Matrix6 se3_right_jacobian_inv(const Vector6 & x)
     {
       // [[K, -K Q K], [0, K]], K = Jr3(w)^-1, Q = Q(-v, -w) (geoddp.kernels.se3_right_jacobian)
       const Matrix3 K = so3_right_jacobian_inv(x.tail<3>());
-      const Matrix3 Q = coupling(-x.head<3>(), -x.tail<3>());
+      double r[3], p[3];
+      for (int i = 0; i < 3; ++i)
+      {
+        r[i] = -x[i];
+        p[i] = -x[3 + i];
+      }
+      const lie::M3<double> Qm = lie::se3_coupling<double>(r, p);
+      Matrix3 Q;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          Q(i, j) = Qm.m[i][j];
       Matrix6 out = Matrix6::Zero();
       out.topLeftCorner<3, 3>() = K;
       out.bottomRightCorner<3, 3>() = K;
@@ -356,65 +134,46 @@ namespace geoddp
 
     Matrix3 so3_jr_derivative_contracted(const Eigen::Vector3d & x, const Eigen::Vector3d & g)
     {
+      lie::Mat3 D[3];
+      lie::so3_djr(x, D);
       Matrix3 out;
-      for (int l = 0; l < 3; ++l)
-      {
-        Dual xd[3];
-        for (int i = 0; i < 3; ++i)
-          xd[i] = Dual(x[i], i == l ? 1.0 : 0.0);
-        M3<Dual> J;
-        so3_jr(xd, J);
-        for (int a = 0; a < 3; ++a)
-          out(a, l) = g[0] * J[0][a].d + g[1] * J[1][a].d + g[2] * J[2][a].d;
-      }
+      for (int b = 0; b < 3; ++b)
+        out.col(b) = D[b].transpose() * g;  // out(a, b) = sum_p g_p dJr(p, a) / dx_b
       return out;
     }
 
     Matrix6 se3_jr_derivative_contracted(const Vector6 & x, const Vector6 & g)
     {
+      lie::Mat6 D[6];
+      lie::se3_djr(x, D);
       Matrix6 out;
-      for (int l = 0; l < 6; ++l)
-      {
-        Dual xd[6];
-        for (int i = 0; i < 6; ++i)
-          xd[i] = Dual(x[i], i == l ? 1.0 : 0.0);
-        Dual J[6][6];
-        se3_jr(xd, J);
-        for (int a = 0; a < 6; ++a)
-        {
-          double s = 0.0;
-          for (int p = 0; p < 6; ++p)
-            s += g[p] * J[p][a].d;
-          out(a, l) = s;
-        }
-      }
+      for (int b = 0; b < 6; ++b)
+        out.col(b) = D[b].transpose() * g;
       return out;
     }
 
     Eigen::VectorXd so3_jr_derivative(const Eigen::Vector3d & x)
     {
-      Eigen::VectorXd D(27);
+      lie::Mat3 D[3];
+      lie::so3_djr(x, D);
+      Eigen::VectorXd out(27);
       for (int p = 0; p < 3; ++p)
-      {
-        const Matrix3 Dp = so3_jr_derivative_contracted(x, Eigen::Vector3d::Unit(p));
         for (int a = 0; a < 3; ++a)
           for (int b = 0; b < 3; ++b)
-            D[(p * 3 + a) * 3 + b] = Dp(a, b);
-      }
-      return D;
+            out[(p * 3 + a) * 3 + b] = D[b](p, a);
+      return out;
     }
 
     Eigen::VectorXd se3_jr_derivative(const Vector6 & x)
     {
-      Eigen::VectorXd D(216);
+      lie::Mat6 D[6];
+      lie::se3_djr(x, D);
+      Eigen::VectorXd out(216);
       for (int p = 0; p < 6; ++p)
-      {
-        const Matrix6 Dp = se3_jr_derivative_contracted(x, Vector6::Unit(p));
         for (int a = 0; a < 6; ++a)
           for (int b = 0; b < 6; ++b)
-            D[(p * 6 + a) * 6 + b] = Dp(a, b);
-      }
-      return D;
+            out[(p * 6 + a) * 6 + b] = D[b](p, a);
+      return out;
     }
 
     // ------------------------------------------------------------------ frame terms

@@ -1,26 +1,15 @@
 // Python bindings of the compiled cost kernels (costs.hpp): arrays in, arrays accumulated in place.
 // Called from the extension's module definition: bind_costs(m).
-#include "costs.hpp"
-
-#include <boost/python.hpp>
 #include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
+
+#include "costs.hpp"
+#include "pin_model.hpp"
 
 namespace py = pybind11;
 
 namespace geoddp
 {
-  namespace
-  {
-    // A Python pinocchio.Model (boost.python object) as the C++ model it wraps.
-    const pinocchio::Model & as_model(py::handle obj)
-    {
-      boost::python::extract<const pinocchio::Model &> ex(obj.ptr());
-      if (!ex.check())
-        throw py::type_error("model: expected a pinocchio.Model");
-      return ex();
-    }
-  } // namespace
 
   void bind_costs(py::module_ & m)
   {
@@ -30,7 +19,7 @@ namespace geoddp
       [](
         py::handle model, int frame_id, int kind, const ConstRowRef & Q, const ConstRowRef & refs,
         const ConstRowRef & W, bool gauss_newton, bool derivatives, VecRef l, RowRef lx, RowRef lxx) {
-        const pinocchio::Model & mdl = as_model(model);
+        const pinocchio::Model & mdl = model_from_python(model);
         if (kind < 0 || kind > 2)
           throw std::invalid_argument("kind: expected 0 (placement), 1 (rotation) or 2 (translation)");
         if (frame_id < 0)
@@ -51,7 +40,7 @@ namespace geoddp
         py::handle model, const ConstRowRef & Q, const ConstRowRef & V, const ConstRowRef & q_ref,
         const ConstRowRef & v_ref, const ConstRowRef & W, bool gauss_newton, bool derivatives, VecRef l,
         RowRef lx, RowRef lxx) {
-        const pinocchio::Model & mdl = as_model(model);
+        const pinocchio::Model & mdl = model_from_python(model);
         py::gil_scoped_release release;
         state_regularisation(mdl, Q, V, q_ref, v_ref, W, gauss_newton, derivatives, l, lx, lxx);
       },

@@ -89,12 +89,12 @@ BACKENDS = ("python", "compiled", "auto")
 
 
 def compiled_module() -> Any | None:
-    """The compiled extension ``geoddp._core`` if it is built with the cost kernels, else None."""
-    try:
-        from . import _core  # type: ignore[attr-defined]
-    except ImportError:
-        return None
-    return _core if hasattr(_core, "cost_frame_term") else None
+    """The compiled extension ``geoddp._core`` if it imports (built, against the installed pin)
+    with the cost kernels, else None (see :mod:`geoddp.models.compiled`)."""
+    from .models import compiled
+
+    core = compiled._core
+    return core if core is not None and hasattr(core, "cost_frame_term") else None
 
 
 # --------------------------------------------------------------------------------------
@@ -534,8 +534,10 @@ class MultibodyCostSum:
             raise InputError("backend", f"expected one of {', '.join(map(repr, BACKENDS))}, got {backend!r}{hint}")
         core = None if backend == "python" else compiled_module()
         if backend == "compiled" and core is None:
-            raise InputError("backend", "the compiled extension geoddp._core is not built (pip install . or "
-                             "pip install -e . compiles it); use backend='python'")
+            from .models import compiled
+
+            raise InputError("backend", "expected the compiled core geoddp._core with the cost kernels to import, "
+                             f"got: {compiled.IMPORT_ERROR or 'a build without them'}; use backend='python'")
         self._core = core
         self.backend = "python" if core is None else "compiled"
 
