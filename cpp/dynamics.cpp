@@ -47,9 +47,18 @@ std::vector<JointGroup> joint_groups(const Model& model) {
 }
 
 int default_threads() {
-  // Measured on 2 cores (benchmarks/core_dynamics.py): see the report; one worker per core.
+  // One worker per core, at most two: measured on 2 cores (benchmarks/core_dynamics.py), two
+  // workers cut the second-order expansion by 1.3-1.9x on the built-in scenes.
   const unsigned hc = std::thread::hardware_concurrency();
   return hc == 0 ? 1 : (int)std::min(hc, 2u);
+}
+
+// The default for a pass: a first-order node costs 1.5-5 us, about the price of starting a
+// thread, so first-order passes run on one worker (measured: 0.34 ms with one, 0.41 ms with two
+// on the quadrotor's 150 nodes); second-order passes use default_threads().
+static int pass_threads(int threads, int order) {
+  if (threads > 0) return threads;
+  return order >= 2 ? default_threads() : 1;
 }
 
 // Runs fn(begin, end, worker) on contiguous chunks of [0, N) with up to `threads` workers.
@@ -252,7 +261,7 @@ void velocity_derivatives(const Setup& s, const double* Q, const double* V, cons
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, nz = 2 * nv + m;
   CMatMap Hm(s.H, nv, m);
-  parallel_for(N, threads, [&](int b, int e, int) {
+  parallel_for(N, pass_threads(threads, order), [&](int b, int e, int) {
     NodeWork w(model, m);
     for (int k = b; k < e; ++k) {
       w.q = CVecMap(Q + (size_t)k * nq, nq);
@@ -311,7 +320,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   lie::so3_structure(C3);
   lie::se3_structure(C6);
   CMatMap Hm(s.H, nv, m);
-  parallel_for(N, threads, [&](int b0, int e0, int) {
+  parallel_for(N, pass_threads(threads, order), [&](int b0, int e0, int) {
     NodeWork w(model, m);
     RowMat F1(nv, nz), F2(order >= 2 ? nv : 0, (Eigen::Index)nz * nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
     RowMat A(nv, nv), Jr(nv, nv), G2(order >= 2 ? n : 0, (Eigen::Index)nz * nz);

@@ -73,7 +73,8 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
 void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* omega, double* A, double* Jr,
                  double* D);
 
-// Number of worker threads used when threads <= 0 ("default").
+// Worker threads of a second-order pass when threads <= 0 ("default"); first-order passes then
+// run on one (per-node work is below a thread's start-up cost).
 int default_threads();
 
 }  // namespace dyn

@@ -48,7 +48,8 @@ PYBIND11_MODULE(_core, m) {
   if (runtime != PINOCCHIO_VERSION)
     throw py::import_error("geoddp._core was built against pin " + std::string(PINOCCHIO_VERSION) +
                            " but pin " + runtime +
-                           " is installed; rebuild it with: pip install --no-build-isolation --force-reinstall --no-deps -e .");
+                           " is installed; rebuild it against that pin: pip install --no-build-isolation --force-reinstall --no-deps -e . "
+                           "(after pip install scikit-build-core pybind11 cmeel-eigen cmake ninja)");
   m.attr("PINOCCHIO_VERSION") = PINOCCHIO_VERSION;
   m.attr("EULER") = 0;
   m.attr("SEMI_IMPLICIT") = 1;

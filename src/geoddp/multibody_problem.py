@@ -96,9 +96,9 @@ class MultibodyProblem:
         return True
 
     def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int, backend: str) -> Expansion:
-        """Phi, B (and Theta, Gamma, Xi for order 2) along a trajectory; ``backend`` is unused:
-        multibody derivatives always come from Pinocchio (analytic first order, central
-        differences of it for the velocity update's second order)."""
+        """Phi, B (and Theta, Gamma, Xi for order 2) along a trajectory; ``backend`` (the
+        satellite's derivative option) is unused: the multibody model's own backend, chosen
+        when it was built, computes them (:class:`geoddp.models.multibody.Multibody`)."""
         return self.model.expansion(Q, V, controls, order=order)
 
     def cost(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray) -> float:

@@ -1,0 +1,91 @@
+"""The compiled multibody core against the Python path: time per solve on the built-in scenes and
+the expansion's time with one worker thread and with the default.
+
+* per solve: ``geoddp.api.solve_scene`` on examples/multibody/*.toml (the scenes' own solver
+  settings), ``Result.solve_time_s``, with the backend chosen by GEODDP_MULTIBODY_BACKEND
+  ("python", the oracle, or "auto" = compiled); interleaved after one warm-up each, medians;
+* per expansion: ``Multibody.expansion`` (first and second order) along the scene's initial
+  rollout with ``threads=1`` and ``threads=0`` (the core's default), medians.
+
+Run: ``python benchmarks/core_dynamics.py [--runs 3]``. Timings only; the tests check the numbers.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "multibody"
+
+
+def solve_times(scene: Path, runs: int) -> dict:
+    from geoddp.api import solve_scene
+
+    out = {"python": [], "compiled": []}
+    info = {}
+    for r in range(runs + 1):  # first round: warm-up
+        for backend in ("python", "compiled"):
+            os.environ["GEODDP_MULTIBODY_BACKEND"] = "python" if backend == "python" else "auto"
+            res = solve_scene(scene, verbose=False)
+            if r > 0:
+                out[backend].append(res.solve_time_s)
+            info[backend] = (res.iterations, res.cost)
+    os.environ.pop("GEODDP_MULTIBODY_BACKEND", None)
+    return {b: (statistics.median(t), *info[b]) for b, t in out.items()}
+
+
+def _problem(scene: Path):
+    from geoddp.api import load_scene
+    from geoddp import api
+
+    spec = load_scene(scene)
+    return api.build_problem(spec), api.initial_controls(spec)
+
+
+def threads_times(scene: Path, runs: int) -> dict:
+    problem, U0 = _problem(scene)
+    model = problem.model
+    U = U0 if U0 is not None else np.zeros((problem.horizon, problem.nu))
+    Q, V = problem.rollout(U)
+    out = {}
+    for order in (1, 2):
+        for threads in (1, 0):
+            model.threads = threads
+            ts = []
+            for _ in range(runs + 1):
+                t0 = time.perf_counter()
+                model.expansion(Q, V, U, order=order)
+                ts.append(time.perf_counter() - t0)
+            out[(order, threads)] = statistics.median(ts[1:])
+    model.threads = 0
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--runs", type=int, default=3)
+    args = ap.parse_args()
+    from geoddp.models import compiled
+
+    print(f"default threads: {compiled._core.default_threads()}")
+    print("| scene | python per solve | compiled per solve | speed-up | iterations | J* python | J* compiled |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    scenes = sorted(EXAMPLES.glob("*.toml"))
+    for scene in scenes:
+        t = solve_times(scene, args.runs)
+        (tp, ip, jp), (tc, ic, jc) = t["python"], t["compiled"]
+        print(f"| {scene.stem} | {tp:.3f} s | {tc:.3f} s | {tp / tc:.1f}x | {ip} / {ic} | {jp:.12g} | {jc:.12g} |")
+    print()
+    print("| scene | order 1, 1 thread | order 1, default | order 2, 1 thread | order 2, default |")
+    print("|---|---:|---:|---:|---:|")
+    for scene in scenes:
+        e = threads_times(scene, args.runs)
+        print(f"| {scene.stem} | {1e3 * e[1, 1]:.2f} ms | {1e3 * e[1, 0]:.2f} ms | {1e3 * e[2, 1]:.2f} ms | {1e3 * e[2, 0]:.2f} ms |")
+
+
+if __name__ == "__main__":
+    main()
