@@ -297,13 +297,24 @@ def test_backend_choice_is_validated():
     with pytest.raises(InputError, match="did you mean 'compiled'") as e:
         MultibodyCostSum([t], backend="compild")
     assert e.value.parameter == "backend"
-    assert MultibodyCostSum([t]).backend == "python"  # the default keeps the oracle
-    auto = MultibodyCostSum([t], backend="auto")
-    assert auto.backend == ("python" if CORE is None else "compiled")
+    assert MultibodyCostSum([t], backend="python").backend == "python"
+    for auto in (MultibodyCostSum([t]), MultibodyCostSum([t], backend="auto")):  # "auto" is the default
+        assert auto.backend == ("python" if CORE is None else "compiled")
     if CORE is None:
         with pytest.raises(InputError, match="geoddp._core") as e:
             MultibodyCostSum([t], backend="compiled")
         assert e.value.parameter == "backend"
+
+
+def test_the_environment_forces_the_oracle(monkeypatch):
+    """GEODDP_MULTIBODY_BACKEND=python makes "auto" pick python (the switch the multibody model
+    honours too); an explicit "compiled" is still compiled."""
+    model, frame = MODELS["fixed"]
+    t = FrameTranslation(model, frame, np.zeros(3))
+    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
+    assert MultibodyCostSum([t]).backend == "python"
+    if CORE is not None:
+        assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
 
 
 @needs_core

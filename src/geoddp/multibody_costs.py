@@ -49,8 +49,8 @@ Model/data separation as in Crocoddyl: each term keeps the (shared, read-only) `
 and creates its own ``pin.Data`` once at construction; nothing allocates a Data per call.
 
 Backends. The classes here are the Python implementation and the oracle. A
-:class:`MultibodyCostSum` built with ``backend="compiled"`` (or ``"auto"`` when the extension is
-built) evaluates the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp):
+:class:`MultibodyCostSum` built with ``backend="compiled"`` (or ``"auto"``, the default, when the
+extension imports) evaluates the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp):
 one call per term for all N nodes, same values and gradients (to round-off), and EXACT
 second-order parts (Pinocchio's kinematic Hessians and the exact derivative of the closed-form
 Jr, no differences), which agree with this module's differenced ones to their ~1e-8 relative
@@ -59,6 +59,7 @@ zero, where W r = 0) are honoured alike.
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -504,14 +505,16 @@ class MultibodyCostSum:
         terms: the terms; every term with a model must share nq and nv.
         model: the model fixing nx (default: the first term's).
         terminal: if True, refuse control terms at construction (they need U).
-        backend: ``"python"`` (default: this module's code, the oracle), ``"compiled"`` (the
-            kernels of ``geoddp._core``; InputError if the extension is not built) or ``"auto"``
-            (compiled when built, else python). The resolved choice is in ``self.backend``.
+        backend: ``"auto"`` (default: compiled when ``geoddp._core`` imports, else python; the
+            environment variable GEODDP_MULTIBODY_BACKEND=python makes it pick python, as for
+            :class:`geoddp.models.multibody.Multibody`), ``"compiled"`` (the kernels of
+            ``geoddp._core``; InputError if the extension does not import) or ``"python"``
+            (this module's code, the oracle). The resolved choice is in ``self.backend``.
             Terms of other (sub)classes always run their Python code.
     """
 
     def __init__(self, terms: Sequence[MultibodyCostTerm], model: pin.Model | None = None,
-                 terminal: bool = False, backend: str = "python") -> None:
+                 terminal: bool = False, backend: str = "auto") -> None:
         self.terms = list(terms)
         for i, t in enumerate(self.terms):
             if not isinstance(t, MultibodyCostTerm):
@@ -532,7 +535,8 @@ class MultibodyCostSum:
             guess = closest(str(backend), list(BACKENDS))
             hint = f"; did you mean {guess!r}?" if guess else ""
             raise InputError("backend", f"expected one of {', '.join(map(repr, BACKENDS))}, got {backend!r}{hint}")
-        core = None if backend == "python" else compiled_module()
+        forced_python = backend == "auto" and os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto") == "python"
+        core = None if backend == "python" or forced_python else compiled_module()
         if backend == "compiled" and core is None:
             from .models import compiled
 
