@@ -80,7 +80,8 @@ class Multibody:
             geoddp._core imports, else "python"), "compiled" or "python" (the oracle). Holds the
             resolved choice after construction.
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
-            core's default (``geoddp._core.default_threads()``).
+            core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) for second-order
+            passes, one for first-order passes (their nodes cost about a thread's start-up).
     """
 
     urdf: str | Path
@@ -106,7 +107,7 @@ class Multibody:
         supported = self.integrator in compiled.INTEGRATORS
         if self.backend == "auto":
             # GEODDP_MULTIBODY_BACKEND=python forces the oracle everywhere (scene files, CLI).
-            forced = os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto")
+            forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
             self.backend = "compiled" if supported and compiled.available() and forced != "python" else "python"
         elif self.backend == "compiled":
             if not supported:
