@@ -315,6 +315,10 @@ def test_the_environment_forces_the_oracle(monkeypatch):
     assert MultibodyCostSum([t]).backend == "python"
     if CORE is not None:
         assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
+    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "pyhton")
+    with pytest.raises(InputError) as e:
+        MultibodyCostSum([t])
+    assert e.value.parameter == "GEODDP_MULTIBODY_BACKEND"
 
 
 @needs_core

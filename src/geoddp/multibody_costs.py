@@ -69,7 +69,7 @@ import pinocchio as pin
 from . import configuration as cfg
 from .costs import CostDerivatives
 from .lie import SE3, SO3
-from .validate import InputError, closest, finite_array, rotation_matrix, spd_matrix
+from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix
 
 __all__ = [
     "ControlRegularisation",
@@ -535,7 +535,9 @@ class MultibodyCostSum:
             guess = closest(str(backend), list(BACKENDS))
             hint = f"; did you mean {guess!r}?" if guess else ""
             raise InputError("backend", f"expected one of {', '.join(map(repr, BACKENDS))}, got {backend!r}{hint}")
-        forced_python = backend == "auto" and os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto") == "python"
+        # GEODDP_MULTIBODY_BACKEND=python forces the oracle (validated as the multibody model does)
+        forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
+        forced_python = backend == "auto" and forced == "python"
         core = None if backend == "python" or forced_python else compiled_module()
         if backend == "compiled" and core is None:
             from .models import compiled
