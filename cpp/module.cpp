@@ -13,6 +13,10 @@
 #include "dynamics.hpp"
 #include "pin_model.hpp"
 
+namespace geoddp {
+void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
+}
+
 namespace py = pybind11;
 using geoddp::dyn::Setup;
 typedef py::array_t<double, py::array::c_style | py::array::forcecast> Arr;
@@ -169,4 +173,6 @@ PYBIND11_MODULE(_core, m) {
       },
       py::arg("model"), py::arg("omega"),
       "Ad_exp(-omega) (nv, nv), Jr(omega) (nv, nv) and D (nv, nv, nv), D[i, j, l] = d Jr[i, j] / d omega_l.");
+
+  geoddp::bind_costs(m);  // cost terms: cost_frame_term, cost_state_regularisation, ...
 }

@@ -56,6 +56,13 @@ FLOATING = floating_arm()
 FIXED = fixed_arm()
 
 
+@pytest.fixture(autouse=True)
+def _python_backend(monkeypatch):
+    """These tests check the Python terms (the oracle): keep every cost sum on the python
+    backend (the compiled kernels are compared with them in tests/test_core_costs.py)."""
+    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
+
+
 def _random_q(model, rng):
     # from the numpy generator (pin.randomConfiguration has its own, unseeded, generator);
     # tangent entries in [-1.5, 1.5] keep every rotation well inside the injectivity radius

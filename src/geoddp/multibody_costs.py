@@ -47,9 +47,19 @@ a term with a per-node reference (see :func:`tracking_costs` for building severa
 
 Model/data separation as in Crocoddyl: each term keeps the (shared, read-only) ``pin.Model``
 and creates its own ``pin.Data`` once at construction; nothing allocates a Data per call.
+
+Backends. The classes here are the Python implementation and the oracle. A
+:class:`MultibodyCostSum` built with ``backend="compiled"`` (or ``"auto"``, the default, when the
+extension imports) evaluates the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp):
+one call per term for all N nodes, same values and gradients (to round-off), and EXACT
+second-order parts (Pinocchio's kinematic Hessians and the exact derivative of the closed-form
+Jr, no differences), which agree with this module's differenced ones to their ~1e-8 relative
+error. ``gauss_newton`` and the frozen-W r rule (the second-order part is skipped, hence exactly
+zero, where W r = 0) are honoured alike.
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -59,7 +69,7 @@ import pinocchio as pin
 from .lie import product as cfg
 from .costs import CostDerivatives
 from .lie import SE3, SO3
-from .validate import InputError, closest, finite_array, rotation_matrix, spd_matrix
+from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix
 
 __all__ = [
     "ControlRegularisation",
@@ -75,6 +85,17 @@ __all__ = [
 # Central-difference step for the second-order part (rad or m of tangent motion): balances the
 # O(h^2) truncation of the analytic gradient's difference against eps/h round-off.
 _FD_STEP = 1e-5
+
+BACKENDS = ("python", "compiled", "auto")
+
+
+def compiled_module() -> Any | None:
+    """The compiled extension ``geoddp._core`` if it imports (built, against the installed pin)
+    with the cost kernels, else None (see :mod:`geoddp.models.compiled`)."""
+    from .models import compiled
+
+    core = compiled._core
+    return core if core is not None and hasattr(core, "cost_frame_term") else None
 
 
 # --------------------------------------------------------------------------------------
@@ -484,10 +505,16 @@ class MultibodyCostSum:
         terms: the terms; every term with a model must share nq and nv.
         model: the model fixing nx (default: the first term's).
         terminal: if True, refuse control terms at construction (they need U).
+        backend: ``"auto"`` (default: compiled when ``geoddp._core`` imports, else python; the
+            environment variable GEODDP_MULTIBODY_BACKEND=python makes it pick python, as for
+            :class:`geoddp.models.multibody.Multibody`), ``"compiled"`` (the kernels of
+            ``geoddp._core``; InputError if the extension does not import) or ``"python"``
+            (this module's code, the oracle). The resolved choice is in ``self.backend``.
+            Terms of other (sub)classes always run their Python code.
     """
 
     def __init__(self, terms: Sequence[MultibodyCostTerm], model: pin.Model | None = None,
-                 terminal: bool = False) -> None:
+                 terminal: bool = False, backend: str = "auto") -> None:
         self.terms = list(terms)
         for i, t in enumerate(self.terms):
             if not isinstance(t, MultibodyCostTerm):
@@ -504,6 +531,21 @@ class MultibodyCostSum:
         self.terminal = bool(terminal)
         if self.terminal:
             self._refuse_control()
+        if backend not in BACKENDS:
+            guess = closest(str(backend), list(BACKENDS))
+            hint = f"; did you mean {guess!r}?" if guess else ""
+            raise InputError("backend", f"expected one of {', '.join(map(repr, BACKENDS))}, got {backend!r}{hint}")
+        # GEODDP_MULTIBODY_BACKEND=python forces the oracle (validated as the multibody model does)
+        forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
+        forced_python = backend == "auto" and forced == "python"
+        core = None if backend == "python" or forced_python else compiled_module()
+        if backend == "compiled" and core is None:
+            from .models import compiled
+
+            raise InputError("backend", "expected the compiled core geoddp._core with the cost kernels to import, "
+                             f"got: {compiled.IMPORT_ERROR or 'a build without them'}; use backend='python'")
+        self._core = core
+        self.backend = "python" if core is None else "compiled"
 
     @property
     def nx(self) -> int:
@@ -532,7 +574,8 @@ class MultibodyCostSum:
         """(N,) summed values."""
         out = np.zeros(self._check(Q, V, U))
         for t in self.terms:
-            out += t.value(Q, V, U)
+            if self._core is None or not _compiled_term(self._core, t, Q, V, U, out, None):
+                out += t.value(Q, V, U)
         return out
 
     def derivatives(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> CostDerivatives:
@@ -540,8 +583,53 @@ class MultibodyCostSum:
         N = self._check(Q, V, U)
         d = CostDerivatives.zeros(N, 0 if U is None else U.shape[1], self.nx)
         for t in self.terms:
-            t.accumulate(Q, V, U, d)
+            if self._core is None or not _compiled_term(self._core, t, Q, V, U, d.l, d):
+                t.accumulate(Q, V, U, d)
         return d
+
+
+def _rows(A: np.ndarray, N: int) -> np.ndarray:
+    """A (N, ...) as a C-contiguous (N, prod(...)) view the kernels can add into in place."""
+    if not A.flags.c_contiguous:
+        raise ValueError("expected a C-contiguous array")  # CostDerivatives.zeros makes them so
+    return A.reshape(N, -1)
+
+
+def _compiled_term(core: Any, t: MultibodyCostTerm, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,
+                   l: np.ndarray, d: CostDerivatives | None) -> bool:
+    """Add term t's value into l (N,) and, with d, its derivatives into d, through the compiled
+    kernels. Returns False (nothing added) for a term without a compiled twin: the caller runs
+    the Python code. Checks the nodes first, so bad input raises the oracle's InputError."""
+    N = Q.shape[0]
+    kind = type(t)
+    if kind is ControlRegularisation:
+        t._e(U)  # the oracle's checks (U given, shape, per-node reference count)
+        lu = np.empty((0, 0)) if d is None else _rows(d.lu, N)
+        luu = np.empty((0, 0)) if d is None else _rows(d.luu, N)
+        core.cost_control_regularisation(np.ascontiguousarray(U, dtype=float), t.u_ref, t.W, d is not None,
+                                         l, lu, luu)
+        return True
+    if kind not in _FRAME_KINDS and kind is not StateRegularisation:
+        return False
+    t._check_nodes(N)
+    Qc = np.ascontiguousarray(Q, dtype=float)
+    lx = np.empty((0, 0)) if d is None else _rows(d.lx, N)
+    lxx = np.empty((0, 0)) if d is None else _rows(d.lxx, N)
+    if kind is StateRegularisation:
+        core.cost_state_regularisation(t.model, Qc, np.ascontiguousarray(V, dtype=float), t.q_ref, t.v_ref, t.W,
+                                       t.gauss_newton, d is not None, l, lx, lxx)
+        return True
+    code, refs = _FRAME_KINDS[kind](t)
+    core.cost_frame_term(t.model, t.frame_id, code, Qc, refs, t.W, t.gauss_newton, d is not None, l, lx, lxx)
+    return True
+
+
+# frame term class -> (kernel code, its references as (K, 16 | 9 | 3) rows)
+_FRAME_KINDS: dict[type, Callable[[Any], tuple[int, np.ndarray]]] = {
+    FramePlacement: lambda t: (0, t.M_ref.reshape(t.M_ref.shape[0], 16)),
+    FrameRotation: lambda t: (1, t.R_ref.reshape(t.R_ref.shape[0], 9)),
+    FrameTranslation: lambda t: (2, t.p_ref),
+}
 
 
 def tracking_costs(term_factory: Callable[[Any], MultibodyCostTerm], references: Sequence[Any]) -> MultibodyCostTerm:

@@ -1,0 +1,113 @@
+// Compiled cost terms of geoddp's multibody path: values, gradients and exact (0)-Hessians over
+// N nodes in one call. Twin of src/geoddp/multibody_costs.py (the Python oracle the tests compare
+// against); the conventions, shapes and formulas are documented there and in costs.cpp.
+//
+// Arrays are row-major (numpy's C order). Every kernel ADDS into its outputs (like the Python
+// terms' ``accumulate``), so several terms can share one set of arrays:
+//   l   (N,)          cost values
+//   lx  (N, 2 nv)     gradient along the retraction (integrate(q, dq), v + dv)
+//   lxx (N, (2 nv)^2) (0)-Hessian, row-major (2 nv, 2 nv) per node, exactly symmetric
+// Per-node references are stacks of K = 1 (one reference for every node) or K = N rows.
+// Kernels throw std::invalid_argument on inconsistent sizes (the Python layer validates first).
+#pragma once
+
+#include <Eigen/Core>
+#include <pinocchio/multibody.hpp>
+
+#include <string>
+#include <vector>
+
+namespace geoddp
+{
+  namespace costs
+  {
+    using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    using ConstRowRef = Eigen::Ref<const RowMatrixXd>;
+    using RowRef = Eigen::Ref<RowMatrixXd>;
+    using VecRef = Eigen::Ref<Eigen::VectorXd>;
+    using Matrix3 = Eigen::Matrix3d;
+    using Matrix6 = Eigen::Matrix<double, 6, 6>;
+    using Vector6 = Eigen::Matrix<double, 6, 1>;
+
+    // ------------------------------------------------------------------ Lie-group closed forms
+    // Right Jacobians of SO(3) and SE(3) (twists [linear; angular]) and their inverses: the
+    // closed forms of geoddp.kernels.so3_right_jacobian / se3_right_jacobian, with the same
+    // Taylor branches (exact to round-off, where Pinocchio 4.1's Jlog6 loses up to 3e-5 in the
+    // coupling block for small rotations). Jr itself is lie.hpp's.
+    Matrix3 so3_right_jacobian(const Eigen::Vector3d & x);
+    Matrix3 so3_right_jacobian_inv(const Eigen::Vector3d & x);
+    Matrix6 se3_right_jacobian(const Vector6 & x);
+    Matrix6 se3_right_jacobian_inv(const Vector6 & x);
+
+    // sum_p g_p dJr[p, a] / dx_b -> (d, d) matrix, d = 3 (SO(3)) or 6 (SE(3)); exact (lie.hpp:
+    // closed form on SO(3), dual numbers through the closed form of Jr on SE(3)).
+    Matrix3 so3_jr_derivative_contracted(const Eigen::Vector3d & x, const Eigen::Vector3d & g);
+    Matrix6 se3_jr_derivative_contracted(const Vector6 & x, const Vector6 & g);
+    // The full tensor D[p][a][b] = dJr[p, a] / dx_b, row-major (d, d, d) flattened (tests).
+    Eigen::VectorXd so3_jr_derivative(const Eigen::Vector3d & x);
+    Eigen::VectorXd se3_jr_derivative(const Vector6 & x);
+
+    // ------------------------------------------------------------------ frame terms
+    enum class FrameResidual
+    {
+      Placement,   // r = log6(M_ref^-1 oMf(q)) (6,), refs (K, 16): homogeneous 4x4, row-major
+      Rotation,    // r = log3(R_ref^T R_f(q)) (3,), refs (K, 9): 3x3 row-major
+      Translation  // r = p_f(q) - p_ref (3,),      refs (K, 3)
+    };
+
+    /// 1/2 r^T W r of a frame residual on N nodes: Q (N, nq), W (nr, nr) symmetric PSD.
+    /// With derivatives=false only l is touched (lx, lxx may be empty).
+    /// gauss_newton=true drops the residual's second-order part from lxx.
+    void frame_term(
+      const pinocchio::Model & model,
+      pinocchio::FrameIndex frame_id,
+      FrameResidual kind,
+      const ConstRowRef & Q,
+      const ConstRowRef & refs,
+      const ConstRowRef & W,
+      bool gauss_newton,
+      bool derivatives,
+      VecRef l,
+      RowRef lx,
+      RowRef lxx);
+
+    // ------------------------------------------------------------------ state and control
+    /// Joint groups of the model in tangent order: kind 0 vector, 1 so2 (unbounded revolute),
+    /// 2 so3 (spherical), 3 se3 (free flyer); throws std::invalid_argument naming an unsupported
+    /// joint (planar, composite, mimic, ...), like geoddp.configuration.joint_groups.
+    struct JointGroup
+    {
+      int kind;
+      int idx_q;
+      int idx_v;
+      int nv;
+    };
+    std::vector<JointGroup> joint_groups(const pinocchio::Model & model);
+
+    /// 1/2 r^T W r with r = (difference(q_ref, q), v - v_ref) (2 nv,): Q (N, nq), V (N, nv),
+    /// q_ref (K, nq), v_ref (K', nv), W (2 nv, 2 nv).
+    void state_regularisation(
+      const pinocchio::Model & model,
+      const ConstRowRef & Q,
+      const ConstRowRef & V,
+      const ConstRowRef & q_ref,
+      const ConstRowRef & v_ref,
+      const ConstRowRef & W,
+      bool gauss_newton,
+      bool derivatives,
+      VecRef l,
+      RowRef lx,
+      RowRef lxx);
+
+    /// 1/2 (u - u_ref)^T W (u - u_ref): U (N, m), u_ref (K, m), W (m, m); lu (N, m), luu (N, m*m).
+    void control_regularisation(
+      const ConstRowRef & U,
+      const ConstRowRef & u_ref,
+      const ConstRowRef & W,
+      bool derivatives,
+      VecRef l,
+      RowRef lu,
+      RowRef luu);
+
+  } // namespace costs
+} // namespace geoddp

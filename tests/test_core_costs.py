@@ -1,0 +1,396 @@
+"""The compiled cost kernels (geoddp._core, cpp/costs.cpp) against the Python oracle
+(geoddp.multibody_costs) and against differences of their own gradient.
+
+Models: the space manipulator URDF on a free-flyer root, a fixed base and a spherical root, the
+all-joints URDF (two free flyers, an unbounded revolute, a prismatic joint) and the satellite
+(spherical root). The compiled second-order parts are exact; the oracle differences its gradient
+(O(h^2), ~1e-8 relative), so Hessians are compared to the oracle at that accuracy and to
+Richardson-extrapolated differences of the compiled gradient much more tightly.
+"""
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geoddp import configuration as cfg
+from geoddp.lie import SE3, SO3
+from geoddp.multibody_costs import (
+    ControlRegularisation,
+    FramePlacement,
+    FrameRotation,
+    FrameTranslation,
+    MultibodyCostSum,
+    MultibodyCostTerm,
+    StateRegularisation,
+    compiled_module,
+)
+from geoddp.validate import InputError
+
+CORE = compiled_module()
+needs_core = pytest.mark.skipif(CORE is None, reason="the extension geoddp._core is not built")
+
+MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
+VALUE_TOL = 1e-12      # values, gradients, GN Hessians; relative to max(1, max|oracle|); measured 2e-14
+ORACLE_HESS_TOL = 1e-7  # relative; the oracle's central differences (h = 1e-5): measured 4e-10
+EXACT_HESS_TOL = 1e-9   # relative, against Richardson differences of the gradient: measured 2e-12
+
+
+def _load(name: str, root) -> pin.Model:
+    path = str(MODELS_DIR / f"{name}.urdf")
+    model = pin.buildModelFromUrdf(path) if root is None else pin.buildModelFromUrdf(path, root)
+    model.name = name
+    return model
+
+
+MODELS = {
+    "free_flyer": (_load("space_manipulator", pin.JointModelFreeFlyer()), "ee"),
+    "fixed": (_load("space_manipulator", None), "ee"),
+    "spherical": (_load("space_manipulator", pin.JointModelSpherical()), "ee"),
+    "all_joints": (_load("test_all_joints", pin.JointModelFreeFlyer()), "payload"),
+    "satellite": (_load("satellite", pin.JointModelSpherical()), "bus"),
+}
+KINDS = ["placement", "rotation", "translation", "state", "control"]
+
+
+def _random_q(model, rng, scale=1.5):
+    return pin.integrate(model, pin.neutral(model), rng.uniform(-scale, scale, model.nv))
+
+
+def _spd(n, rng):
+    A = rng.normal(size=(n, n))
+    return A @ A.T / n + 0.5 * np.eye(n)
+
+
+def _placement(model, frame, q):
+    data = model.createData()
+    pin.forwardKinematics(model, data, q)
+    return pin.updateFramePlacement(model, data, model.getFrameId(frame)).copy()
+
+
+def _rotated(M, rng, angle):
+    """M times a rotation of ``angle`` rad about a random axis and a random offset."""
+    ax = rng.normal(size=3)
+    return M * pin.SE3(pin.exp3(angle * ax / np.linalg.norm(ax)), rng.normal(size=3) * 0.3)
+
+
+def _term(kind, model, frame, Q, rng, per_node, angle=1.2, gauss_newton=False):
+    """A term of ``kind`` whose reference sits ``angle`` rad from the frame at each node
+    (per_node) or at node 0 (one reference)."""
+    nodes = range(len(Q)) if per_node else [0]
+    Ms = [_rotated(_placement(model, frame, Q[k]), rng, angle) for k in nodes]
+    one = (lambda xs: xs) if per_node else (lambda xs: xs[0])
+    if kind == "placement":
+        return FramePlacement(model, frame, one(Ms), _spd(6, rng), gauss_newton=gauss_newton)
+    if kind == "rotation":
+        return FrameRotation(model, frame, one(np.array([M.rotation for M in Ms])), _spd(3, rng),
+                             gauss_newton=gauss_newton)
+    if kind == "translation":
+        return FrameTranslation(model, frame, one(np.array([M.translation for M in Ms])), _spd(3, rng),
+                                gauss_newton=gauss_newton)
+    if kind == "state":
+        q_ref = one(np.array([_random_q(model, rng) for _ in nodes]))
+        v_ref = one(rng.normal(size=(len(nodes), model.nv)))
+        return StateRegularisation(model, q_ref, v_ref, _spd(2 * model.nv, rng), gauss_newton=gauss_newton)
+    if kind == "control":
+        return ControlRegularisation(one(rng.normal(size=(len(nodes), 3))), _spd(3, rng))
+    raise AssertionError(kind)
+
+
+def _nodes(model, rng, N):
+    return (np.array([_random_q(model, rng) for _ in range(N)]), rng.normal(size=(N, model.nv)),
+            rng.normal(size=(N, 3)))
+
+
+def _rel(a, b):
+    assert a.shape == b.shape
+    if a.size == 0:
+        return 0.0
+    return np.abs(a - b).max() / max(1.0, np.abs(b).max())
+
+
+def _both(terms, model, **kw):
+    return (MultibodyCostSum(terms, model=model, backend="python", **kw),
+            MultibodyCostSum(terms, model=model, backend="compiled", **kw))
+
+
+# --------------------------------------------------------------------------------------
+# against the Python oracle
+
+
+@needs_core
+@pytest.mark.parametrize("per_node", [False, True], ids=["constant", "per_node"])
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("name", list(MODELS))
+def test_compiled_matches_the_python_oracle(name, kind, per_node):
+    model, frame = MODELS[name]
+    rng = np.random.default_rng(hash((name, kind, per_node)) % 2**32)
+    N = 5
+    Q, V, U = _nodes(model, rng, N)
+    for gn in (False, True):
+        term = _term(kind, model, frame, Q, np.random.default_rng(7), per_node, gauss_newton=gn)
+        py, cc = _both([term], model)
+        assert cc.backend == "compiled" and py.backend == "python"
+        u = U if kind == "control" else None
+        dp, dc = py.derivatives(Q, V, u), cc.derivatives(Q, V, u)
+        assert _rel(cc.value(Q, V, u), py.value(Q, V, u)) < VALUE_TOL
+        for f in ("l", "lx", "lu", "luu", "lux"):
+            assert _rel(getattr(dc, f), getattr(dp, f)) < VALUE_TOL, f
+        assert np.array_equal(dc.lxx, np.swapaxes(dc.lxx, 1, 2))  # exactly symmetric
+        # Gauss-Newton Hessians involve no differences: equal to round-off
+        assert _rel(dc.lxx, dp.lxx) < (VALUE_TOL if gn or kind == "control" else ORACLE_HESS_TOL), gn
+        if not gn and kind in ("placement", "rotation", "translation") and np.any(dp.lxx):
+            assert _rel(dc.lxx, dp.lxx) > 0.0  # the oracle differences: not the same numbers
+
+
+@needs_core
+def test_sum_of_every_term_matches_the_oracle():
+    model, frame = MODELS["all_joints"]
+    rng = np.random.default_rng(3)
+    Q, V, U = _nodes(model, rng, 7)
+    terms = [_term(k, model, frame, Q, rng, per_node=(i % 2 == 0)) for i, k in enumerate(KINDS)]
+    py, cc = _both(terms, model)
+    dp, dc = py.derivatives(Q, V, U), cc.derivatives(Q, V, U)
+    for f in ("l", "lx", "lu", "luu", "lux"):
+        assert _rel(getattr(dc, f), getattr(dp, f)) < VALUE_TOL, f
+    assert _rel(dc.lxx, dp.lxx) < ORACLE_HESS_TOL
+    # a terminal sum: no control
+    pyt, cct = _both(terms[:4], model, terminal=True)
+    assert _rel(cct.derivatives(Q, V, None).lxx, pyt.derivatives(Q, V, None).lxx) < ORACLE_HESS_TOL
+
+
+# --------------------------------------------------------------------------------------
+# exactness of the compiled second-order parts
+
+
+def _richardson_hessian(cost, q, v):
+    """sym d/ds l_x(integrate(q, s e_j), v + s e_j'), Richardson-extrapolated central differences
+    (error O(h^4)): the (0)-Hessian, since the Lie-bracket term is antisymmetric."""
+    model = cost.model
+    nv = model.nv
+
+    def grad(z):
+        return cost.derivatives(pin.integrate(model, q, z[:nv])[None], (v + z[nv:])[None], None).lx[0]
+
+    def D(h):
+        return np.stack([(grad(h * e) - grad(-h * e)) / (2 * h) for e in np.eye(2 * nv)], axis=1)
+
+    h = 1e-3
+    H = (4.0 * D(h / 2) - D(h)) / 3.0
+    return 0.5 * (H + H.T)
+
+
+@needs_core
+@pytest.mark.parametrize("angle", [1e-6, 0.3, 1.5, 2.6])
+@pytest.mark.parametrize("kind", ["placement", "rotation", "translation", "state"])
+@pytest.mark.parametrize("name", ["free_flyer", "fixed", "spherical", "all_joints"])
+def test_compiled_hessian_is_exact(name, kind, angle):
+    model, frame = MODELS[name]
+    rng = np.random.default_rng(11)
+    q, v = _random_q(model, rng), rng.normal(size=model.nv)
+    term = _term(kind, model, frame, q[None], rng, per_node=False, angle=angle)
+    cost = MultibodyCostSum([term], backend="compiled")
+    H = _richardson_hessian(cost, q, v)
+    lxx = cost.derivatives(q[None], v[None], None).lxx[0]
+    assert _rel(lxx, H) < EXACT_HESS_TOL
+
+
+def _state_near(model, q, angle, rng):
+    """A reference configuration whose root rotation is ``angle`` rad from q's."""
+    dq = np.zeros(model.nv)
+    ax = rng.normal(size=3)
+    root = model.joints[1]
+    dq[root.idx_v + root.nv - 3: root.idx_v + root.nv] = angle * ax / np.linalg.norm(ax)
+    return pin.integrate(model, q, dq)
+
+
+@needs_core
+@pytest.mark.parametrize("name", ["free_flyer", "spherical"])
+@pytest.mark.parametrize("gap", [0.0, 1e-12, 1e-7, 1e-3])
+def test_residuals_near_pi_stay_finite(name, gap):
+    """Relative rotations of pi - gap: every number finite; at gap 1e-3 still exact (the
+    differences stay on one side of the cut locus)."""
+    model, frame = MODELS[name]
+    rng = np.random.default_rng(5)
+    q, v = _random_q(model, rng), rng.normal(size=model.nv)
+    M = _rotated(_placement(model, frame, q), rng, np.pi - gap)
+    terms = [FramePlacement(model, frame, M, _spd(6, rng)), FrameRotation(model, frame, M.rotation, _spd(3, rng)),
+             StateRegularisation(model, _state_near(model, q, np.pi - gap, rng), None, _spd(2 * model.nv, rng))]
+    for t in terms:
+        cost = MultibodyCostSum([t], backend="compiled")
+        d = cost.derivatives(q[None], v[None], None)
+        assert all(np.all(np.isfinite(a)) for a in (d.l, d.lx, d.lxx)), type(t).__name__
+        if gap == 1e-3:
+            h = 1e-4  # central differences stay 10 h away from pi
+            nv = model.nv
+
+            def grad(z):
+                return cost.derivatives(pin.integrate(model, q, z[:nv])[None], (v + z[nv:])[None], None).lx[0]
+            Dh = np.stack([(grad(h * e) - grad(-h * e)) / (2 * h) for e in np.eye(2 * nv)], axis=1)
+            assert _rel(d.lxx[0], 0.5 * (Dh + Dh.T)) < 1e-6, type(t).__name__
+
+
+@needs_core
+@pytest.mark.parametrize("name", ["free_flyer", "fixed", "spherical", "all_joints"])
+def test_near_identity_and_at_the_reference(name):
+    """At the reference: value and gradient exactly 0 and GN == exact bit for bit; at 1e-9 rad:
+    finite and equal to the oracle."""
+    model, frame = MODELS[name]
+    rng = np.random.default_rng(9)
+    q, v = _random_q(model, rng), rng.normal(size=model.nv)
+    M = _placement(model, frame, q)
+    for gn in (False, True):
+        for t in [FramePlacement(model, frame, M, _spd(6, rng), gauss_newton=gn),
+                  FrameRotation(model, frame, M.rotation, _spd(3, rng), gauss_newton=gn),
+                  FrameTranslation(model, frame, M.translation, _spd(3, rng), gauss_newton=gn),
+                  StateRegularisation(model, q, v, _spd(2 * model.nv, rng), gauss_newton=gn)]:
+            d = MultibodyCostSum([t], backend="compiled").derivatives(q[None], v[None], None)
+            assert d.l[0] == 0.0 and np.all(d.lx == 0.0), type(t).__name__
+    W = _spd(6, np.random.default_rng(1))
+    a = MultibodyCostSum([FramePlacement(model, frame, M, W)], backend="compiled").derivatives(q[None], v[None], None)
+    b = MultibodyCostSum([FramePlacement(model, frame, M, W, gauss_newton=True)],
+                         backend="compiled").derivatives(q[None], v[None], None)
+    assert np.array_equal(a.lxx, b.lxx)
+    Mt = _rotated(M, rng, 1e-9)
+    for t in [FramePlacement(model, frame, Mt, W), FrameRotation(model, frame, Mt.rotation, W[3:, 3:]),
+              StateRegularisation(model, _state_near(model, q, 1e-9, rng) if name != "fixed" else q, None,
+                                  _spd(2 * model.nv, rng))]:
+        py, cc = _both([t], model)
+        dp, dc = py.derivatives(q[None], v[None], None), cc.derivatives(q[None], v[None], None)
+        assert np.all(np.isfinite(dc.lxx)) and _rel(dc.lx, dp.lx) < VALUE_TOL
+        assert _rel(dc.lxx, dp.lxx) < ORACLE_HESS_TOL
+
+
+# --------------------------------------------------------------------------------------
+# closed forms of the Lie groups
+
+
+@needs_core
+def test_closed_forms_match_geoddp_and_differences():
+    rng = np.random.default_rng(2)
+    for scale in (1e-7, 0.1, 0.55, 0.65, 2.0, 3.1):
+        x = rng.normal(size=6)
+        x[3:] *= scale / np.linalg.norm(x[3:])
+        assert np.abs(CORE.se3_right_jacobian_inv(x) - SE3.right_jacobian_inv(x)).max() < 1e-13
+        assert np.abs(CORE.se3_right_jacobian(x) - SE3.right_jacobian(x)).max() < 1e-13
+        assert np.abs(CORE.so3_right_jacobian_inv(x[3:]) - SO3.right_jacobian_inv(x[3:])).max() < 1e-13
+        D6 = CORE.se3_jr_derivative(x).reshape(6, 6, 6)
+        assert np.abs(D6 - cfg.se3_dJr(x)).max() < 1e-9  # geoddp differences its Jr (~1e-10)
+        D3 = CORE.so3_jr_derivative(x[3:]).reshape(3, 3, 3)
+        assert np.abs(D3 - SO3.right_jacobian_derivative_batch(x[None, 3:])[0]).max() < 1e-12
+        # exact: Richardson differences of the compiled Jr
+        h = 1e-3
+
+        def c(hh):
+            return np.stack([(CORE.se3_right_jacobian(x + hh * e) - CORE.se3_right_jacobian(x - hh * e)) / (2 * hh)
+                             for e in np.eye(6)], axis=-1)
+        assert np.abs(D6 - (4 * c(h / 2) - c(h)) / 3).max() < 1e-11
+
+
+# --------------------------------------------------------------------------------------
+# choice of backend, fallbacks and bad input
+
+
+def test_backend_choice_is_validated():
+    model, frame = MODELS["fixed"]
+    t = FrameTranslation(model, frame, np.zeros(3))
+    with pytest.raises(InputError, match="did you mean 'compiled'") as e:
+        MultibodyCostSum([t], backend="compild")
+    assert e.value.parameter == "backend"
+    assert MultibodyCostSum([t], backend="python").backend == "python"
+    for auto in (MultibodyCostSum([t]), MultibodyCostSum([t], backend="auto")):  # "auto" is the default
+        assert auto.backend == ("python" if CORE is None else "compiled")
+    if CORE is None:
+        with pytest.raises(InputError, match="geoddp._core") as e:
+            MultibodyCostSum([t], backend="compiled")
+        assert e.value.parameter == "backend"
+
+
+def test_the_environment_forces_the_oracle(monkeypatch):
+    """GEODDP_MULTIBODY_BACKEND=python makes "auto" pick python (the switch the multibody model
+    honours too); an explicit "compiled" is still compiled."""
+    model, frame = MODELS["fixed"]
+    t = FrameTranslation(model, frame, np.zeros(3))
+    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
+    assert MultibodyCostSum([t]).backend == "python"
+    if CORE is not None:
+        assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
+    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "pyhton")
+    with pytest.raises(InputError) as e:
+        MultibodyCostSum([t])
+    assert e.value.parameter == "GEODDP_MULTIBODY_BACKEND"
+
+
+@needs_core
+def test_terms_without_a_compiled_twin_run_their_python_code(rng):
+    model, frame = MODELS["free_flyer"]
+
+    class Speed(MultibodyCostTerm):
+        def value(self, Q, V, U):
+            return 0.5 * np.sum(V**2, axis=1)
+
+        def accumulate(self, Q, V, U, d):
+            d.l += self.value(Q, V, U)
+            d.lx[:, model.nv:] += V
+            d.lxx[:, model.nv:, model.nv:] += np.eye(model.nv)
+
+    class MyTranslation(FrameTranslation):  # a subclass may change the residual: not compiled
+        def _residual(self, q, k, jac):
+            r, J = super()._residual(q, k, jac)
+            return 2.0 * r, (None if J is None else 2.0 * J)
+
+    Q, V, U = _nodes(model, rng, 3)
+    terms = [Speed(), MyTranslation(model, frame, np.zeros(3)), FrameTranslation(model, frame, np.ones(3))]
+    py, cc = _both(terms, model)
+    dp, dc = py.derivatives(Q, V, None), cc.derivatives(Q, V, None)
+    assert _rel(dc.lx, dp.lx) < VALUE_TOL and _rel(dc.lxx, dp.lxx) < ORACLE_HESS_TOL
+    assert _rel(cc.value(Q, V, None), py.value(Q, V, None)) < VALUE_TOL
+
+
+@needs_core
+def test_bad_input_raises_the_oracles_errors(rng):
+    model, frame = MODELS["free_flyer"]
+    Q, V, U = _nodes(model, rng, 4)
+    refs = np.array([_placement(model, frame, q).translation for q in Q])
+    cc = MultibodyCostSum([FrameTranslation(model, frame, refs)], backend="compiled")
+    with pytest.raises(InputError, match="per-node reference of 4 nodes") as e:
+        cc.derivatives(Q[:3], V[:3], None)
+    assert e.value.parameter == "FrameTranslation.p_ref"
+    with pytest.raises(InputError) as e:
+        cc.value(Q[:, :5], V, None)
+    assert e.value.parameter == "Q"
+    st = MultibodyCostSum([StateRegularisation(model, Q, None)], backend="compiled")
+    with pytest.raises(InputError) as e:
+        st.derivatives(Q[:2], V[:2], None)
+    assert e.value.parameter == "StateRegularisation.q_ref"
+    ctrl = MultibodyCostSum([ControlRegularisation(np.zeros(2))], model=model, backend="compiled")
+    with pytest.raises(InputError) as e:
+        ctrl.derivatives(Q, V, U)  # m = 3, the term has 2
+    assert e.value.parameter == "U"
+    with pytest.raises(InputError, match="terminal"):
+        ctrl.derivatives(Q, V, None)
+    # non-contiguous and integer-free float views are accepted (copied), results unchanged
+    Qf = np.asfortranarray(Q)
+    assert np.array_equal(cc.value(Qf, V, None), cc.value(Q, V, None))
+
+
+@needs_core
+def test_kernels_check_sizes_themselves():
+    """Direct calls with inconsistent sizes raise (ValueError), never read out of bounds."""
+    model, frame = MODELS["fixed"]
+    fid = model.getFrameId(frame)
+    Q = np.zeros((2, model.nq))
+    nx = 2 * model.nv
+    ok = dict(l=np.zeros(2), lx=np.zeros((2, nx)), lxx=np.zeros((2, nx * nx)))
+    with pytest.raises(ValueError, match="refs"):
+        CORE.cost_frame_term(model, fid, 2, Q, np.zeros((3, 3)), np.eye(3), False, True, **ok)
+    with pytest.raises(ValueError, match="lxx"):
+        CORE.cost_frame_term(model, fid, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, ok["l"], ok["lx"],
+                             np.zeros((2, nx)))
+    with pytest.raises(ValueError, match="frame_id"):
+        CORE.cost_frame_term(model, 10_000, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, **ok)
+    with pytest.raises(ValueError, match="W"):
+        CORE.cost_state_regularisation(model, Q, np.zeros((2, model.nv)), Q[:1], np.zeros((1, model.nv)),
+                                       np.eye(3), False, True, **ok)
+    with pytest.raises(TypeError, match="pinocchio.Model"):
+        CORE.cost_frame_term("robot", fid, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, **ok)
