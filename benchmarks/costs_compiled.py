@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from geoddp.data import urdf_path
+
 from geoddp.multibody_costs import (
     ControlRegularisation,
     FramePlacement,
@@ -28,11 +30,10 @@ from geoddp.multibody_costs import (
     compiled_module,
 )
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
 def _model(name: str) -> tuple[pin.Model, str]:
-    model = pin.buildModelFromUrdf(str(MODELS / f"{name}.urdf"), pin.JointModelFreeFlyer())
+    model = pin.buildModelFromUrdf(str(urdf_path(f"{name}.urdf")), pin.JointModelFreeFlyer())
     return model, {"space_manipulator": "ee", "test_all_joints": "payload"}[name]
 
 
