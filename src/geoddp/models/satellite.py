@@ -104,9 +104,11 @@ class Satellite:
 
     def description(self) -> dict:
         """What a Result needs to rebuild the model: kind "satellite", dt, integrator, inertia
-        (3, 3), actuation (3, m), urdf (str)."""
+        (3, 3), actuation (3, m), and as a multibody describes itself: urdf (str), root
+        ("spherical"), nq (4), nv (3)."""
         return {"kind": "satellite", "dt": self.dt, "integrator": self.integrator, "inertia": self.inertia.copy(),
-                "actuation": self.actuation.copy(), "urdf": None if self.urdf is None else str(self.urdf)}
+                "actuation": self.actuation.copy(), "urdf": None if self.urdf is None else str(self.urdf),
+                "root": "spherical", "nq": 4, "nv": 3}
 
     # ------------------------------------------------------------------ dynamics
     def rollout(self, R0: np.ndarray, Omega0: np.ndarray, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
