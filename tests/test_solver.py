@@ -164,3 +164,23 @@ def test_fast_path_equals_pinocchio_path_on_a_random_scene(integrator):
         tol = 1e-12 if exp == "first" else 1e-9
         assert np.allclose(c.cost_history, pn.cost_history, rtol=tol, atol=0), exp
         assert np.abs(c.controls - pn.controls).max() <= tol * np.abs(pn.controls).max(), exp
+
+
+def test_satellite_outside_the_euler_schemes_runs_the_general_one_body_model():
+    """The backend is chosen by structure: rk4 is not a TSO(3) closed form, so the satellite runs
+    as the general one-body model (satellite.urdf, spherical root, no gravity, its inertia) with
+    the same attitude term on the body frame; its optimum is the semi-implicit one to O(dt)."""
+    from geoddp.models.multibody import Multibody
+    from geoddp.models.satellite import Satellite
+    from geoddp.validate import InputError
+
+    si = paper_problem(integrator="semi_implicit", attitude_kind="geodesic", horizon=60, dt=0.05)
+    rk = paper_problem(integrator="rk4", attitude_kind="geodesic", horizon=60, dt=0.05)
+    assert isinstance(si.model, Satellite) and isinstance(rk.model, Multibody)
+    assert np.array_equal(rk.model.pin_model.inertias[1].inertia, si.model.inertia)
+    a, b = solve(si, SolverOptions(verbose=False)), solve(rk, SolverOptions(verbose=False))
+    assert abs(a.cost - b.cost) <= 2e-3 * a.cost  # measured 1.0e-3 (different integrators)
+    assert np.abs(b.rotations[-1] - si.describe()["target_rotation"]).max() < 0.05
+    assert np.abs(rk.describe()["target_rotation"] - si.describe()["target_rotation"]).max() == 0.0
+    with pytest.raises(InputError, match="frame"):
+        paper_problem(integrator="rk4", attitude_kind="chordal", horizon=10)

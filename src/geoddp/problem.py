@@ -28,8 +28,8 @@ from .costs import (
     CostDerivatives,
     CostSum,
 )
-from .models.satellite import Satellite
-from .multibody_costs import FramePlacement
+from .models.satellite import Satellite, satellite_model
+from .multibody_costs import ControlRegularisation, FramePlacement, FrameRotation, MultibodyCostSum, StateRegularisation
 from .validate import InputError, choice, finite_array, positive_int
 
 ATTITUDE_KINDS = ("chordal", "geodesic")
@@ -125,12 +125,14 @@ class Problem:
         """Model description for the Result: the model's :meth:`description` (kind, dt,
         integrator, and what rebuilds it: inertia/actuation/urdf on TSO(3); urdf, urdf_xml, root,
         nq, nv for a multibody) and the terminal cost's targets: ``target_rotation`` (3, 3) (an
-        attitude term's R_d or a frame placement's rotation; identity without one) and
+        attitude term's R_d or a frame placement's or rotation's target; identity without one) and
         ``target_angular_velocity`` (3,) (zero without a rate term)."""
         R_d, Omega_d = np.eye(3), np.zeros(3)
         for t in getattr(self.terminal, "terms", []):
             if isinstance(t, FramePlacement):
                 R_d = t.M_ref[-1, :3, :3].copy()  # (K, 4, 4) references; the last is the final node's
+            elif isinstance(t, FrameRotation):
+                R_d = t.R_ref[-1].copy()
             R_d = getattr(t, "R_d", R_d)
             Omega_d = getattr(t, "Omega_d", Omega_d)
         return {**self.model.description(), "target_rotation": np.array(R_d, dtype=float),
@@ -204,8 +206,8 @@ def satellite_problem(
     ``urdf``, spherical root, no gravity, this inertia) with the compiled TSO(3) backend.
     """
     actuation = np.eye(3) if actuation is None else actuation
-    model = Satellite(inertia=inertia, actuation=actuation, dt=dt, integrator=integrator,
-                      second_order=second_order, urdf=urdf)
+    model = satellite_model(inertia=inertia, actuation=actuation, dt=dt, integrator=integrator,
+                            second_order=second_order, urdf=urdf)
     attitude_kind = choice(attitude_kind, "cost.attitude_kind", ATTITUDE_KINDS)
     Attitude = AttitudeChordal if attitude_kind == "chordal" else AttitudeGeodesic
     m = model.nu
@@ -220,8 +222,34 @@ def satellite_problem(
     if running_S_Omega is not None and np.any(np.asarray(running_S_Omega) != 0):
         running.terms.append(AngularVelocityQuadratic(running_S_Omega, Omega_d))
     terminal = CostSum([Attitude(S_R, R_d), AngularVelocityQuadratic(S_Omega, Omega_d)])
-    return Problem(model, np.eye(3) if R0 is None else R0, np.zeros(3) if Omega0 is None else Omega0,
-                   horizon, running, terminal)
+    R0 = np.eye(3) if R0 is None else R0
+    Omega0 = np.zeros(3) if Omega0 is None else Omega0
+    if isinstance(model, Satellite):
+        return Problem(model, R0, Omega0, horizon, running, terminal)
+    return _on_general_model(model, R0, Omega0, horizon, running, terminal)
+
+
+def _on_general_model(model, R0, Omega0, horizon: int, running: CostSum, terminal: CostSum) -> Problem:
+    """The satellite's costs on its general one-body model (states (q, v) with q the root
+    quaternion): control and rate terms as regularisations, attitude terms on the body frame."""
+    import pinocchio as pin
+
+    pm = model.pin_model
+    body = next(f.name for f in pm.frames if f.parentJoint == 1 and f.type == pin.FrameType.BODY)
+
+    def convert(t):
+        if isinstance(t, ControlQuadratic):
+            return ControlRegularisation(t.u_ref, t.S)
+        if isinstance(t, AngularVelocityQuadratic):
+            W = np.zeros((6, 6))
+            W[3:, 3:] = t.S
+            return StateRegularisation(pm, pin.neutral(pm), t.Omega_d, W)
+        t.frame = body  # attitude terms: on the body frame (MultibodyCostSum converts them)
+        return t
+
+    q0 = pin.Quaternion(np.asarray(R0, dtype=float)).coeffs().copy()  # (x, y, z, w)
+    return Problem(model, q0, Omega0, horizon, MultibodyCostSum([convert(t) for t in running.terms], model=pm),
+                   MultibodyCostSum([convert(t) for t in terminal.terms], model=pm, terminal=True))
 
 
 def paper_problem(integrator: str = "euler", attitude_kind: str = "chordal", **overrides) -> Problem:

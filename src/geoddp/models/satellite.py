@@ -160,3 +160,25 @@ class Satellite:
         if order >= 2 and self.second_order == "paper":
             integ.paper_eta_rows(e, self.dt, Omega[:H])
         return e
+
+
+def satellite_model(*, inertia, actuation, dt: float, integrator: str = "euler", second_order: str = "exact",
+                    urdf: Path | None = None):
+    """The one-body satellite (``urdf`` or the built-in ``satellite.urdf``, spherical root, no
+    gravity, this inertia) with its backend chosen by structure: the TSO(3) closed forms
+    (:class:`Satellite`) for the Euler schemes, else the general path
+    (:class:`geoddp.models.multibody.Multibody`: rk4, variational), which keeps the URDF's mass."""
+    from .multibody import Multibody
+
+    if integrator in integ.INTEGRATORS:
+        return Satellite(inertia=inertia, actuation=actuation, dt=dt, integrator=integrator,
+                         second_order=second_order, urdf=urdf)
+    inertia = inertia_matrix(inertia, "inertia")
+    second_order = choice(second_order, "second_order", ("exact",))
+    mb = Multibody(DEFAULT_URDF if urdf is None else urdf, root="spherical", actuation=actuation_matrix(actuation, "actuation"),
+                   dt=dt, integrator=integrator, gravity=False, second_order=second_order)
+    if mb.nv != 3:
+        raise ValueError(f"urdf: expected a single rigid body (nv = 3 with a spherical root), got nv = {mb.nv}")
+    pm = mb.pin_model
+    pm.inertias[1] = pin.Inertia(pm.inertias[1].mass, np.zeros(3), inertia)
+    return mb
