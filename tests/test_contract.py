@@ -145,3 +145,18 @@ def test_the_solver_needs_only_the_contract(name):
     Ja, ga = cost_gradient(problem, U)
     Jb, gb = cost_gradient(proxy, U)
     assert Ja == Jb and np.array_equal(ga, gb)
+
+
+def test_satellite_and_multibody_describe_their_model_alike():
+    """One Problem class: both kinds describe kind, dt, integrator, the URDF, root, nq, nv and the
+    terminal targets, so the Result and the viewer read the same keys."""
+    from geoddp.problem import MultibodyProblem, Problem, paper_problem
+    from geoddp.multibody_scenes import quadrotor
+
+    assert MultibodyProblem is Problem
+    sat, mb = paper_problem().describe(), quadrotor(horizon=5).describe()
+    common = {"kind", "dt", "integrator", "urdf", "root", "nq", "nv", "target_rotation", "target_angular_velocity"}
+    assert common <= set(sat) and common <= set(mb)
+    assert (sat["kind"], sat["root"], sat["nq"], sat["nv"]) == ("satellite", "spherical", 4, 3)
+    assert Path(sat["urdf"]).name == "satellite.urdf"
+    assert mb["kind"] == "multibody"

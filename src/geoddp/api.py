@@ -24,15 +24,13 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
     solve a scene: satellite or multibody (``[model] kind``).
 
     Keyword options override the scene's ``[solver]`` table (for example ``expansion="second"``,
-    ``record_controls=True``, ``verbose=False``); ``backend`` (the satellite's derivative
-    backend: "compiled", "analytic" or "pinocchio") is a model choice, passed to the builder.
+    ``record_controls=True``, ``verbose=False``).
     """
     spec = scene if isinstance(scene, (SceneSpec, MultibodySceneSpec)) else load_scene(scene)
     scene_keys = {"expansion", "switch_ratio", "tol", "grad_tol", "max_iter"}
     spec = spec.with_overrides(**{k: v for k, v in options.items() if k in scene_keys})
-    backend = options.pop("backend", None)
     rest = {k: v for k, v in options.items() if k not in scene_keys}
-    problem = build_problem(spec, backend=backend)
+    problem = build_problem(spec)
     result = solve(problem, solver_options(spec, verbose=verbose, **rest), initial_controls=initial_controls(spec))
     result.extra["scene"] = spec.name
     return result

@@ -83,11 +83,14 @@ class AttitudeChordal(CostTerm):
     """1/2 ||I - R_d^T R||^2_{m, S_R} = 1/2 tr[(I - E)^T S_R (I - E)], E = R_d^T R (eq. costR).
 
     Gradient 2 vee(skew(S_R E)) (eq. gradF), (0)-Hessian sym(tr[S_R E] I - S_R E) (eq. hessF).
+    On TSO(3) R is the state's rotation; on a general model the chordal form is not available yet
+    (a :class:`geoddp.multibody_costs.MultibodyCostSum` refuses it naming ``frame``).
     """
 
-    def __init__(self, S_R, R_d) -> None:
+    def __init__(self, S_R, R_d, frame: str | None = None) -> None:
         self.S = spd_matrix(S_R, "cost.attitude", 3, semidefinite=True)
         self.R_d = rotation_matrix(R_d, "target.rotation")
+        self.frame = frame
 
     def _E(self, R):
         return np.einsum("ji,njk->nik", self.R_d, R)
@@ -113,11 +116,17 @@ class AttitudeGeodesic(CostTerm):
     Gradient Jr(r)^-T W r; (0)-Hessian Jr^-T W Jr^-1 + sum_k (W r)_k T_k(r), with T the
     second-order term of log (:meth:`geoddp.lie.SO3.log_second_order_batch`). At exactly pi the
     log is two-valued and the gradient jumps: a geodesic cost has a cut locus there.
+
+    One term for every model backend: on TSO(3) (the closed forms below, compiled) R is the
+    state's rotation; in a :class:`geoddp.multibody_costs.MultibodyCostSum` the same term penalises
+    the world rotation of ``frame`` through the model's frame kinematics (it becomes a
+    :class:`geoddp.multibody_costs.FrameRotation` with the same W and R_d, compiled or python).
     """
 
-    def __init__(self, W, R_d) -> None:
+    def __init__(self, W, R_d, frame: str | None = None) -> None:
         self.W = spd_matrix(W, "cost.attitude", 3, semidefinite=True)
         self.R_d = rotation_matrix(R_d, "target.rotation")
+        self.frame = frame
 
     def residual(self, R: np.ndarray) -> np.ndarray:
         """(N, 3) r = log(R_d^T R)."""

@@ -34,7 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .lie import NONCOMMUTATIVE, SO3, SO3_ROOT, JointGroup, block_Ad_Jr, group_second_order_tensors, hat
+from .lie import NONCOMMUTATIVE, SO3, JointGroup, block_Ad_Jr, group_second_order_tensors, hat
 
 INTEGRATORS = ("euler", "semi_implicit")
 SECOND_ORDER_KINDS = ("exact", "paper")
@@ -56,11 +56,6 @@ class Expansion:
     @property
     def is_second_order(self) -> bool:
         return self.Theta is not None
-
-
-def reconstruction_velocity(Omega: np.ndarray, Omega_next: np.ndarray, integrator: str) -> np.ndarray:
-    """The velocity w used in R+ = R exp(dt w): Omega (euler) or Omega+ (semi_implicit). (N, 3)."""
-    return Omega if integrator == "euler" else Omega_next
 
 
 def expand(
@@ -138,41 +133,13 @@ def expand(
     return e
 
 
-def assemble(
-    dt: float,
-    w_bar: np.ndarray,
-    F1: np.ndarray,
-    F2: np.ndarray | None,
-    integrator: str,
-    second_order: str = "exact",
-) -> Expansion:
-    """The satellite's (TSO(3)) expansion: :func:`expand` on SO(3), or the paper's variant.
-
-    Args:
-        dt: time step (s), > 0.
-        w_bar: (N, 3) nominal reconstruction velocity (rad/s), see :func:`reconstruction_velocity`.
-        F1: (N, 3, nz) Jacobian of Omega+ w.r.t. z = (eta, dOmega, du), eta right-trivialised.
-        F2: (N, 3, nz, nz) symmetric (0)-Hessians of Omega+ w.r.t. z, or None for first order.
-        integrator: "euler" (paper) or "semi_implicit" (Crocoddyl).
-        second_order: "exact" (default) or "paper" (eq. etamatrixterms; euler only): the paper's
-            eta rows of Theta replace the exact second-order terms of eta+ (for comparison).
-
-    Returns:
-        :class:`Expansion` with Phi, B and, when F2 is given, Theta, Gamma, Xi.
-    """
-    if F2 is not None and second_order not in SECOND_ORDER_KINDS:
-        raise ValueError(f"second_order: expected one of {SECOND_ORDER_KINDS}, got {second_order!r}")
-    if F2 is not None and second_order == "paper" and integrator != "euler":
-        raise ValueError(
-            "second_order: 'paper' (eq. etamatrixterms) is derived for the explicit Euler "
-            f"scheme only; got integrator={integrator!r}. Use second_order='exact'."
-        )
-    exp = expand(SO3_ROOT, dt, w_bar, F1, F2, integrator == "semi_implicit")
-    if F2 is not None and second_order == "paper":
-        exp.Theta[:, 0:3] = _paper_theta_eta(dt, w_bar)
-        exp.Gamma[:, 0:3] = 0.0
-        exp.Xi[:, 0:3] = 0.0
-    return exp
+def paper_eta_rows(e: Expansion, dt: float, w_bar: np.ndarray) -> None:
+    """Replace the eta rows of a TSO(3) second-order expansion by the paper's (eq. etamatrixterms;
+    explicit Euler, w_bar = Omega (N, 3)), for comparison: Theta's from Omega_ij and K_ij, Gamma's
+    and Xi's zero."""
+    e.Theta[:, 0:3] = _paper_theta_eta(dt, w_bar)
+    e.Gamma[:, 0:3] = 0.0
+    e.Xi[:, 0:3] = 0.0
 
 
 def _paper_theta_eta(dt: float, xi: np.ndarray) -> np.ndarray:

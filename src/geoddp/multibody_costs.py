@@ -67,7 +67,7 @@ import numpy as np
 import pinocchio as pin
 
 from .lie import product as cfg
-from .costs import CostDerivatives
+from .costs import AttitudeChordal, AttitudeGeodesic, CostDerivatives
 from .lie import SE3, SO3
 from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix
 
@@ -154,6 +154,21 @@ def _pick(ref: np.ndarray, N: int, name: str) -> np.ndarray:
     if ref.shape[0] != N:
         raise InputError(name, f"a per-node reference of {ref.shape[0]} nodes cannot be evaluated on {N} nodes")
     return ref
+
+
+def _on_frames(term: Any, model: pin.Model | None, i: int) -> Any:
+    """An attitude term of :mod:`geoddp.costs` on a general model: the same cost on the world
+    rotation of its ``frame``, through the model's frame kinematics (one rotation term serves the
+    TSO(3) backend and every other model)."""
+    if not isinstance(term, (AttitudeGeodesic, AttitudeChordal)):
+        return term
+    if isinstance(term, AttitudeChordal):
+        raise InputError(f"terms[{i}].frame", "expected a geodesic attitude term on a general model "
+                         "(the chordal form runs on TSO(3) only), got AttitudeChordal")
+    if model is None or term.frame is None:
+        raise InputError(f"terms[{i}].frame", "expected the name of the frame whose rotation the term "
+                         "penalises (and model= on the cost sum), got none")
+    return FrameRotation(model, term.frame, term.R_d, term.W)
 
 
 # --------------------------------------------------------------------------------------
@@ -515,7 +530,7 @@ class MultibodyCostSum:
 
     def __init__(self, terms: Sequence[MultibodyCostTerm], model: pin.Model | None = None,
                  terminal: bool = False, backend: str = "auto") -> None:
-        self.terms = list(terms)
+        self.terms = [_on_frames(t, model, i) for i, t in enumerate(terms)]
         for i, t in enumerate(self.terms):
             if not isinstance(t, MultibodyCostTerm):
                 raise InputError(f"terms[{i}]", f"expected a MultibodyCostTerm, got {type(t).__name__}")

@@ -680,7 +680,7 @@ def build_multibody_problem(spec: MultibodySceneSpec):
     """The scene as a :class:`geoddp.multibody_problem.MultibodyProblem` (a fresh model each call)."""
     from .models.multibody import Multibody
     from .multibody_costs import MultibodyCostSum
-    from .multibody_problem import MultibodyProblem
+    from .problem import MultibodyProblem
 
     model = Multibody(spec.urdf, root=spec.root, actuation=np.array(spec.actuation), dt=spec.dt,
                       integrator=spec.integrator, gravity=spec.gravity, second_order=spec.second_order)

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import data
 from .models.actuation import hover_inputs
-from .multibody_problem import MultibodyProblem
+from .problem import MultibodyProblem
 from .multibody_scene import MultibodySceneSpec, build_multibody_problem
 
 NAMES = ("quadrotor", "space_manipulator", "spacecraft_docking")

@@ -1,17 +1,24 @@
-"""The optimal control problem (paper eq. optprob): dynamics, costs, horizon, initial state.
+"""The optimal control problem (paper eq. optprob): a model, running and terminal costs, a
+horizon and an initial state, for the satellite and any Pinocchio multibody alike.
 
-    min_U  J = sum_{k<H} Lambda(g_k, u_k) + F(g_H)   s.t.  g_{k+1} = f(g_k, u_k), g_0 given.
+    min_U  J = sum_{k<H} Lambda(x_k, u_k) + F(x_H)   s.t.  x_{k+1} = f(x_k, u_k), x_0 given.
 
 The running cost is applied as written, without a dt factor (the paper's convention); to compare
 with Crocoddyl, whose integrated action models multiply running costs by dt, divide its weights by dt.
+
+The model is a backend chosen when it was built: :class:`geoddp.models.satellite.Satellite` (the
+TSO(3) closed forms; states are rotation matrices R (3, 3) and body rates Omega (3,)) or
+:class:`geoddp.models.multibody.Multibody` (any URDF; states are Pinocchio configurations q (nq,)
+and velocities v (nv,)). Both answer the same questions (check_state, rollout,
+rollout_closed_loop, expansion, description), so this one class serves both.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from . import kernels
 from .contract import Linearisation, Trajectory
 from .costs import (
     AngularVelocityQuadratic,
@@ -21,134 +28,155 @@ from .costs import (
     CostDerivatives,
     CostSum,
 )
-from .models.satellite import Satellite
-from .validate import InputError, choice, finite_array, positive_int, rotation_matrix
+from .models.satellite import Satellite, satellite_model
+from .multibody_costs import ControlRegularisation, FramePlacement, FrameRotation, MultibodyCostSum, StateRegularisation
+from .validate import InputError, choice, finite_array, positive_int
 
 ATTITUDE_KINDS = ("chordal", "geodesic")
 
 
 @dataclass
 class Problem:
-    """A satellite attitude problem on TSO(3).
+    """min_U sum_k running(x_k, u_k) + terminal(x_H) s.t. the model's dynamics, x_0 = (q0, v0).
 
     Attributes:
-        model: the :class:`Satellite` (dynamics, dt, integrator).
-        R0: (3, 3) initial attitude. Omega0: (3,) initial body rate (rad/s).
+        model: the model backend (:class:`Satellite` or :class:`Multibody`): dynamics, dt, integrator.
+        q0: initial configuration part: R0 (3, 3) on TSO(3), (nq,) for a multibody.
+        v0: initial velocity part: Omega0 (3,) rad/s on TSO(3), (nv,) for a multibody.
         horizon: number of control steps H.
-        running: running cost Lambda (applied at k = 0 .. H-1).
-        terminal: terminal cost F (applied at k = H).
+        running: running cost (applied at k = 0 .. H-1); terminal: terminal cost (at k = H).
+        limits: reserved for control limits ((H, m) lower/upper); None (unconstrained) for now.
     """
 
-    model: Satellite
-    R0: np.ndarray
-    Omega0: np.ndarray
+    model: Any
+    q0: np.ndarray
+    v0: np.ndarray
     horizon: int
-    running: CostSum
-    terminal: CostSum
+    running: Any
+    terminal: Any
+    limits: Any = None
 
     def __post_init__(self) -> None:
-        self.R0 = rotation_matrix(self.R0, "initial.rotation")
-        self.Omega0 = finite_array(self.Omega0, "initial.angular_velocity", (3,))
+        self.q0, self.v0 = self.model.check_state(self.q0, self.v0, "initial")
         self.horizon = positive_int(self.horizon, "horizon")
+        for name, s in (("running", self.running), ("terminal", self.terminal)):
+            nx = getattr(s, "nx", self.model.nx)
+            if nx != self.model.nx:
+                raise InputError(name, f"expected costs on the model's tangent space (nx = {self.model.nx}), got nx = {nx}")
+        if self.limits is not None:
+            raise InputError("limits", "expected None (control limits are not supported yet)")
 
     @property
     def nu(self) -> int:
+        """Number of inputs m."""
         return self.model.nu
 
     @property
     def nx(self) -> int:
-        """Dimension of the tangent state zeta = (eta, dOmega)."""
-        return 6
+        """Dimension of the tangent state zeta: 6 on TSO(3), 2 nv for a multibody."""
+        return self.model.nx
 
     @property
     def dt(self) -> float:
         """Time step in seconds."""
         return self.model.dt
 
+    # satellite names of the initial state
+    @property
+    def R0(self) -> np.ndarray:
+        """(3, 3) initial attitude of a TSO(3) problem (= q0)."""
+        return self.q0
+
+    @property
+    def Omega0(self) -> np.ndarray:
+        """(3,) initial body rate of a TSO(3) problem, rad/s (= v0)."""
+        return self.v0
+
     # ------------------------------------------------------------ the solver's contract
     # (geoddp.contract.OptimalControlProblem): thin adapters over the array methods below.
+    def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
+        """Validated (H, m) float64 copy of a control sequence."""
+        return finite_array(controls, name, (self.horizon, self.nu))
+
     def trajectory(self, controls: np.ndarray) -> Trajectory:
-        """(H, m) controls -> Trajectory(q = R (H+1, 3, 3), v = Omega (H+1, 3), u)."""
-        R, Om = self.rollout(controls)
-        return Trajectory(R, Om, controls)
+        """(H, m) controls -> Trajectory(q, v, u), the whole horizon in one call."""
+        q, v = self.rollout(controls)
+        return Trajectory(q, v, controls)
 
     def trajectory_cost(self, traj: Trajectory) -> float:
         """Total cost J of a trajectory (paper eq. J)."""
         return self.cost(traj.q, traj.v, traj.u)
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
-        """Dynamics expansion (with the model's backend) and cost derivatives along ``traj``."""
-        exp = self.expansion(traj.q, traj.v, traj.u, order)
+        """Dynamics expansion (by the model's backend) and cost derivatives along ``traj``."""
+        exp = self.model.expansion(traj.q, traj.v, traj.u, order=order)
         run, term = self.cost_derivatives(traj.q, traj.v, traj.u)
         return Linearisation.from_parts(order, exp, run, term)
 
     def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
         """:meth:`rollout_closed_loop` around ``traj`` into new arrays; None if non-finite."""
-        R, Om, U = np.empty_like(traj.q), np.empty_like(traj.v), np.empty_like(traj.u)
-        if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, R, Om, U):
+        # fresh C-contiguous outputs (empty_like would copy a nominal's layout, e.g. a transposed guess)
+        q, v, u = np.empty(traj.q.shape), np.empty(traj.v.shape), np.empty(traj.u.shape)
+        if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, q, v, u):
             return None
-        return Trajectory(R, Om, U)
+        return Trajectory(q, v, u)
 
     def describe(self) -> dict:
-        """Model description for the Result: kind "satellite", dt, integrator, inertia (3, 3),
-        actuation (3, m), urdf (str or None) and the target R_d (3, 3), Omega_d (3,) of the
-        terminal cost (identity and zero without such terms)."""
+        """Model description for the Result: the model's :meth:`description` (kind, dt,
+        integrator, and what rebuilds it: inertia/actuation/urdf on TSO(3); urdf, urdf_xml, root,
+        nq, nv for a multibody) and the terminal cost's targets: ``target_rotation`` (3, 3) (an
+        attitude term's R_d or a frame placement's or rotation's target; identity without one) and
+        ``target_angular_velocity`` (3,) (zero without a rate term)."""
         R_d, Omega_d = np.eye(3), np.zeros(3)
-        for t in self.terminal.terms:
+        for t in getattr(self.terminal, "terms", []):
+            if isinstance(t, FramePlacement):
+                R_d = t.M_ref[-1, :3, :3].copy()  # (K, 4, 4) references; the last is the final node's
+            elif isinstance(t, FrameRotation):
+                R_d = t.R_ref[-1].copy()
             R_d = getattr(t, "R_d", R_d)
             Omega_d = getattr(t, "Omega_d", Omega_d)
-        m = self.model
-        return {"kind": "satellite", "dt": m.dt, "integrator": m.integrator, "inertia": m.inertia.copy(),
-                "actuation": m.actuation.copy(), "urdf": None if m.urdf is None else str(m.urdf),
-                "target_rotation": np.array(R_d, dtype=float),
+        return {**self.model.description(), "target_rotation": np.array(R_d, dtype=float),
                 "target_angular_velocity": np.array(Omega_d, dtype=float)}
 
-    def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
-        """Validated (H, m) float64 copy of a control sequence."""
-        return finite_array(controls, name, (self.horizon, self.nu))
-
+    # ------------------------------------------------------------ arrays over the horizon
     def rollout(self, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(H, m) controls -> R (H+1, 3, 3), Omega (H+1, 3)."""
-        return self.model.rollout(self.R0, self.Omega0, controls)
+        """(H, m) controls -> states q (H+1, ...), v (H+1, nv) from the initial state."""
+        return self.model.rollout(self.q0, self.v0, controls)
 
     def rollout_closed_loop(
-        self, R_bar: np.ndarray, Omega_bar: np.ndarray, u_bar: np.ndarray, k_ff: np.ndarray, K_fb: np.ndarray,
-        gamma: float, R_out: np.ndarray, Omega_out: np.ndarray, u_out: np.ndarray,
+        self, q_bar: np.ndarray, v_bar: np.ndarray, u_bar: np.ndarray, k_ff: np.ndarray, K_fb: np.ndarray,
+        gamma: float, q_out: np.ndarray, v_out: np.ndarray, u_out: np.ndarray,
     ) -> bool:
-        """Forward pass of Algorithm 1: u_k = u_bar_k - gamma k_k - K_k zeta_k (eq. dustar), zeta_k =
-        (log(R_bar_k^T R_k), Omega_k - Omega_bar_k), from the initial state.
+        """Forward pass of Algorithm 1: u_k = u_bar_k - gamma k_k - K_k zeta_k (eq. dustar) with
+        zeta_k = difference(x_bar_k, x_k), from the initial state; gains k_ff (H, m), K_fb
+        (H, m, nx); results into q_out, v_out, u_out. Returns False if the state became non-finite."""
+        return self.model.rollout_closed_loop(self.q0, self.v0, q_bar, v_bar, u_bar, k_ff, K_fb, gamma,
+                                              q_out, v_out, u_out)
 
-        Nominal R_bar (H+1,3,3), Omega_bar (H+1,3), u_bar (H,m); gains k_ff (H,m), K_fb (H,m,6);
-        results into R_out, Omega_out, u_out. Returns False if the state became non-finite.
-        """
-        m = self.model
-        return kernels.satellite_rollout(
-            self.R0, self.Omega0, R_bar, Omega_bar, u_bar, k_ff, K_fb, gamma, True,
-            m.inertia, m.inertia_inv, m.actuation, m.dt, m.semi_implicit, R_out, Omega_out, u_out,
-        )
+    def expansion(self, q: np.ndarray, v: np.ndarray, controls: np.ndarray, order: int):
+        """The model's expansion along a trajectory (Phi, B; Theta, Gamma, Xi at order 2)."""
+        return self.model.expansion(q, v, controls, order=order)
 
-    def expansion(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray, order: int, backend: str | None = None):
-        """The model's expansion along a trajectory (see :meth:`Satellite.expansion`); ``backend``
-        defaults to the model's."""
-        return self.model.expansion(R, Omega, controls, order=order, backend=backend)
-
-    def cost(self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray) -> float:
+    def cost(self, q: np.ndarray, v: np.ndarray, controls: np.ndarray) -> float:
         """Total cost J of a trajectory (paper eq. J)."""
         H = self.horizon
-        run = self.running.value(R[:H], Omega[:H], controls).sum()
-        return float(run + self.terminal.value(R[H:], Omega[H:], None)[0])
+        run = self.running.value(q[:H], v[:H], controls).sum()
+        return float(run + self.terminal.value(q[H:], v[H:], None)[0])
 
     def total_cost(self, controls: np.ndarray) -> float:
         """J(U) by single shooting."""
-        R, Om = self.rollout(controls)
-        return self.cost(R, Om, controls)
+        q, v = self.rollout(controls)
+        return self.cost(q, v, controls)
 
     def cost_derivatives(
-        self, R: np.ndarray, Omega: np.ndarray, controls: np.ndarray
+        self, q: np.ndarray, v: np.ndarray, controls: np.ndarray
     ) -> tuple[CostDerivatives, CostDerivatives]:
         """Running derivatives at k < H and terminal derivatives at k = H (N = 1)."""
         H = self.horizon
-        return self.running.derivatives(R[:H], Omega[:H], controls), self.terminal.derivatives(R[H:], Omega[H:], None)
+        return self.running.derivatives(q[:H], v[:H], controls), self.terminal.derivatives(q[H:], v[H:], None)
+
+
+MultibodyProblem = Problem  # the multibody problem is the same class (issue 11)
 
 
 def satellite_problem(
@@ -170,17 +198,16 @@ def satellite_problem(
     integrator: str = "euler",
     second_order: str = "exact",
     urdf=None,
-    backend: str = "compiled",
 ) -> Problem:
     """Build the paper's satellite problem (eqs. disceqs, optprobR, costR) from numbers.
 
     Weights accept a scalar, a vector (diagonal) or a matrix. Units: inertia kg m^2, dt s,
-    angles rad, rates rad/s. ``backend`` picks the model's derivative backend
-    (:attr:`Satellite.backend`).
+    angles rad, rates rad/s. The model is the one-body satellite (built-in ``satellite.urdf`` or
+    ``urdf``, spherical root, no gravity, this inertia) with the compiled TSO(3) backend.
     """
     actuation = np.eye(3) if actuation is None else actuation
-    model = Satellite(inertia=inertia, actuation=actuation, dt=dt, integrator=integrator,
-                      second_order=second_order, urdf=urdf, backend=backend)
+    model = satellite_model(inertia=inertia, actuation=actuation, dt=dt, integrator=integrator,
+                            second_order=second_order, urdf=urdf)
     attitude_kind = choice(attitude_kind, "cost.attitude_kind", ATTITUDE_KINDS)
     Attitude = AttitudeChordal if attitude_kind == "chordal" else AttitudeGeodesic
     m = model.nu
@@ -195,14 +222,34 @@ def satellite_problem(
     if running_S_Omega is not None and np.any(np.asarray(running_S_Omega) != 0):
         running.terms.append(AngularVelocityQuadratic(running_S_Omega, Omega_d))
     terminal = CostSum([Attitude(S_R, R_d), AngularVelocityQuadratic(S_Omega, Omega_d)])
-    return Problem(
-        model=model,
-        R0=np.eye(3) if R0 is None else R0,
-        Omega0=np.zeros(3) if Omega0 is None else Omega0,
-        horizon=horizon,
-        running=running,
-        terminal=terminal,
-    )
+    R0 = np.eye(3) if R0 is None else R0
+    Omega0 = np.zeros(3) if Omega0 is None else Omega0
+    if isinstance(model, Satellite):
+        return Problem(model, R0, Omega0, horizon, running, terminal)
+    return _on_general_model(model, R0, Omega0, horizon, running, terminal)
+
+
+def _on_general_model(model, R0, Omega0, horizon: int, running: CostSum, terminal: CostSum) -> Problem:
+    """The satellite's costs on its general one-body model (states (q, v) with q the root
+    quaternion): control and rate terms as regularisations, attitude terms on the body frame."""
+    import pinocchio as pin
+
+    pm = model.pin_model
+    body = next(f.name for f in pm.frames if f.parentJoint == 1 and f.type == pin.FrameType.BODY)
+
+    def convert(t):
+        if isinstance(t, ControlQuadratic):
+            return ControlRegularisation(t.u_ref, t.S)
+        if isinstance(t, AngularVelocityQuadratic):
+            W = np.zeros((6, 6))
+            W[3:, 3:] = t.S
+            return StateRegularisation(pm, pin.neutral(pm), t.Omega_d, W)
+        t.frame = body  # attitude terms: on the body frame (MultibodyCostSum converts them)
+        return t
+
+    q0 = pin.Quaternion(np.asarray(R0, dtype=float)).coeffs().copy()  # (x, y, z, w)
+    return Problem(model, q0, Omega0, horizon, MultibodyCostSum([convert(t) for t in running.terms], model=pm),
+                   MultibodyCostSum([convert(t) for t in terminal.terms], model=pm, terminal=True))
 
 
 def paper_problem(integrator: str = "euler", attitude_kind: str = "chordal", **overrides) -> Problem:

@@ -551,19 +551,11 @@ def _parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: s
     )
 
 
-def build_problem(spec: AnySceneSpec, backend: str | None = None):
-    """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0), or a
-    :class:`geoddp.multibody_problem.MultibodyProblem` for a multibody scene.
-
-    ``backend`` is a model choice: the satellite's derivative backend ("compiled" by default,
-    "analytic" or "pinocchio"); a multibody model has one backend and ignores it.
-    """
+def build_problem(spec: AnySceneSpec):
+    """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0); the
+    model's backend is chosen when it is built (TSO(3) closed forms for the satellite)."""
     from .problem import satellite_problem
 
-    if backend is not None:
-        from .models.satellite import BACKENDS
-
-        backend = v.choice(backend, "backend", BACKENDS)
     if not isinstance(spec, SceneSpec):
         from .multibody_scene import build_multibody_problem
 
@@ -575,7 +567,6 @@ def build_problem(spec: AnySceneSpec, backend: str | None = None):
         S_u=spec.S_u, S_R=spec.S_R, S_Omega=spec.S_Omega, attitude_kind=spec.attitude_kind,
         running_S_R=spec.running_S_R, running_S_Omega=spec.running_S_Omega,
         integrator=spec.integrator, second_order=spec.second_order, urdf=spec.urdf,
-        backend="compiled" if backend is None else backend,
     )
 
 

@@ -111,7 +111,7 @@ def satellite_linearise(
     Gamma: np.ndarray,
     Xi: np.ndarray,
 ) -> None:
-    """Compiled twin of ``Satellite.expansion(..., backend="analytic")`` (exact second order).
+    """Compiled twin of the numpy closed forms (tests/oracle_satellite.py, backend "analytic") (exact second order).
 
     Om: (H+1, 3) nominal body rates. Fills Phi (H,6,6), B (H,6,m) and, when second_order,
     Theta (H,6,6,6), Gamma (H,6,6,m), Xi (H,6,m,m). The formulas are those of

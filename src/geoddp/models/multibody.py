@@ -97,6 +97,7 @@ class Multibody:
     pin_model: pin.Model = field(init=False, repr=False)
     groups: list = field(init=False, repr=False)
     _variational: variational.VariationalEuler | None = field(init=False, repr=False, default=None)
+    _data: pin.Data | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         self.root = choice(self.root, "root", ROOTS)
@@ -148,6 +149,14 @@ class Multibody:
             self.actuation = Hm
         if self.integrator == "variational":
             self._variational = variational.VariationalEuler(model, self.groups, self.actuation, self.dt)
+        self._data = model.createData()
+
+    def description(self) -> dict:
+        """What a Result needs to rebuild the model without the solver: kind "multibody", dt,
+        integrator, the URDF (absolute path and its text as solved), the root joint kind, nq, nv."""
+        urdf = Path(self.urdf).resolve()
+        return {"kind": "multibody", "dt": self.dt, "integrator": self.integrator, "urdf": str(urdf),
+                "urdf_xml": urdf.read_text(encoding="utf-8"), "root": self.root, "nq": self.nq, "nv": self.nv}
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -232,6 +241,36 @@ class Multibody:
         for k in range(H):
             Q[k + 1], V[k + 1] = self._step(data, Q[k], V[k], U[k])
         return Q, V
+
+    def rollout_closed_loop(
+        self, q0: np.ndarray, v0: np.ndarray, Q_bar: np.ndarray, V_bar: np.ndarray, u_bar: np.ndarray,
+        k_ff: np.ndarray, K_fb: np.ndarray, gamma: float, Q_out: np.ndarray, V_out: np.ndarray, u_out: np.ndarray,
+    ) -> bool:
+        """Forward pass of Algorithm 1 (eq. dustar) from (q0, v0): u_k = u_bar_k - gamma k_k - K_k
+        zeta_k with zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite.
+
+        Shapes: Q_bar, Q_out (H+1, nq); V_bar, V_out (H+1, nv); u_bar, k_ff, u_out (H, m);
+        K_fb (H, m, 2 nv). With the compiled backend the whole pass runs in C++."""
+        H = np.shape(u_out)[0]  # the outputs are the caller's, sized to its horizon
+        if self.backend == "compiled":
+            nq, nv, m = self.nq, self.nv, self.nu
+            ca, co = compiled.check_array, compiled.check_output
+            return compiled._core.rollout_closed_loop(
+                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
+                ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
+                ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
+                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)))
+        data = self._data
+        Q_out[0], V_out[0] = q0, v0
+        for k in range(H):
+            zeta = self.local(Q_bar[k], V_bar[k], Q_out[k], V_out[k])
+            u = u_bar[k] - gamma * k_ff[k] - K_fb[k] @ zeta
+            u_out[k] = u
+            q1, v1 = self._step(data, Q_out[k], V_out[k], u)
+            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
+                return False
+            Q_out[k + 1], V_out[k + 1] = q1, v1
+        return True
 
     # ------------------------------------------------------------------ derivatives
     def _invariant_q_dirs(self) -> np.ndarray:
