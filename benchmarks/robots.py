@@ -42,7 +42,7 @@ that can be simulated (free flight, no gravity, posture regularisation + a frame
 4 iterations each, from zero controls) and saves docs/figures/time_per_iteration_vs_nv.png.
 
 Needs crocoddyl 3.2.1 with pin 4.0.0 and example-robot-data (the bench environment):
-``python benchmarks/robots.py [--runs 3] [--cases ...] [--scaling]``.
+``python benchmarks/robots.py [--runs 5] [--cases ...] [--scaling]``.
 """
 from __future__ import annotations
 
@@ -343,6 +343,7 @@ def run_case(case: Case, runs: int) -> dict[str, Any]:
         J, g = cost_gradient(p, last["U"])
         t = statistics.median(r["time_s"] for r in rec[s])
         out["rows"][s] = dict(iterations=last["iterations"], J=J, grad=float(np.linalg.norm(g)), time_s=t,
+                              time_min_s=min(r["time_s"] for r in rec[s]),
                               iter_s=t / max(last["iterations"], 1), converged=last["converged"],
                               nthreads=last.get("nthreads"), status=last.get("status", ""))
     return out
@@ -355,7 +356,7 @@ LABEL = {"fddp": "Crocoddyl FDDP (default threads)", "fddp-1t": "Crocoddyl FDDP 
 def table(results: list[dict[str, Any]]) -> str:
     """Markdown table; ratios are geoddp (or FDDP 1 thread) / FDDP, per solve and per iteration,
     against FDDP with default threads and against FDDP with one thread."""
-    lines = ["| case | solver | iterations | J* | (J* - J*_FDDP) / J*_FDDP | ‖dJ/dU‖ | ms / solve | ms / iteration | "
+    lines = ["| case | solver | iterations | J* | (J* - J*_FDDP) / J*_FDDP | ‖dJ/dU‖ | ms / solve (median; min) | ms / iteration | "
              "ratio per solve (vs FDDP default / 1 thread) | ratio per iteration (vs FDDP default / 1 thread) |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for res in results:
@@ -373,7 +374,7 @@ def table(results: list[dict[str, Any]]) -> str:
             name = LABEL[s] + (f" [{r['nthreads']} threads]" if s == "fddp" else "")
             flag = "" if r["converged"] else " (not converged)"
             lines.append(f"| {res['case']} | {name} | {r['iterations']}{flag} | {r['J']:.10g} | "
-                         f"{(r['J'] - ref['J']) / abs(ref['J']):+.1e} | {r['grad']:.1e} | {1e3 * r['time_s']:.1f} | "
+                         f"{(r['J'] - ref['J']) / abs(ref['J']):+.1e} | {r['grad']:.1e} | {1e3 * r['time_s']:.1f}; {1e3 * r['time_min_s']:.1f} | "
                          f"{1e3 * r['iter_s']:.2f} | {ratio} | {ratio_it} |")
     return "\n".join(lines)
 
@@ -448,7 +449,8 @@ def scaling(iters: int = 4, runs: int = 3) -> list[dict[str, Any]]:
                     rec[s].append(r["time_s"] / max(r["iterations"], 1))
                     its[s] = r["iterations"]
         row = dict(label=label, nv=p.model.nv, m=p.nu, rel=chk["rel"],
-                   **{s: statistics.median(v) for s, v in rec.items()}, its=its)
+                   **{s: statistics.median(v) for s, v in rec.items()}, its=its,
+                   lo={s: min(v) for s, v in rec.items()}, hi={s: max(v) for s, v in rec.items()})
         print(f"# scaling {label}: nv {row['nv']}, " + ", ".join(f"{s} {1e3 * row[s]:.2f} ms/it ({its[s]} it)" for s in rec),
               flush=True)
         out.append(row)
@@ -464,11 +466,14 @@ def figure(rows: list[dict[str, Any]], path: Path = FIGURE, load: str = "") -> N
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for key, lab, st in (("first", "geoddp first order", "o-"), ("second", "geoddp second order (exact)", "s-"),
                          ("fddp", "Crocoddyl FDDP (default threads)", "^--"), ("fddp-1t", "Crocoddyl FDDP (1 thread)", "v:")):
-        ax.plot(nv, [1e3 * r[key] for r in rows], st, label=lab)
+        med = np.array([1e3 * r[key] for r in rows])
+        lo = np.array([1e3 * r["lo"][key] for r in rows])
+        hi = np.array([1e3 * r["hi"][key] for r in rows])
+        ax.errorbar(nv, med, yerr=[med - lo, hi - med], fmt=st, capsize=3, label=lab)
     for r in rows:
         ax.annotate(r["label"], (r["nv"], 1e3 * r["second"]), textcoords="offset points", xytext=(3, 5), fontsize=7)
     ax.set_xlabel("nv (free-flyer robots of example-robot-data)")
-    ax.set_ylabel("time per iteration [ms] (H = 20)")
+    ax.set_ylabel("time per iteration [ms] (H = 20)\nmedian, bars: min..max of the rounds")
     ax.set_yscale("log")
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title("Time per iteration vs nv: free flight, posture + frame task" + (f"\n{load}" if load else ""),
@@ -497,7 +502,7 @@ def machine() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=3, help="recorded rounds (after one warm-up round)")
+    ap.add_argument("--runs", type=int, default=5, help="recorded rounds (after one warm-up round)")
     ap.add_argument("--cases", nargs="*", default=list(ROBOTS) + list(BUILTIN), choices=list(CASES))
     ap.add_argument("--scaling", action="store_true", help="also the time-per-iteration-vs-nv figure")
     ap.add_argument("--scaling-only", action="store_true")
@@ -529,7 +534,8 @@ def main(argv: list[str] | None = None) -> int:
         for r in rows:
             it = r["its"]
             print(f"| {r['label']} | {r['nv']} | {r['m']} | {1e3 * r['first']:.2f} | {1e3 * r['second']:.2f} | "
-                  f"{1e3 * r['fddp']:.2f} | {1e3 * r['fddp-1t']:.2f} | {it['first']}, {it['second']}, {it['fddp']}, "
+                  f"{1e3 * r['fddp']:.2f} (min {1e3 * r['lo']['fddp']:.2f}) | "
+                  f"{1e3 * r['fddp-1t']:.2f} (min {1e3 * r['lo']['fddp-1t']:.2f}) | {it['first']}, {it['second']}, {it['fddp']}, "
                   f"{it['fddp-1t']} | {r['second'] / r['first']:.1f}x | {r['first'] / r['fddp']:.1f}x | "
                   f"{r['first'] / r['fddp-1t']:.1f}x |")
         print(f"\nfigure: {FIGURE}")
