@@ -234,6 +234,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"geoddp: internal error: {type(exc).__name__}: {_one_line(exc)}; {_written()}", file=sys.stderr)
         return EXIT_INTERNAL
     finally:
+        viewer = sys.modules.get("geoddp.viz.meshcat_replay")
+        if viewer is not None:  # --view: no meshcat server outlives the run, whatever ended it
+            viewer.stop_servers()
         for sig, h in previous.items():
             signal.signal(sig, h)
 
