@@ -18,6 +18,7 @@ from .contract import Linearisation, Trajectory
 from .costs import CostDerivatives
 from .integrators import Expansion
 from .models.multibody import Multibody
+from .urdf_checks import read_urdf_text
 from .multibody_costs import FramePlacement, MultibodyCostSum
 from .validate import InputError, finite_array, positive_int
 
@@ -151,5 +152,5 @@ class MultibodyProblem:
         kind and (nq, nv), enough to rebuild the kinematics and visuals without the solver."""
         m = self.model
         urdf = Path(m.urdf).resolve()
-        return {"urdf": str(urdf), "urdf_xml": urdf.read_text(encoding="utf-8"), "root": m.root,
+        return {"urdf": str(urdf), "urdf_xml": read_urdf_text(urdf), "root": m.root,
                 "nq": m.nq, "nv": m.nv}

@@ -31,6 +31,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..urdf_checks import build_checked_model
+
 from ..lie import product as cfg
 from ..linalg import symmetric_from_upper
 from .. import integrators as integ
@@ -92,10 +94,7 @@ class Multibody:
         if not self.urdf.is_file():
             raise InputError("urdf", f"expected an existing URDF file, got {str(self.urdf)!r} (no such file)")
         rj = _root_joint(self.root)
-        try:
-            model = pin.buildModelFromUrdf(str(self.urdf)) if rj is None else pin.buildModelFromUrdf(str(self.urdf), rj)
-        except (ValueError, RuntimeError) as exc:
-            raise InputError("urdf", f"expected a valid URDF model, got {str(self.urdf)!r} ({exc})") from None
+        model = build_checked_model(self.urdf, rj)  # encoding, axes, masses, inertias; urdfdom's stderr captured
         if model.nv == 0:
             raise InputError("urdf", "expected at least one degree of freedom, got nv = 0 (fixed root, no joints)")
         if not self.gravity:
