@@ -213,7 +213,12 @@ def main(argv: list[str] | None = None) -> int:
             pass
     try:
         handler = {"run": _run, "compare": _compare, "multibody": _multibody}[args.command]
-        return handler(args)
+        import numpy as np
+
+        # Backstop: every numeric path checks finiteness itself (the solver's status, the
+        # validators' messages); numpy's warnings would put lines on stderr before geoddp's own.
+        with np.errstate(all="ignore"):
+            return handler(args)
     except (InputError, OSError) as exc:
         # OSError: a missing, unreadable or unwritable file (the message names it)
         print(f"geoddp: error: {_one_line(exc)}" + (f" ({_written()})" if _WRITTEN else ""), file=sys.stderr)

@@ -376,4 +376,4 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
             s.converged = False
             s.message += f"; the final check failed ({type(exc).__name__}: {exc})"
             gnorm = float("nan")
-    return s.result(gnorm)
+        return s.result(gnorm)
