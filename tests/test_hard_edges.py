@@ -189,3 +189,17 @@ def test_cli_sigterm_mid_solve_exits_143_and_says_what_was_written(tmp_path):
     if proc.returncode == 143:
         assert err.decode().strip().splitlines() == ["geoddp: interrupted by SIGTERM; no output written"]
         assert not (tmp_path / "r.json").exists()
+
+
+def test_cli_says_which_outputs_exist_when_a_later_one_fails(tmp_path, capsys, monkeypatch):
+    from geoddp import viz
+
+    def fail(result, path, **kw):
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(viz, "export_html", fail)
+    out, page = tmp_path / "r.json", tmp_path / "r.html"
+    assert main(["run", "satellite_paper", "--quiet", "--json", str(out), "--html", str(page)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "No space left" in err[0] and f"(wrote {out})" in err[0]
+    assert _strict(out.read_text())["converged"] is True and not page.exists()
