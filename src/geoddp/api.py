@@ -26,6 +26,22 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
     Keyword options override the scene's ``[solver]`` table (for example ``expansion="second"``,
     ``record_controls=True``, ``verbose=False``).
     """
+    import dataclasses
+    import os
+
+    from .solver.options import SolverOptions
+    from .validate import InputError, closest
+
+    if not isinstance(scene, (SceneSpec, MultibodySceneSpec, str, os.PathLike)):
+        raise InputError("scene", f"expected a scene file path, a built-in scene's name or a spec from "
+                         f"geoddp.scene.load_scene, got {type(scene).__name__}"
+                         + (" (write the table to a TOML file and pass its path)" if isinstance(scene, dict) else ""))
+    known = {f.name for f in dataclasses.fields(SolverOptions)} | {"backend"}
+    for key in options:
+        if key not in known:
+            hint = closest(key, known)
+            raise InputError(key, "unknown option of solve_scene" + (f" (did you mean {hint!r}?)" if hint else "")
+                             + f"; known: {', '.join(sorted(known))}")
     spec = scene if isinstance(scene, (SceneSpec, MultibodySceneSpec)) else load_scene(scene)
     scene_keys = {"expansion", "switch_ratio", "tol", "grad_tol", "max_iter"}
     spec = spec.with_overrides(**{k: v for k, v in options.items() if k in scene_keys})

@@ -2,18 +2,48 @@
 (satellite or multibody) or a built-in scene's name (``satellite_paper``, ``quadrotor``, ...);
 ``geoddp multibody NAME`` is an alias of ``geoddp run NAME`` for the built-in multibody scenes.
 
-Exit codes: 0 converged, 1 stopped without converging, 2 bad input (message, no traceback).
+Exit codes: 0 converged (a verified local minimum, see the README's status table), 1 stopped
+without converging (stalled, max_iter, saddle, non-finite, ...), 2 bad input (one line on stderr,
+no traceback; outputs are checked before the solve), 3 an internal error (one line; a bug to
+report), 128 + N on signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP: the solve stops, the line says
+which outputs were written). Every output file is written atomically (geoddp.outputs).
 """
 from __future__ import annotations
 
 import argparse
-import json
+import signal
 import sys
 from pathlib import Path
 
 from .validate import InputError
 
-EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+
+_WRITTEN: list[str] = []  # outputs written by this run, for the exit message
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP during a run (a KeyboardInterrupt, so every cleanup path runs)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _on_signal(signum, frame) -> None:
+    raise Interrupted(signum)
+
+
+def _wrote(path) -> None:
+    _WRITTEN.append(str(path))
+    print(f"wrote {path}")
+
+
+def _check_outputs(args, inputs) -> None:
+    from .outputs import check_outputs
+
+    outs = {f"--{k}": getattr(args, k, None) for k in ("json", "html", "plots")}
+    check_outputs(outs, inputs=inputs, directories=("--plots",))
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -84,6 +114,7 @@ def _solve_and_report(spec, args) -> int:
         if getattr(args, "plots", None):
             raise InputError("--plots", "not supported for multibody scenes (the figures plot a single rigid "
                              "body's attitude); use --json OUT.json, --html OUT.html or --view for a replay")
+    _check_outputs(args, [getattr(spec, "source", None), getattr(spec, "urdf", None)])
     overrides = {"expansion": args.expansion} if args.expansion else {}
     result = solve_scene(spec, verbose=not args.quiet, **overrides)
     if multibody:
@@ -99,7 +130,7 @@ def _solve_and_report(spec, args) -> int:
               f"{result.angular_velocity_error:.3e} rad/s  solve time = {result.solve_time_s:.3f} s")
     print(f"status: {result.status} ({result.message})")
     if args.json:
-        print(f"wrote {result.write_json(args.json)}")
+        _wrote(result.write_json(args.json))
     _visualise(result, args)
     return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
 
@@ -111,9 +142,9 @@ def _visualise(result, args) -> None:
 
     if getattr(args, "plots", None):
         for path in viz.plot_trajectory(result, args.plots).values():
-            print(f"wrote {getattr(path, 'path', path)}")
+            _wrote(getattr(path, 'path', path))
     if getattr(args, "html", None):
-        print(f"wrote {viz.export_html(result, args.html)}")
+        _wrote(viz.export_html(result, args.html))
     if getattr(args, "view", False):
         try:
             viz.replay(result, open_browser=False)
@@ -125,8 +156,12 @@ def _visualise(result, args) -> None:
 
 def _compare(args) -> int:
     from .api import solve_scene
+    from .outputs import strict_json, write_atomic
+    from .scene import load_scene
     from .solver.options import EXPANSIONS
 
+    spec0 = load_scene(args.scene)
+    _check_outputs(args, [getattr(spec0, "source", None), getattr(spec0, "urdf", None)])
     results = {}
     for exp in EXPANSIONS:
         results[exp] = solve_scene(args.scene, verbose=False, expansion=exp, record_controls=True)
@@ -135,13 +170,12 @@ def _compare(args) -> int:
     for name, r in results.items():
         print(_summary_row(name, r))
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({k: {"cost": r.cost, "iterations": r.iterations, "grad_norm": r.grad_norm,
+        write_atomic(args.json, strict_json({k: {"cost": r.cost, "iterations": r.iterations, "grad_norm": r.grad_norm,
                                              "cost_history": r.cost_history.tolist(),
                                              "grad_norm_history": r.grad_norm_history.tolist(),
                                              "solve_time_s": r.solve_time_s, "status": r.status}
-                                         for k, r in results.items()}, indent=1))
-        print(f"wrote {args.json}")
+                                         for k, r in results.items()}))
+        _wrote(args.json)
     from .api import initial_controls
     from .reference import lbfgs
     from .scene import build_problem, load_scene
@@ -156,18 +190,60 @@ def _compare(args) -> int:
         figs = viz.plot_convergence(results, args.plots, reference_cost=ref.cost, reference_label="L-BFGS (scipy)",
                                     reference_history=ref.cost_history)
         for path in figs.values():
-            print(f"wrote {getattr(path, 'path', path)}")
+            _wrote(getattr(path, 'path', path))
     return EXIT_CONVERGED if all(r.converged for r in results.values()) else EXIT_NOT_CONVERGED
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _written() -> str:
+    return "wrote " + ", ".join(_WRITTEN) if _WRITTEN else "no output written"
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    _WRITTEN.clear()
+    previous = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):  # SIGINT already raises KeyboardInterrupt
+        try:
+            previous[sig] = signal.signal(sig, _on_signal)
+        except (ValueError, OSError):  # not the main thread
+            pass
     try:
         handler = {"run": _run, "compare": _compare, "multibody": _multibody}[args.command]
-        return handler(args)
-    except (InputError, FileNotFoundError, IsADirectoryError) as exc:
-        print(f"geoddp: error: {exc}", file=sys.stderr)
+        import numpy as np
+
+        # Backstop: every numeric path checks finiteness itself (the solver's status, the
+        # validators' messages); numpy's warnings would put lines on stderr before geoddp's own.
+        with np.errstate(all="ignore"):
+            return handler(args)
+    except (InputError, OSError) as exc:
+        # OSError: a missing, unreadable or unwritable file (the message names it)
+        print(f"geoddp: error: {_one_line(exc)}" + (f" ({_written()})" if _WRITTEN else ""), file=sys.stderr)
         return EXIT_BAD_INPUT
+    except MemoryError:
+        print("geoddp: error: out of memory (the problem is too large for this machine)"
+              + (f" ({_written()})" if _WRITTEN else ""), file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
+        print(f"geoddp: interrupted by {signal.Signals(signum).name}; {_written()}", file=sys.stderr)
+        return 128 + int(signum)
+    except Exception as exc:  # a bug: one line, not a traceback (GEODDP_TRACEBACK=1 shows it)
+        import os
+
+        if os.environ.get("GEODDP_TRACEBACK"):
+            raise
+        print(f"geoddp: internal error: {type(exc).__name__}: {_one_line(exc)}; {_written()}", file=sys.stderr)
+        return EXIT_INTERNAL
+    finally:
+        viewer = sys.modules.get("geoddp.viz.meshcat_replay")
+        if viewer is not None:  # --view: no meshcat server outlives the run, whatever ended it
+            viewer.stop_servers()
+        for sig, h in previous.items():
+            signal.signal(sig, h)
 
 
 if __name__ == "__main__":

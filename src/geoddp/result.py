@@ -27,6 +27,9 @@ from .solver.status import (  # noqa: F401
     STATUS_MAX_REG,
     STATUS_NO_DESCENT,
     STATUS_SADDLE,
+    STATUS_STALLED,
+    STATUS_NON_FINITE,
+    STATUS_LINALG,
 )
 
 # Keys of the model description that make up ``Result.multibody`` (what the viewer rebuilds from).
@@ -110,6 +113,15 @@ class _WriteThrough(dict):
     def update(self, *args: Any, **kw: Any) -> None:
         super().update(*args, **kw)
         self._model.update(*args, **kw)
+
+
+def _nan_for_none(x: Any) -> Any:
+    """Inverse of the strict JSON writer (geoddp.outputs): null -> NaN, at any list depth."""
+    if x is None:
+        return float("nan")
+    if isinstance(x, list):
+        return [_nan_for_none(v) for v in x]
+    return x
 
 
 def _jsonable(x: Any) -> Any:
@@ -475,19 +487,21 @@ class Result:
             "multibody": None if mb is None else dict(mb),
             # the description, without what the "multibody" field already holds (the URDF text once)
             "model": _jsonable({k: val for k, val in self.model.items() if mb is None or k not in mb}),
+            # the certificate of the final check (solver.loop._Solve.final_check); None if not solved here
+            "optimality": _jsonable(self.extra.get("optimality")),
         }
 
     def write_json(self, path: str | Path) -> Path:
-        """Write :meth:`to_dict` to ``path`` (parents created). Returns the path."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_dict(), indent=1))
-        return path
+        """Write :meth:`to_dict` to ``path`` (parents created) atomically, as strict JSON (a
+        non-finite number is written as null and read back as NaN). Returns the path."""
+        from .outputs import strict_json, write_atomic
+
+        return write_atomic(path, strict_json(self.to_dict()))
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Result":
         """Inverse of :meth:`to_dict`; also reads dictionaries written before ``model`` existed."""
-        a = np.asarray
+        a = lambda x, dtype=float: np.asarray(_nan_for_none(x), dtype=dtype)  # noqa: E731  (strict JSON: null = NaN)
         opt = lambda key: None if d.get(key) is None else a(d[key], dtype=float)  # noqa: E731
         model = dict(d["model"]) if d.get("model") is not None else None
         if model is not None and d.get("multibody") is not None:
@@ -528,6 +542,7 @@ class Result:
             target_angular_velocity=None if model is not None else a(d["target_angular_velocity"], dtype=float),
             multibody=None if model is not None or d.get("multibody") is None else dict(d["multibody"]),
             integrator=None if model is not None else str(d["integrator"]),
+            extra={"optimality": dict(d["optimality"])} if d.get("optimality") is not None else None,
         )
 
     @classmethod

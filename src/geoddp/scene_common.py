@@ -37,7 +37,7 @@ def check_urdf(path: Any, name: str, base_dir: Path) -> Path:
     name is used (:mod:`geoddp.data`), so a scene names a built-in model the same way from the
     repository, an installed wheel or a copy in any folder. Absolute paths are used as given.
     """
-    if not isinstance(path, (str, Path)) or str(path) == "":
+    if not isinstance(path, (str, Path)) or str(path) == "" or "\0" in str(path):
         raise InputError(name, f"expected a file path string, got {path!r}")
     p = Path(path).expanduser()
     if not p.is_absolute():

@@ -62,8 +62,25 @@ class InputError(ValueError):
         return InputError(self.parameter, self.detail, source)
 
 
+MAX_HORIZON = 10_000_000  # steps: beyond this the arrays over the horizon alone exceed any memory
+MAX_WEIGHT = 1e100  # largest accepted weight entry: J = x^T S x stays finite for |x| up to ~1e100
+
 # --------------------------------------------------------------------------------------
 # helpers
+
+
+def _quiet(fn):
+    """Run a check without numpy floating-point warnings: finite but huge entries overflow in
+    norms and products, and the check's own test then refuses them with a message naming the
+    parameter (a warning line on stderr would only precede that message)."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kw):
+        with np.errstate(all="ignore"):
+            return fn(*args, **kw)
+
+    return wrapper
 
 
 def _describe(x: Any) -> str:
@@ -169,6 +186,7 @@ def finite_float(x: Any, name: str) -> float:
     return float(finite_array(x, name, shape=()))
 
 
+@_quiet
 def rotation_matrix(R: Any, name: str, tol: float = 1e-9) -> np.ndarray:
     """Validate a rotation matrix (an element of SO(3)).
 
@@ -201,6 +219,7 @@ def rotation_matrix(R: Any, name: str, tol: float = 1e-9) -> np.ndarray:
     return M
 
 
+@_quiet
 def unit_quaternion(q: Any, name: str, tol: float = 1e-9) -> np.ndarray:
     """Validate a unit quaternion in (x, y, z, w) order (Pinocchio's storage order).
 
@@ -243,6 +262,7 @@ def quaternion_to_rotation(q: Any, name: str = "quaternion") -> np.ndarray:
 # weights and physical parameters
 
 
+@_quiet
 def spd_matrix(
     S: Any,
     name: str,
@@ -286,6 +306,9 @@ def spd_matrix(
         raise InputError(name, f"expected {expected_forms}, got shape {A.shape}")
 
     scale = float(np.max(np.abs(M))) if M.size else 0.0
+    if scale > MAX_WEIGHT:
+        # a weight this large overflows the cost and its derivatives (squares of 1e154 are inf)
+        raise InputError(name, f"expected entries of magnitude <= {MAX_WEIGHT:.0e}, got {scale:.3g}")
     asym = float(np.max(np.abs(M - M.T)))
     if asym > 1e-12 * scale:
         raise InputError(
@@ -308,6 +331,7 @@ def spd_matrix(
     return M
 
 
+@_quiet
 def inertia_matrix(I: Any, name: str = "inertia") -> np.ndarray:  # noqa: E741
     """Validate a rigid-body inertia tensor in kg m^2.
 
@@ -337,6 +361,7 @@ def inertia_matrix(I: Any, name: str = "inertia") -> np.ndarray:  # noqa: E741
     return M
 
 
+@_quiet
 def actuation_matrix(Hm: Any, name: str = "actuation") -> np.ndarray:
     """Validate the torque actuation matrix mapping m inputs to body torques.
 
@@ -457,6 +482,8 @@ def time_grid(tf: Any, dt: Any, *, tf_name: str = "horizon.tf", dt_name: str = "
     tf_v = positive_float(tf, tf_name)
     dt_v = positive_float(dt, dt_name)
     ratio = tf_v / dt_v
+    if not ratio <= MAX_HORIZON:  # also catches an overflow to inf
+        raise InputError(tf_name, f"expected at most {MAX_HORIZON} steps, got tf / dt = {ratio:.3g}")
     H = int(round(ratio))
     if H < 1:
         raise InputError(tf_name, f"expected tf >= {dt_name} = {dt_v!r}, got {tf_v!r}")

@@ -40,10 +40,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..urdf_checks import build_checked_model
+
 from ..lie import product as cfg
 from ..linalg import symmetric_from_upper
 from .. import integrators as integ
 from .. import rkmk4, variational
+from ..urdf_checks import read_urdf_text
 from ..validate import InputError, choice, finite_array, nonnegative_int, positive_float
 from . import compiled
 
@@ -124,10 +127,7 @@ class Multibody:
         if not self.urdf.is_file():
             raise InputError("urdf", f"expected an existing URDF file, got {str(self.urdf)!r} (no such file)")
         rj = _root_joint(self.root)
-        try:
-            model = pin.buildModelFromUrdf(str(self.urdf)) if rj is None else pin.buildModelFromUrdf(str(self.urdf), rj)
-        except (ValueError, RuntimeError) as exc:
-            raise InputError("urdf", f"expected a valid URDF model, got {str(self.urdf)!r} ({exc})") from None
+        model = build_checked_model(self.urdf, rj)  # encoding, axes, masses, inertias; urdfdom's stderr captured
         if model.nv == 0:
             raise InputError("urdf", "expected at least one degree of freedom, got nv = 0 (fixed root, no joints)")
         if not self.gravity:
@@ -156,7 +156,7 @@ class Multibody:
         integrator, the URDF (absolute path and its text as solved), the root joint kind, nq, nv."""
         urdf = Path(self.urdf).resolve()
         return {"kind": "multibody", "dt": self.dt, "integrator": self.integrator, "urdf": str(urdf),
-                "urdf_xml": urdf.read_text(encoding="utf-8"), "root": self.root, "nq": self.nq, "nv": self.nv}
+                "urdf_xml": read_urdf_text(urdf), "root": self.root, "nq": self.nq, "nv": self.nv}
 
     # ------------------------------------------------------------------ sizes
     @property

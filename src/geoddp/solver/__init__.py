@@ -24,13 +24,17 @@ from .status import (
     STATUS_MAX_REG,
     STATUS_NO_DESCENT,
     STATUS_SADDLE,
+    STATUS_STALLED,
+    STATUS_NON_FINITE,
+    STATUS_LINALG,
 )
 
 if TYPE_CHECKING:
     from .loop import cost_gradient, solve
 
 __all__ = ["solve", "SolverOptions", "cost_gradient", "EXPANSIONS", "STATUS_CONVERGED_COST", "STATUS_CONVERGED_GRAD",
-           "STATUS_MAX_ITER", "STATUS_MAX_REG", "STATUS_NO_DESCENT", "STATUS_SADDLE"]
+           "STATUS_MAX_ITER", "STATUS_MAX_REG", "STATUS_NO_DESCENT", "STATUS_SADDLE", "STATUS_STALLED",
+           "STATUS_NON_FINITE", "STATUS_LINALG"]
 
 
 def __getattr__(name: str) -> Any:

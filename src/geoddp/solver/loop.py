@@ -34,6 +34,7 @@ import numpy as np
 from .. import kernels
 from ..contract import Linearisation, OptimalControlProblem, Trajectory
 from ..result import Result
+from ..validate import InputError
 from .backward import Workspace, backward, factorisable_gains, gradient, regularised_backward
 from .forward import line_search
 from .history import History
@@ -43,9 +44,12 @@ from .status import (
     STATUS_CONVERGED_COST,
     STATUS_CONVERGED_GRAD,
     STATUS_MAX_ITER,
+    STATUS_LINALG,
     STATUS_MAX_REG,
     STATUS_NO_DESCENT,
+    STATUS_NON_FINITE,
     STATUS_SADDLE,
+    STATUS_STALLED,
 )
 
 _EPS = np.finfo(float).eps
@@ -81,7 +85,10 @@ class _Solve:
         self.ws = Workspace(problem.horizon, problem.nu, problem.nx)
         self.J = problem.trajectory_cost(self.traj)
         if not np.isfinite(self.J):
-            raise FloatingPointError("the initial guess gives a non-finite cost: check the initial controls")
+            # bad input, not a solver failure: nothing finite to return (huge controls, a spin
+            # that overflows the integrator, a degenerate model)
+            raise InputError("initial_controls", f"the initial guess gives a non-finite cost J = {self.J}: the "
+                             "rollout or the cost overflowed; start from smaller controls or check the model")
         self.J0 = self.J
         self.hist = History(self.J, U, self.t_start, opt.record_controls)
         self.use_second = opt.expansion == "second"
@@ -91,6 +98,8 @@ class _Solve:
         self.escapes: list[dict] = []
         self.checked: Linearisation | None = None  # exact (order 2) linearisation at the iterate, if checked there
         self.checked_node = -1  # its lambda = 0 backward pass outcome (gains stay in ws.k, ws.K)
+        self.checked_d = (np.nan, np.nan)  # and that pass's (d1, d2)
+        self.optimality: dict = {}
         if opt.verbose:
             _print_header(self.out)
 
@@ -116,18 +125,19 @@ class _Solve:
     def stop(self, status: str, message: str, converged: bool = False) -> None:
         self.status, self.message, self.converged = status, message, converged
 
-    def escaped(self, lin2: Linearisation | None = None) -> bool:
+    def escaped(self, lin2: Linearisation | None = None, d: tuple[float, float] | None = None) -> bool:
         """A stopping test passed at the iterate: run the final check's exact lambda = 0 pass now
-        (unless the caller hands in ``lin2``, where that very pass just succeeded) and, at a
+        (unless the caller hands in ``lin2`` and its (d1, d2) ``d``, where that very pass just
+        succeeded) and, at a
         saddle, take an escape step as an iteration. True after an escape; False means stop
         (``checked`` then holds the check's linearisation for the final check)."""
         t0 = time.perf_counter()
         if lin2 is None:
             lin2 = self.problem.linearise(self.traj, 2)
-            failed = backward(lin2, self.ws, 0.0)[0]
+            failed, d1, d2 = backward(lin2, self.ws, 0.0)
         else:
-            failed = -1
-        self.checked, self.checked_node = lin2, failed
+            failed, (d1, d2) = -1, d
+        self.checked, self.checked_node, self.checked_d = lin2, failed, (d1, d2)
         step = None
         if failed >= 0 and len(self.escapes) < MAX_ESCAPES:
             step = escape_saddle(self.problem, lin2, failed, self.ws, self.traj, self.J)
@@ -155,6 +165,10 @@ class _Solve:
         opt, ws = self.opt, self.ws
         order = self.expansion_order()
         lin, gnorm = self.direction(order)
+        if not np.isfinite(gnorm):
+            self.stop(STATUS_NON_FINITE, f"the order-{order} linearisation at iteration {self.it} is not finite "
+                      "(||dJ/dU|| = nan or inf); the last finite iterate is returned")
+            return False
         if gnorm <= opt.grad_tol:
             if self.escaped():
                 return True
@@ -165,6 +179,10 @@ class _Solve:
         self.lam, d1, d2, restarts = regularised_backward(lin, ws, self.lam, opt)
         self.timings["backward"] += time.perf_counter() - t0
         lam_used, quu_min = self.lam, float(ws.quu_eig.min())
+        if not (np.isfinite(d1) and np.isfinite(d2)):
+            self.stop(STATUS_NON_FINITE, f"the backward pass at iteration {self.it} produced non-finite gains; "
+                      "the last finite iterate is returned")
+            return False
         if self.lam > opt.reg_max:
             self.stop(STATUS_MAX_REG, f"Q_uu not positive definite with lambda up to {opt.reg_max:.1e}")
             return False
@@ -174,7 +192,8 @@ class _Solve:
         # shrinking gamma through a dozen rollouts.
         full_step_decrease = d1 - 0.5 * d2
         if abs(full_step_decrease) <= 4.0 * _EPS * abs(self.J) and lam_used <= 1e-3 * quu_min:
-            if self.escaped(lin if (lin.order == 2 and lam_used == 0.0) else None):
+            exact = lin.order == 2 and lam_used == 0.0
+            if self.escaped(lin if exact else None, (d1, d2) if exact else None):
                 return True
             self.stop(STATUS_CONVERGED_COST, f"predicted decrease {abs(full_step_decrease):.1e} below the round-off of J", True)
             return False
@@ -214,24 +233,55 @@ class _Solve:
 
     def final_check(self) -> float:
         """Exact second-order expansion, lambda = 0, at the returned iterate: the user's gains and
-        the minimum test (a converged point that fails it is a saddle). Returns ||dJ/dU||."""
+        the optimality certificate. Returns ||dJ/dU||.
+
+        A stopping test (small |dJ|, small gradient, predicted decrease at round-off) is a reason
+        to stop, not a proof. ``converged`` stays True only if, at the returned iterate,
+
+        * the exact lambda = 0 backward pass factorises every Q_uu: the reduced Hessian of J(U) is
+          positive definite (for exact second-order DDP the pass is a block elimination of that
+          Hessian), so the quadratic model has a strict minimum; otherwise: saddle; and
+        * the Newton decrement is small: the model decrease of the full unregularised step,
+          delta = d1 - d2 / 2 = (1/2) g^T H^-1 g (g = dJ/dU, H the Hessian of J(U); d1 = sum_k
+          Q_u^T k_k, d2 = sum_k k_k^T Q_uu k_k), is <= max(tol, 16 eps |J|). delta is a squared
+          gradient norm in the metric of H^-1: invariant under any rescaling of the controls or of
+          individual weights, in units of J like tol, and it bounds the distance to the local
+          optimum in cost for a quadratic J (Boyd & Vandenberghe, Convex Optimization, 9.5.1).
+          Otherwise: stalled (a small cost change at a linearly convergent step, far from the
+          optimum).
+        """
         t0 = time.perf_counter()
         lin = self.checked if self.checked is not None else self.problem.linearise(self.traj, 2)
         gnorm = float(np.linalg.norm(gradient(lin, self.ws)))
         self.hist.gradient(gnorm)
         # the check already ran this exact lambda = 0 pass when a stopping test passed here
-        failed = self.checked_node if self.checked is not None else backward(lin, self.ws, 0.0)[0]
+        if self.checked is not None:
+            failed, (d1, d2) = self.checked_node, self.checked_d
+        else:
+            failed, d1, d2 = backward(lin, self.ws, 0.0)
+        quu_min = float(self.ws.quu_eig.min()) if failed < 0 else None
+        decrease = float(d1 - 0.5 * d2) if failed < 0 else None
+        threshold = max(self.opt.tol, 16.0 * _EPS * abs(self.J))
         if failed >= 0:
             factorisable_gains(lin, self.ws, self.opt)  # gains for the user need a factorisable Q_uu
         self.timings["final_check"] += time.perf_counter() - t0
+        self.optimality = {
+            "newton_decrease": decrease, "newton_threshold": threshold,
+            "hessian_positive_definite": failed < 0, "min_quu_eigenvalue": quu_min,
+            "indefinite_node": None if failed < 0 else int(failed), "grad_norm": gnorm,
+        }
         if self.converged and failed >= 0:
             self.stop(STATUS_SADDLE, f"stationary (||dJ/dU|| = {gnorm:.3e}) but Q_uu is not positive definite at node "
                       f"{failed} with the exact second-order expansion: the reduced Hessian is indefinite")
+        elif self.converged and not (np.isfinite(decrease) and decrease <= threshold):
+            self.stop(STATUS_STALLED, f"{self.message}, but the Newton decrement (model decrease of a full "
+                      f"unregularised step, (1/2) g^T H^-1 g) is {decrease:.3e} > {threshold:.1e}: J can still "
+                      f"decrease; ||dJ/dU|| = {gnorm:.3e}")
+        elif self.converged:
+            self.message += (f"; verified at the returned iterate: Newton decrement {decrease:.1e} <= {threshold:.1e}, "
+                             f"reduced Hessian positive definite (min eig Q_uu = {quu_min:.3e})")
         if self.escapes:
             self.message += f"; escaped {len(self.escapes)} saddle point(s) along negative curvature"
-        if (self.status == STATUS_CONVERGED_COST and self.converged
-                and gnorm > max(self.opt.grad_tol, 1e-6 * max(1.0, abs(self.J)))):
-            self.message += f"; note ||dJ/dU|| = {gnorm:.3e} at the final iterate"
         return gnorm
 
     def result(self, gnorm: float) -> Result:
@@ -247,8 +297,50 @@ class _Solve:
             cost=float(self.J), iterations=self.it, converged=self.converged, status=self.status,
             message=self.message, **self.hist.arrays(), solve_time_s=solve_time, timings=self.timings,
             expansion=self.opt.expansion, dt=p.dt,
-            extra={"saddle_escapes": self.escapes} if self.escapes else {},
+            extra={"optimality": self.optimality, **({"saddle_escapes": self.escapes} if self.escapes else {})},
         )
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available to this process (MemAvailable on Linux), or None if unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import os
+
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def memory_estimate(horizon: int, nx: int, nu: int) -> int:
+    """Bytes of the arrays of one exact second-order linearisation (the final check always builds
+    one): Theta (H, nx, nx, nx), Gamma (H, nx, nx, m), Xi (H, nx, m, m), Phi, B, the cost blocks,
+    the gains and a few trajectories, in float64."""
+    H, n, m = int(horizon), int(nx), int(nu)
+    per_node = n * n * n + n * n * m + n * m * m + n * n + n * m + n + m + n * n + m * n + m * m + m * n + m
+    return 8 * H * (per_node + 6 * n + 4 * m)
+
+
+def _check_problem(problem: object, options: object) -> None:
+    if not isinstance(problem, OptimalControlProblem):
+        missing = [a for a in ("nx", "nu", "horizon", "dt", "check_controls", "trajectory", "trajectory_cost",
+                               "linearise", "rollout_policy", "describe") if not hasattr(problem, a)]
+        raise InputError("problem", f"expected an optimal control problem (geoddp.contract.OptimalControlProblem: "
+                         f"e.g. geoddp.scene.build_problem(spec)), got {type(problem).__name__}"
+                         + (f" (missing {', '.join(missing)})" if missing else ""))
+    if options is not None and not isinstance(options, SolverOptions):
+        raise InputError("options", f"expected a geoddp.solver.SolverOptions, got {type(options).__name__}"
+                         + (" (build one with SolverOptions(**your_dict))" if isinstance(options, dict) else ""))
+    need, avail = memory_estimate(problem.horizon, problem.nx, problem.nu), _available_memory()
+    if avail is not None and need > avail:
+        raise InputError("horizon", f"H = {problem.horizon} with nx = {problem.nx}, m = {problem.nu} needs about "
+                         f"{need / 2**30:.2f} GiB for the second-order expansion; {avail / 2**30:.2f} GiB available")
 
 
 def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
@@ -261,11 +353,27 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
         options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
         initial_controls: (H, m) initial guess; zeros by default (as in the paper).
     """
+    _check_problem(problem, options)
     opt = options or SolverOptions()
     U = (np.zeros((problem.horizon, problem.nu)) if initial_controls is None
          else problem.check_controls(initial_controls))
     kernels.warm_up()  # before the clock starts: solve_time_s measures the solve, not numba's loading
-    s = _Solve(problem, opt, U)
-    while s.it < opt.max_iter and s.iterate():
-        pass
-    return s.result(s.final_check())
+    # Overflow and invalid operations are detected by the explicit finiteness checks of the loop
+    # (cost, gradient, backward pass): numpy's warnings would only duplicate them on stderr.
+    with np.errstate(all="ignore"):
+        s = _Solve(problem, opt, U)
+        try:
+            while s.it < opt.max_iter and s.iterate():
+                pass
+        except np.linalg.LinAlgError as exc:
+            s.stop(STATUS_LINALG, f"linear algebra failed at iteration {s.it} ({exc}); the last iterate is returned")
+        except (FloatingPointError, OverflowError, ZeroDivisionError) as exc:
+            s.stop(STATUS_NON_FINITE, f"{type(exc).__name__} at iteration {s.it} ({exc}); the last finite iterate "
+                   "is returned")
+        try:
+            gnorm = s.final_check()
+        except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
+            s.converged = False
+            s.message += f"; the final check failed ({type(exc).__name__}: {exc})"
+            gnorm = float("nan")
+        return s.result(gnorm)

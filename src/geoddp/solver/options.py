@@ -8,6 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TextIO
 
+import numpy as np
+
 from ..validate import InputError, choice, nonnegative_float, positive_float, positive_int
 
 EXPANSIONS = ("first", "second", "switch")
@@ -84,3 +86,21 @@ class SolverOptions:
         self.reg_increase = positive_float(self.reg_increase, "reg_increase")
         self.step_factor = positive_float(self.step_factor, "step_factor")
         self.min_step = positive_float(self.min_step, "min_step")
+        # a schedule that does not increase would loop forever on an indefinite Q_uu
+        if not self.reg_increase > 1.0:
+            raise InputError("reg_increase", f"expected a factor > 1 (lambda must grow), got {self.reg_increase}")
+        if self.reg_min > self.reg_max:
+            raise InputError("reg_min", f"expected reg_min <= reg_max = {self.reg_max}, got {self.reg_min}")
+        if self.reg_init > self.reg_max:
+            raise InputError("reg_init", f"expected reg_init <= reg_max = {self.reg_max}, got {self.reg_init}")
+        if not self.step_factor < 1.0:
+            raise InputError("step_factor", f"expected a number in (0, 1) (gamma must shrink), got {self.step_factor}")
+        if not self.min_step <= 1.0:
+            raise InputError("min_step", f"expected a number in (0, 1], got {self.min_step}")
+        for name in ("verbose", "record_controls"):
+            val = getattr(self, name)
+            if not isinstance(val, (bool, np.bool_)):
+                raise InputError(name, f"expected True or False, got {val!r} ({type(val).__name__})")
+            setattr(self, name, bool(val))
+        if self.stream is not None and not callable(getattr(self.stream, "write", None)):
+            raise InputError("stream", f"expected None or a text stream with write(), got {type(self.stream).__name__}")

@@ -7,6 +7,10 @@ lines as ``python -m meshcat.servers.zmqserver``: ``zmq_url=...`` then ``web_url
 """
 from __future__ import annotations
 
+import os
+import threading
+import time
+
 import tornado.web
 from meshcat.servers import zmqserver as zs
 
@@ -28,7 +32,17 @@ class LoopbackBridge(zs.ZMQWebSocketBridge):
         ])
 
 
+def _exit_with_parent(parent: int) -> None:
+    """Exit when the process that started this server is gone (killed with SIGKILL, crashed):
+    the server runs in its own session, so no signal reaches it then (issue 13, clean exits)."""
+    while True:
+        time.sleep(0.5)
+        if os.getppid() != parent:
+            os._exit(0)
+
+
 def main() -> None:
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     bridge = LoopbackBridge(host=LOOPBACK)
     print(f"zmq_url={bridge.zmq_url}", flush=True)
     print(f"web_url={bridge.web_url}", flush=True)

@@ -17,6 +17,7 @@ from pathlib import Path
 import meshcat
 import umsgpack
 
+from ..outputs import write_atomic
 from ..result import Result
 from .scene import MAX_MESH_MB, build_scene
 
@@ -166,7 +167,7 @@ def export_html(result: Result, path: str | Path, scale: float = 1.0, *, geometr
     text = render_html(result, scale=scale, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
+    write_atomic(path, text)  # temp file + rename: a kill never leaves a partial page
     return path
 
 

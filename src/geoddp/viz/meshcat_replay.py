@@ -26,7 +26,20 @@ from meshcat.visualizer import ViewerWindow
 from ..result import Result
 from .scene import MAX_MESH_MB, build_satellite, build_scene, prepare_scene
 
-__all__ = ["ViewerUnavailable", "build_satellite", "replay"]
+__all__ = ["ViewerUnavailable", "build_satellite", "replay", "stop_servers"]
+
+_SERVERS: list[subprocess.Popen] = []  # every server this process started and has not stopped
+
+
+def stop_servers() -> list[int]:
+    """Stop (terminate, then kill, and reap) every meshcat server this process started; returns
+    their PIDs. The CLI calls it on SIGINT, SIGTERM and SIGHUP; atexit calls it too."""
+    pids = []
+    while _SERVERS:
+        proc = _SERVERS.pop()
+        pids.append(proc.pid)
+        _stop_process(proc)
+    return pids
 
 _SERVER_SCRIPT = Path(__file__).with_name("_loopback_server.py")
 # Run the script by path but without its directory (or the cwd) on sys.path: this package's
@@ -111,6 +124,7 @@ def _start_server(timeout_s: float) -> tuple[subprocess.Popen, str, str]:
         key, sep, value = line.partition("=")
         if sep and key in ("zmq_url", "web_url"):
             urls[key] = value
+    _SERVERS.append(proc)
     atexit.register(_stop_process, proc)  # do not leave a server behind at interpreter exit
     return proc, urls["zmq_url"], urls["web_url"]
 

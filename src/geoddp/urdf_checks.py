@@ -1,0 +1,196 @@
+"""URDF input checks (issue 13, item 6): encodings, joint axes, masses and inertias, by name.
+
+:func:`build_checked_model` is the one entry the model builders call: it reads the file
+(:func:`read_urdf_text`: the encoding its XML declaration names, else UTF-8, refused by name
+otherwise), checks the text (:func:`check_urdf_text`: every moving joint's axis finite and
+non-zero, every inertial finite), builds the Pinocchio model from that text with urdfdom's own
+stderr lines captured and folded into the error message, and checks the model
+(:func:`check_model`: no moving body without mass or with a singular inertia, seen as a joint
+whose block of the joint-space mass matrix M(q0) is not positive definite).
+
+Imports only pinocchio, numpy and :mod:`geoddp.validate` (floor 0).
+"""
+from __future__ import annotations
+
+import codecs
+import math
+import os
+import re
+import tempfile
+import xml.etree.ElementTree as ET
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+import pinocchio as pin
+
+from .validate import InputError
+
+__all__ = ["read_urdf_text", "check_urdf_text", "check_model", "build_checked_model", "captured_stderr"]
+
+_DECL = re.compile(rb"""^\s*<\?xml[^>]*encoding\s*=\s*["']([A-Za-z0-9._-]+)["']""")
+_MOVING = ("revolute", "continuous", "prismatic", "planar")
+
+
+def read_urdf_text(path: str | Path, name: str = "urdf") -> str:
+    """The text of a URDF file, decoded with the encoding its XML declaration names (UTF-8 if
+    none, with or without a BOM). InputError naming ``name`` and the encoding otherwise."""
+    raw = Path(path).read_bytes()
+    m = _DECL.match(raw[:200].lstrip(codecs.BOM_UTF8))
+    enc = m.group(1).decode("ascii") if m else "utf-8-sig"
+    try:
+        codecs.lookup(enc)
+    except LookupError:
+        raise InputError(name, f"{path}: unknown encoding {enc!r} in the XML declaration") from None
+    try:
+        text = raw.decode(enc)
+    except UnicodeDecodeError as exc:
+        raise InputError(name, f"{path}: not valid {enc} text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r}); "
+                         "declare the file's encoding in <?xml ... encoding=\"...\"?> or save it as UTF-8") from None
+    text = text.lstrip("\ufeff")
+    if codecs.lookup(enc).name in ("utf-8", "utf-8-sig"):
+        return text  # as in the file: the Result's urdf_xml stays the file's text
+    # the declaration no longer holds once decoded (Pinocchio reads UTF-8 strings)
+    return re.sub(r"""^(\s*<\?xml[^>]*?)\s+encoding\s*=\s*["'][^"']*["']""", r"\1", text, count=1)
+
+
+def _floats(text: str | None, n: int) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        vals = [float(t) for t in text.split()]
+    except ValueError:
+        return []
+    return vals if len(vals) == n else []
+
+
+def check_urdf_text(text: str, name: str = "urdf") -> None:
+    """Refuse, by joint or link name: a moving joint whose axis is not 3 finite numbers or is zero,
+    and an inertial (mass, inertia) that is not finite or negative. InputError naming ``name``."""
+    try:
+        root = ET.fromstring(text.encode("utf-8"))
+    except ET.ParseError as exc:
+        raise InputError(name, f"not well-formed XML ({exc})") from None
+    for j in root.iter("joint"):
+        jname, jtype = j.get("name", "?"), j.get("type", "")
+        axis = j.find("axis")
+        if jtype not in _MOVING or axis is None:
+            continue
+        xyz = _floats(axis.get("xyz"), 3)
+        if xyz is None:
+            continue  # URDF default (1, 0, 0)
+        if not xyz or not all(math.isfinite(x) for x in xyz):
+            raise InputError(name, f"joint {jname!r}: axis xyz = {axis.get('xyz')!r}, expected 3 finite numbers")
+        if math.sqrt(sum(x * x for x in xyz)) < 1e-12:
+            raise InputError(name, f"joint {jname!r}: axis xyz = {axis.get('xyz')!r} is zero; a {jtype} joint needs a "
+                             "direction")
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        lname = link.get("name", "?")
+        mass = inertial.find("mass")
+        if mass is not None:
+            try:
+                mv = float(mass.get("value", "nan"))
+            except ValueError:
+                mv = float("nan")
+            if not math.isfinite(mv) or mv < 0:
+                raise InputError(name, f"link {lname!r}: mass {mass.get('value')!r}, expected a finite number >= 0")
+        inertia = inertial.find("inertia")
+        if inertia is not None:
+            for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+                try:
+                    val = float(inertia.get(key, "0"))
+                except ValueError:
+                    val = float("nan")
+                if not math.isfinite(val):
+                    raise InputError(name, f"link {lname!r}: inertia {key} = {inertia.get(key)!r}, expected a finite number")
+
+
+def _body_of(model: pin.Model, joint: int) -> str:
+    for f in model.frames:
+        if f.parentJoint == joint and f.type == pin.FrameType.BODY:
+            return f.name
+    return model.names[joint]
+
+
+def check_model(model: pin.Model, name: str = "urdf") -> None:
+    """Refuse a model whose motion is undefined, naming the joint and the link it moves:
+    a massless moving body or a singular inertia shows as a joint whose diagonal block of the
+    joint-space mass matrix M(q0) (q0 = neutral) is not positive definite (Cholesky)."""
+    for i in range(1, model.njoints):
+        inert = model.inertias[i]
+        if not (math.isfinite(inert.mass) and np.all(np.isfinite(inert.inertia)) and np.all(np.isfinite(inert.lever))):
+            raise InputError(name, f"link {_body_of(model, i)!r} (joint {model.names[i]!r}): non-finite inertia")
+    data = model.createData()
+    M = pin.crba(model, data, pin.neutral(model))
+    M = np.triu(M) + np.triu(M, 1).T
+    scale = max(1.0, float(np.max(np.abs(np.diag(M))))) if M.size else 1.0
+    for i in range(1, model.njoints):
+        j = model.joints[i]
+        if j.nv == 0:
+            continue
+        blk = M[j.idx_v:j.idx_v + j.nv, j.idx_v:j.idx_v + j.nv]
+        ok = True
+        try:
+            L = np.linalg.cholesky(blk)
+            ok = float(np.min(np.diag(L))) ** 2 > 1e-14 * scale
+        except np.linalg.LinAlgError:
+            ok = False
+        if not ok:
+            mass = sum(model.inertias[k].mass for k in range(i, model.njoints) if _in_subtree(model, k, i))
+            what = ("moves no mass (massless body)" if mass <= 0 else
+                    "sees a singular inertia (zero inertia about a direction it moves)")
+            raise InputError(name, f"joint {model.names[i]!r} (link {_body_of(model, i)!r}) {what}: its block of "
+                             "the mass matrix M(q) is not positive definite; give the link a mass and a positive "
+                             "definite inertia")
+
+
+def _in_subtree(model: pin.Model, k: int, root: int) -> bool:
+    while k > 0:
+        if k == root:
+            return True
+        k = model.parents[k]
+    return False
+
+
+@contextmanager
+def captured_stderr() -> Iterator[list[str]]:
+    """Redirect file descriptor 2 (where urdfdom's C++ code writes) into a temporary file for
+    the duration of the block; the lines are appended to the yielded list on exit."""
+    lines: list[str] = []
+    try:
+        saved = os.dup(2)
+    except OSError:
+        yield lines
+        return
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            lines.extend(t for t in tmp.read().decode("utf-8", "replace").splitlines() if t.strip())
+
+
+def build_checked_model(path: str | Path, root_joint: object | None = None, name: str = "urdf") -> pin.Model:
+    """Read, check and build a URDF model (see the module docstring). InputError naming ``name``."""
+    text = read_urdf_text(path, name)
+    check_urdf_text(text, name)
+    with captured_stderr() as lines:
+        try:
+            model = pin.buildModelFromXML(text) if root_joint is None else pin.buildModelFromXML(text, root_joint)
+        except (ValueError, RuntimeError) as exc:
+            failure = exc
+        else:
+            failure = None
+    if failure is not None:
+        said = "; ".join(lines[-3:])
+        raise InputError(name, f"expected a valid URDF model, got {str(path)!r} ({failure})"
+                         + (f"; urdfdom: {said}" if said else ""))
+    check_model(model, name)
+    return model

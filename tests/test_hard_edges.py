@@ -1,0 +1,205 @@
+"""Issue 13, items 2-4: validation at the boundary, no NaN or traceback out, nothing lost."""
+from __future__ import annotations
+
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from geoddp.api import solve_scene
+from geoddp.cli import main
+from geoddp.outputs import check_outputs, strict_json, write_atomic
+from geoddp.problem import paper_problem
+from geoddp.result import Result
+from geoddp.solver import SolverOptions, solve
+from geoddp.validate import InputError
+
+
+def _strict(text: str):
+    def refuse(c):
+        raise AssertionError(f"non-finite constant {c}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+@pytest.mark.parametrize("kw, name", [
+    (dict(reg_increase=0.5), "reg_increase"), (dict(reg_increase=1.0), "reg_increase"),
+    (dict(reg_min=1.0, reg_max=0.1), "reg_min"), (dict(step_factor=2.0), "step_factor"),
+    (dict(step_factor=1.0), "step_factor"), (dict(stream=5), "stream"), (dict(verbose="yes"), "verbose"),
+    (dict(min_step=2.0), "min_step"), (dict(reg_init=1e11), "reg_init"),
+])
+def test_solver_options_refuse_bad_values_by_name(kw, name):
+    with pytest.raises(InputError) as e:
+        SolverOptions(**kw)
+    assert e.value.parameter == name
+
+
+def test_solve_refuses_wrong_types_by_name():
+    p = paper_problem()
+    for bad in ("fast", {"tol": 1e-3}):
+        with pytest.raises(InputError) as e:
+            solve(p, bad)
+        assert e.value.parameter == "options"
+    with pytest.raises(InputError) as e:
+        solve(None)
+    assert e.value.parameter == "problem" and "missing nx" in str(e.value)
+    with pytest.raises(InputError) as e:
+        solve_scene({"model": {}})
+    assert e.value.parameter == "scene"
+    with pytest.raises(InputError) as e:
+        solve_scene("satellite_paper", verbose=False, tool=1e-3)
+    assert e.value.parameter == "tool" and "'tol'" in str(e.value)
+    with pytest.raises(InputError) as e:
+        solve_scene("satellite_paper", verbose=False, max_iter="big")
+    assert e.value.parameter == "max_iter"
+
+
+def test_huge_horizon_is_refused_with_the_estimate(monkeypatch):
+    from geoddp.solver import loop
+
+    p = paper_problem()
+    monkeypatch.setattr(loop, "_available_memory", lambda: 1000)
+    with pytest.raises(InputError) as e:
+        solve(p, SolverOptions(verbose=False))
+    assert e.value.parameter == "horizon" and "GiB" in str(e.value)
+    # the estimate: Theta, Gamma, Xi dominate (H nx^3 + H nx^2 m + H nx m^2) * 8 bytes
+    assert loop.memory_estimate(1000, 6, 3) >= 8 * 1000 * (216 + 108 + 54)
+
+
+def test_non_finite_initial_guess_is_bad_input_naming_initial_controls():
+    p = paper_problem()
+    with pytest.raises(InputError) as e:
+        solve(p, SolverOptions(verbose=False), initial_controls=np.full((p.horizon, p.nu), 1e200))
+    assert e.value.parameter == "initial_controls" and "non-finite cost" in str(e.value)
+
+
+def test_json_is_strict_and_null_reads_back_as_nan(tmp_path):
+    r = solve_scene("satellite_paper", verbose=False)
+    r.grad_norm_history[0] = np.nan
+    r.feedback[0, 0, 0] = np.inf
+    path = r.write_json(tmp_path / "r.json")
+    d = _strict(path.read_text())
+    assert d["grad_norm_history"][0] is None and d["feedback"][0][0][0] is None
+    back = Result.read_json(path)
+    assert np.isnan(back.grad_norm_history[0]) and np.isnan(back.feedback[0, 0, 0])
+    np.testing.assert_array_equal(back.controls, r.controls)
+    assert _strict(strict_json({"a": [float("nan"), 1.0, float("-inf")]})) == {"a": [None, 1.0, None]}
+
+
+def test_sigkill_during_a_write_leaves_the_previous_file_intact(tmp_path):
+    target = tmp_path / "result.json"
+    target.write_text("previous good result")
+    code = textwrap.dedent(f"""
+        import sys
+        from geoddp.outputs import write_atomic
+        print("start", flush=True)
+        while True:
+            write_atomic({str(target)!r}, b"x" * (300 * 2**20))
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, env=os.environ.copy())
+    assert proc.stdout.readline().strip() == b"start"
+    deadline = time.time() + 30
+    while not list(tmp_path.glob(".result.json.*.tmp")) and time.time() < deadline:
+        time.sleep(0.005)
+    assert list(tmp_path.glob(".result.json.*.tmp")), "the writer never started a temp file"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(10)
+    # either the previous file or a complete new one, never a partial file
+    size = target.stat().st_size
+    assert target.read_bytes() == b"previous good result" or size == 300 * 2**20
+
+
+def test_write_atomic_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypatch):
+    target = tmp_path / "r.json"
+    target.write_text("old")
+
+    def boom(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", boom)
+    with pytest.raises(InputError):
+        write_atomic(target, "new")
+    assert target.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["r.json"]
+
+
+def test_check_outputs_refuses_before_solving(tmp_path):
+    scene = tmp_path / "s.toml"
+    scene.write_text("x")
+    afile = tmp_path / "f"
+    afile.write_text("")
+    cases = [({"--json": scene}, "--json", "input of this run"), ({"--json": afile / "r.json"}, "--json", "not a folder"),
+             ({"--json": tmp_path}, "--json", "is a folder"), ({"--json": "a\0b"}, "--json", "NUL"),
+             ({"--json": tmp_path / "a", "--html": tmp_path / "a"}, "--html", "also the path")]
+    for outs, name, words in cases:
+        with pytest.raises(InputError) as e:
+            check_outputs(outs, inputs=[scene])
+        assert e.value.parameter == name and words in str(e.value), str(e.value)
+    check_outputs({"--json": tmp_path / "new" / "deeper" / "r.json"}, inputs=[scene])  # created later
+
+
+def test_cli_refuses_json_onto_its_scene_with_exit_2_and_one_line(tmp_path, capsys):
+    from geoddp.data import scene_path as scene_file
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(Path(scene_file("satellite_paper")).read_text())
+    before = scene.read_text()
+    assert main(["run", str(scene), "--quiet", "--json", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--json" in err and "input of this run" in err
+    assert scene.read_text() == before
+
+
+def test_cli_exit_codes_converged_and_stalled(tmp_path, capsys):
+    out = tmp_path / "r.json"
+    assert main(["run", "satellite_paper", "--quiet", "--json", str(out)]) == 0
+    assert _strict(out.read_text())["converged"] is True
+    hard = tmp_path / "t.toml"
+    from geoddp.data import scene_path as scene_file
+
+    text = Path(scene_file("tumbling_2rads")).read_text()
+    hard.write_text(text)
+    assert main(["run", str(hard), "--quiet", "--expansion", "first", "--json", str(out)]) == 1
+    d = _strict(out.read_text())
+    assert d["status"].startswith("stalled") and d["converged"] is False
+
+
+def test_cli_sigterm_mid_solve_exits_143_and_says_what_was_written(tmp_path):
+    # A solve long enough to be interrupted: first order, H = 3000, tol = 0 (runs to max_iter).
+    from geoddp.data import scene_path as scene_file
+
+    scene = tmp_path / "long.toml"
+    text = Path(scene_file("long_horizon_H3000")).read_text()
+    scene.write_text(text)
+    proc = subprocess.Popen([sys.executable, "-m", "geoddp.cli", "run", str(scene), "--expansion", "first",
+                             "--json", str(tmp_path / "r.json")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env=os.environ.copy())
+    line = proc.stdout.readline()  # the table's header: the solve has started
+    assert b"iter" in line
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode in (143, 0, 1)  # 0/1 only if the solve had already finished
+    if proc.returncode == 143:
+        assert err.decode().strip().splitlines() == ["geoddp: interrupted by SIGTERM; no output written"]
+        assert not (tmp_path / "r.json").exists()
+
+
+def test_cli_says_which_outputs_exist_when_a_later_one_fails(tmp_path, capsys, monkeypatch):
+    from geoddp import viz
+
+    def fail(result, path, **kw):
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(viz, "export_html", fail)
+    out, page = tmp_path / "r.json", tmp_path / "r.html"
+    assert main(["run", "satellite_paper", "--quiet", "--json", str(out), "--html", str(page)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "No space left" in err[0] and f"(wrote {out})" in err[0]
+    assert _strict(out.read_text())["converged"] is True and not page.exists()
