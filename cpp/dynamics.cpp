@@ -267,7 +267,10 @@ static void node_derivatives(const Setup& s, NodeWork& w, double* F1, bool secon
     // Pj(i, :) = sum_l dM(i, l, j) a_z(l, :): row i, q_j entries of ID_za a_z. dM is a
     // column-major tensor, so its slice at q_j is a column-major (nv, nv) matrix.
     Eigen::Map<const Eigen::MatrixXd> dMj(data.d2tau_dadq.data() + (size_t)nv * nv * j, nv, nv);
-    w.Pj.noalias() = dMj * w.az;
+    if (nv <= 16)  // small: coefficient-based (Eigen's blocked GEMM packs more than it multiplies)
+      w.Pj.noalias() = dMj.lazyProduct(w.az);
+    else
+      w.Pj.noalias() = dMj * w.az;
     for (int b = 0; b < nz; ++b) {
       // (q_j, z_b) and (z_b, q_j): the same upper pair; the diagonal gets both
       const int c = w.pair_of[(size_t)j * nz + b];
@@ -425,11 +428,15 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
               Ds(a, c) = 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] +
                                 Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
           Eigen::Map<RowMat> G2p(G2.row(o + p).data(), nz, nz);
-          WDW.noalias() = Ws.transpose() * Ds * Ws;
+          // coefficient-based products: these are (nz, d) x (d, d) x (d, nz) with d <= 6, where
+          // Eigen's blocked GEMM spends more on packing than on arithmetic
+          Mz.noalias() = Ds.lazyProduct(Ws);
+          WDW.noalias() = Ws.transpose().lazyProduct(Mz);
           G2p += (dt * dt) * WDW;
           // 1/2 [A eta, Jr rho]_p = z^T Mz_p z, Mz_p = dt/2 A^T C_p JW on the (eta in s, z) block
           if (g.kind == SO3) Cp = C3[p]; else Cp = C6[p];
-          Mz.noalias() = (0.5 * dt) * (As.transpose() * Cp * JWs);
+          Ds.noalias() = As.transpose().lazyProduct(Cp);
+          Mz.noalias() = (0.5 * dt) * Ds.lazyProduct(JWs);
           G2p.middleRows(o, d) += Mz;
           G2p.middleCols(o, d) += Mz.transpose();
         }
