@@ -12,6 +12,7 @@
 
 #include "dynamics.hpp"
 #include "pin_model.hpp"
+#include "riccati.hpp"
 
 namespace geoddp {
 void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
@@ -173,6 +174,52 @@ PYBIND11_MODULE(_core, m) {
       },
       py::arg("model"), py::arg("omega"),
       "Ad_exp(-omega) (nv, nv), Jr(omega) (nv, nv) and D (nv, nv, nv), D[i, j, l] = d Jr[i, j] / d omega_l.");
+
+  m.def(
+      "backward_pass",
+      [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
+         const Arr& Vx_final, const Arr& Vxx_final, const Arr& Theta, const Arr& Gamma, const Arr& Xi,
+         bool second_order, double reg, py::array_t<double> k_ff, py::array_t<double> K_fb,
+         py::array_t<double> quu_eig) -> py::tuple {
+        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
+        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
+        check_shape(Phi, {H, n, n}, "Phi");
+        check_shape(B, {H, n, mm}, "B");
+        check_shape(lx, {H, n}, "lx");
+        check_shape(lu, {H, mm}, "lu");
+        check_shape(lxx, {H, n, n}, "lxx");
+        check_shape(lux, {H, mm, n}, "lux");
+        check_shape(luu, {H, mm, mm}, "luu");
+        check_shape(Vx_final, {n}, "Vx_final");
+        check_shape(Vxx_final, {n, n}, "Vxx_final");
+        if (second_order) {
+          check_shape(Theta, {H, n, n, n}, "Theta");
+          check_shape(Gamma, {H, n, n, mm}, "Gamma");
+          check_shape(Xi, {H, n, mm, mm}, "Xi");
+        }
+        for (auto* o : {&k_ff, &K_fb, &quu_eig})
+          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
+        if (k_ff.ndim() != 2 || k_ff.shape(0) != H || k_ff.shape(1) != mm) throw py::value_error("k_ff: wrong shape");
+        if (K_fb.ndim() != 3 || K_fb.shape(0) != H || K_fb.shape(1) != mm || K_fb.shape(2) != n) throw py::value_error("K_fb: wrong shape");
+        if (quu_eig.ndim() != 1 || quu_eig.shape(0) != H) throw py::value_error("quu_eig: wrong shape");
+        double d1 = 0.0, d2 = 0.0;
+        int failed;
+        {
+          py::gil_scoped_release nogil;
+          failed = geoddp::ric::backward_pass((int)H, (int)n, (int)mm, Phi.data(), B.data(), lx.data(), lu.data(),
+                                              lxx.data(), lux.data(), luu.data(), Vx_final.data(), Vxx_final.data(),
+                                              second_order ? Theta.data() : nullptr, second_order ? Gamma.data() : nullptr,
+                                              second_order ? Xi.data() : nullptr, second_order, reg,
+                                              k_ff.mutable_data(), K_fb.mutable_data(), quu_eig.mutable_data(), &d1, &d2);
+        }
+        return py::make_tuple(failed, d1, d2);
+      },
+      py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lxx"), py::arg("lux"), py::arg("luu"),
+      py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("Theta"), py::arg("Gamma"), py::arg("Xi"),
+      py::arg("second_order"), py::arg("reg"), py::arg("k_ff").noconvert(), py::arg("K_fb").noconvert(),
+      py::arg("quu_eig").noconvert(),
+      "Backward Riccati pass (twin of geoddp.kernels.backward_pass): gains into k_ff (H, m), K_fb (H, m, n), "
+      "quu_eig (H,); returns (failed node or -1, d1, d2).");
 
   geoddp::bind_costs(m);  // cost terms: cost_frame_term, cost_state_regularisation, ...
 }

@@ -8,6 +8,23 @@ from .. import kernels
 from ..contract import Linearisation
 from .options import SolverOptions
 
+try:  # pinocchio first: its import loads the libpinocchio geoddp._core links
+    import pinocchio  # noqa: F401
+
+    from .. import _core
+except ImportError:  # not built, or built against another pin: numba runs every pass
+    _core = None
+
+# Which backward pass runs: the C++ one (geoddp._core.backward_pass, the same recursion with Eigen
+# products; tests/test_core_riccati.py checks it against numba's to 1e-12) for nx > 6 when the
+# extension imports, numba's otherwise. At nx = 6 (the satellite on TSO(3)) numba's kernel has the
+# dimensions inlined as literals and is the faster one.
+COMPILED_MIN_NX = 7
+
+
+def _pass(nx: int):
+    return _core.backward_pass if _core is not None and nx >= COMPILED_MIN_NX else kernels.backward_pass
+
 
 class Workspace:
     """Per-solve buffers (Crocoddyl's 'data'): allocated once, reused every iteration.
@@ -35,7 +52,7 @@ def backward(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float,
     -(gamma d1 - gamma^2 / 2 d2) (so d1 - d2 / 2 at gamma = 1).
     """
     second = lin.order == 2
-    return kernels.backward_pass(
+    return _pass(lin.Phi.shape[1])(
         lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
         lin.Theta if second else ws.empty_theta,
         lin.Gamma if second else ws.empty_gamma,

@@ -1,0 +1,83 @@
+"""The compiled backward pass (geoddp._core.backward_pass) against the numba kernel
+(geoddp.kernels.backward_pass): the same failed node, d1, d2, gains k, K and Q_uu eigenvalue
+proxy, to 1e-12 relative, first and second order, with and without regularisation, on random
+problems of several sizes (symmetric blocks given with a non-symmetric lower triangle: both read
+the upper one only) and on one where Q_uu is indefinite part-way."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoddp import kernels
+from geoddp.models import compiled
+
+pytestmark = pytest.mark.skipif(not compiled.available(), reason=f"geoddp._core not built: {compiled.IMPORT_ERROR}")
+
+
+def _problem(rng, H, n, m, scale_quu=1.0):
+    def sym_upper(shape):
+        A = rng.standard_normal(shape)
+        # SPD-ish upper triangle, garbage below it (never read)
+        S = A @ np.swapaxes(A, -1, -2) / shape[-1] + np.eye(shape[-1])
+        return np.triu(S) + np.tril(rng.standard_normal(shape), -1)
+    Phi = np.eye(n) + 0.1 * rng.standard_normal((H, n, n))
+    B = 0.3 * rng.standard_normal((H, n, m))
+    lx, lu = rng.standard_normal((H, n)), rng.standard_normal((H, m))
+    lxx, luu = sym_upper((H, n, n)), scale_quu * sym_upper((H, m, m))
+    lux = 0.1 * rng.standard_normal((H, m, n))
+    Vx, Vxx = rng.standard_normal(n), rng.standard_normal((n, n))
+    Vxx = Vxx @ Vxx.T + np.eye(n)
+    Theta = 0.01 * rng.standard_normal((H, n, n, n))
+    Gamma = 0.01 * rng.standard_normal((H, n, n, m))
+    Xi = 0.01 * rng.standard_normal((H, n, m, m))
+    return Phi, B, lx, lu, lxx, lux, luu, Vx, Vxx, Theta, Gamma, Xi
+
+
+def _run(fn, args, second, reg, H, n, m):
+    k, K, eig = np.full((H, m), 7.0), np.full((H, m, n), 7.0), np.full(H, 7.0)
+    out = fn(*args, second, reg, k, K, eig)
+    return (int(out[0]), float(out[1]), float(out[2])), k, K, eig
+
+
+def _rel(a, b):
+    return np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300)
+
+
+@pytest.mark.parametrize("n, m", [(6, 3), (12, 4), (12, 6), (18, 3), (30, 12)])
+@pytest.mark.parametrize("second", [False, True])
+@pytest.mark.parametrize("reg", [0.0, 1e-3])
+def test_backward_pass_equals_numba(n, m, second, reg):
+    rng = np.random.default_rng(1000 * n + 10 * m + second)
+    H = 40
+    args = _problem(rng, H, n, m)
+    (fc, d1c, d2c), kc, Kc, ec = _run(compiled._core.backward_pass, args, second, reg, H, n, m)
+    (fp, d1p, d2p), kp, Kp, ep = _run(kernels.backward_pass, args, second, reg, H, n, m)
+    assert fc == fp == -1
+    assert abs(d1c - d1p) <= 1e-12 * abs(d1p) and abs(d2c - d2p) <= 1e-12 * abs(d2p)
+    # measured: <= 3e-15
+    assert _rel(kc, kp) <= 1e-12 and _rel(Kc, Kp) <= 1e-12 and _rel(ec, ep) <= 1e-12
+
+
+@pytest.mark.parametrize("second", [False, True])
+def test_backward_pass_stops_at_the_same_node(second):
+    rng = np.random.default_rng(7)
+    H, n, m = 30, 12, 4
+    args = list(_problem(rng, H, n, m))
+    args[6] = args[6].copy()
+    args[6][11] = -10.0 * np.eye(m)  # Q_uu indefinite at node 11
+    (fc, d1c, d2c), kc, Kc, ec = _run(compiled._core.backward_pass, args, second, 0.0, H, n, m)
+    (fp, d1p, d2p), kp, Kp, ep = _run(kernels.backward_pass, args, second, 0.0, H, n, m)
+    assert fc == fp == 11
+    assert abs(d1c - d1p) <= 1e-12 * abs(d1p) and abs(d2c - d2p) <= 1e-12 * abs(d2p)
+    # nodes H-1 .. 12 written, node 11 and below untouched (7.0) by both
+    assert _rel(kc, kp) <= 1e-12 and _rel(Kc, Kp) <= 1e-12 and _rel(ec, ep) <= 1e-12
+    assert np.all(kc[: fc + 1] == 7.0) and np.all(kp[: fp + 1] == 7.0)
+
+
+def test_backward_pass_rejects_wrong_shapes():
+    rng = np.random.default_rng(3)
+    H, n, m = 5, 12, 4
+    args = list(_problem(rng, H, n, m))
+    args[2] = args[2][:, :-1]  # lx (H, n-1)
+    with pytest.raises(ValueError, match="lx"):
+        _run(compiled._core.backward_pass, args, True, 0.0, H, n, m)
