@@ -87,11 +87,12 @@ def test_certificate_in_json_is_strict_and_round_trips(tmp_path):
     assert Result.read_json(path).extra["optimality"] == d["optimality"]
 
 
-def test_panda_expansions_end_at_different_verified_minima(tmp_path, monkeypatch):
-    # Non-convex: on this Panda reach the expansions can end at different local minima: with
-    # the Python oracle's differenced cost Hessians, second order ends at J = 0.3458, while
-    # first order (and second order with the compiled exact Hessians) ends at J = 0.7198.
-    # Every one is converged because it is a verified strict local minimum (Newton decrement at
+def test_panda_expansions_end_at_verified_minima(tmp_path, monkeypatch):
+    # Non-convex: which local minimum an expansion reaches on this Panda reach depends on
+    # round-off in its path (measured: J = 0.3458 for second order with the Python oracle's
+    # differenced cost Hessians and the numba backward pass; J = 0.71984 for first order, and for
+    # second order with the compiled exact Hessians or the C++ backward pass). Whatever the basin,
+    # each stop is converged because it is a verified strict local minimum (Newton decrement at
     # round-off, every Q_uu positive definite), not because |dJ| got small.
     pytest.importorskip("example_robot_data")
     from tests_panda import panda_scene
@@ -101,7 +102,6 @@ def test_panda_expansions_end_at_different_verified_minima(tmp_path, monkeypatch
     second = solve_scene(path, verbose=False, expansion="second")
     monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
     second_oracle = solve_scene(path, verbose=False, expansion="second")
-    assert first.cost > second_oracle.cost + 0.3
     for r in (first, second, second_oracle):
         o = _opt(r)
         assert r.converged and o["hessian_positive_definite"] and o["newton_decrease"] < 1e-8, (r.status, o)
