@@ -349,7 +349,7 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
 
     Args:
         problem: anything satisfying :class:`geoddp.contract.OptimalControlProblem`
-            (:class:`geoddp.problem.Problem`, :class:`geoddp.multibody_problem.MultibodyProblem`).
+            (:class:`geoddp.problem.Problem`, satellite or multibody).
         options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
         initial_controls: (H, m) initial guess; zeros by default (as in the paper).
     """

@@ -52,7 +52,7 @@ class SolverOptions:
         stream: where the table goes (sys.stdout when None).
 
     The derivative backend is not an option of the solver: it is chosen when the model is built
-    (``satellite_problem(..., backend=...)``, ``solve_scene(..., backend=...)``).
+    (by structure for the satellite, ``Multibody(..., backend=...)`` for a multibody model).
     """
 
     expansion: str = DEFAULT_EXPANSION
