@@ -1,6 +1,7 @@
 """The few-lines entry point: scene file, built-in scene name (or spec) in, :class:`Result` out."""
 from __future__ import annotations
 
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +18,24 @@ def initial_controls(spec: AnySceneSpec) -> np.ndarray | None:
     if isinstance(spec, MultibodySceneSpec):
         return spec.initial_control_sequence()
     return None if spec.initial_controls is None else np.array(spec.initial_controls)
+
+
+# A spec is frozen, arrays included, and the solver never changes a problem: the problem built
+# from a spec is kept while the spec lives, so solving one spec again (a benchmark, a sweep, an
+# MPC loop) neither re-reads its URDF nor re-validates its weights (issue 11: the public route
+# adds at most 10 % to the solve; benchmarks/api_overhead.py).
+_BUILT: dict[int, tuple[weakref.ref, Any]] = {}
+
+
+def _built_problem(spec: AnySceneSpec) -> Any:
+    """The problem of ``spec`` (:func:`geoddp.scene.build_problem`), built once per spec object."""
+    key = id(spec)
+    hit = _BUILT.get(key)
+    if hit is not None and hit[0]() is spec:
+        return hit[1]
+    problem = build_problem(spec)
+    _BUILT[key] = (weakref.ref(spec, lambda _ref, key=key: _BUILT.pop(key, None)), problem)
+    return problem
 
 
 def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **options: Any) -> Result:
@@ -36,7 +55,7 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
         raise InputError("scene", f"expected a scene file path, a built-in scene's name or a spec from "
                          f"geoddp.scene.load_scene, got {type(scene).__name__}"
                          + (" (write the table to a TOML file and pass its path)" if isinstance(scene, dict) else ""))
-    known = {f.name for f in dataclasses.fields(SolverOptions)} | {"backend"}
+    known = {f.name for f in dataclasses.fields(SolverOptions)}
     for key in options:
         if key not in known:
             hint = closest(key, known)
@@ -44,9 +63,11 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
                              + f"; known: {', '.join(sorted(known))}")
     spec = scene if isinstance(scene, (SceneSpec, MultibodySceneSpec)) else load_scene(scene)
     scene_keys = {"expansion", "switch_ratio", "tol", "grad_tol", "max_iter"}
-    spec = spec.with_overrides(**{k: v for k, v in options.items() if k in scene_keys})
+    overrides = {k: v for k, v in options.items() if k in scene_keys}
+    if overrides:  # with_overrides re-validates the whole spec: only when something changes
+        spec = spec.with_overrides(**overrides)
     rest = {k: v for k, v in options.items() if k not in scene_keys}
-    problem = build_problem(spec)
+    problem = _built_problem(spec)
     result = solve(problem, solver_options(spec, verbose=verbose, **rest), initial_controls=initial_controls(spec))
     result.extra["scene"] = spec.name
     return result
