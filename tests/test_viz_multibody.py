@@ -25,7 +25,7 @@ MODELS = urdf_dir()  # the built-in URDFs (package data)
 from geoddp.viz.scene import BACKGROUND_RGB, GHOST, ROBOT, SHAPE
 import umsgpack  # noqa: E402
 
-from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, multibody_result, run_chromium, screenshot
+from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, keyframes, multibody_result, run_chromium, screenshot
 
 H, DT = 20, 0.05
 BACKGROUND_U8 = np.round(255 * np.asarray(BACKGROUND_RGB)).astype(int)
@@ -48,19 +48,6 @@ def animation_clips(cmds: list[dict]) -> dict[str, dict]:
     assert anims, "no set_animation command"
     prefix = f"/meshcat/{ROBOT}/"
     return {a["path"][len(prefix):]: a["clip"] for a in anims[-1]["animations"] if a["path"].startswith(prefix)}
-
-
-def keyframe_transforms(clip: dict) -> np.ndarray:
-    """(n_keys, 4, 4) transforms from a clip's position and quaternion (x, y, z, w) tracks."""
-    tracks = {t["name"]: t["keys"] for t in clip["tracks"]}
-    pos, quat = tracks[".position"], tracks[".quaternion"]
-    assert [k["time"] for k in pos] == [k["time"] for k in quat] == list(range(len(pos)))
-    out = np.tile(np.eye(4), (len(pos), 1, 1))
-    for k, (p, q) in enumerate(zip(pos, quat)):
-        x, y, z, w = q["value"]
-        out[k, :3, :3] = pin.Quaternion(w, x, y, z).toRotationMatrix()
-        out[k, :3, 3] = p["value"]
-    return out
 
 
 def scene_of(result: Result) -> str:
@@ -89,7 +76,7 @@ def test_animation_placements_equal_forward_kinematics(manip):
     worst = 0.0
     for name, clip in clips.items():
         assert clip["fps"] == pytest.approx(1.0 / DT)
-        T = keyframe_transforms(clip)
+        T = keyframes(clip)
         assert T.shape[0] == H + 1
         gid = gmodel.getGeometryId(name)
         for k in range(H + 1):
@@ -105,7 +92,7 @@ def test_end_effector_and_arm_links_follow_their_frames(manip):
     oMf[upper_arm] * (Ry(pi/2), 0.5 m along x), the base box at the free-flyer's XYZQUAT."""
     model = space_manipulator(horizon=H, dt=DT).model.pin_model
     data = model.createData()
-    T = {n: keyframe_transforms(c) for n, c in animation_clips(decode_commands(viz.html.render_html(manip))).items()}
+    T = {n: keyframes(c) for n, c in animation_clips(decode_commands(viz.html.render_html(manip))).items()}
     arm_offset = pin.SE3(pin.exp3(np.array([0.0, np.pi / 2, 0.0])), np.array([0.5, 0.0, 0.0]))
     for k in (0, 1, H // 2, H - 1, H):
         q = manip.configurations[k]
@@ -122,11 +109,11 @@ def test_root_translation_is_replayed(docking):
     """The spacecraft starts 4.3 m from the dock: the bus keyframes carry that translation."""
     clips = animation_clips(decode_commands(viz.html.render_html(docking)))
     assert set(clips) == {"bus_0", "bus_1", "bus_2", "bus_3"}  # bus, two panels, docking port
-    bus = keyframe_transforms(clips["bus_0"])
+    bus = keyframes(clips["bus_0"])
     np.testing.assert_allclose(bus[:, :3, 3], docking.configurations[:, :3], rtol=0, atol=1e-12)
     np.testing.assert_allclose(bus[0, :3, 3], [-4.0, 1.5, 0.5], atol=1e-12)
     # the right-hand panel is 1.9 m along the bus's own y axis at every frame
-    panel = keyframe_transforms(clips["bus_1"])
+    panel = keyframes(clips["bus_1"])
     np.testing.assert_allclose(panel[:, :3, 3], bus[:, :3, 3] + 1.9 * bus[:, :3, 1], atol=1e-12)
 
 
@@ -271,7 +258,7 @@ def test_multibody_result_without_description_falls_back_to_root_attitude(manip,
         text = viz.html.render_html(old)
     assert viz.animation_frame_count(text) == H + 1
     # the satellite's bus carries the root attitude R_k
-    bus = keyframe_transforms(animation_clips(decode_commands(text))["bus_0"])
+    bus = keyframes(animation_clips(decode_commands(text))["bus_0"])
     np.testing.assert_allclose(bus[:, :3, :3], manip.rotations, rtol=0, atol=1e-12)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -295,7 +282,7 @@ def test_live_loopback_replay_of_the_full_model(manip):
         assert {f"/meshcat/{ROBOT}/{n}/{SHAPE}" for n in MANIPULATOR_OBJECTS} <= paths
         clips = animation_clips(cmds)
         assert set(clips) == MANIPULATOR_OBJECTS
-        ee = keyframe_transforms(clips["ee_0"])
+        ee = keyframes(clips["ee_0"])
         np.testing.assert_allclose(ee, visual_placements(manip)[:, 4], rtol=0, atol=1e-12)
     finally:
         vis.close()

@@ -25,7 +25,7 @@ from geoddp.viz.html import STATUS_ID, decode_commands, render_html
 from geoddp.viz.model import SATELLITE_URDF, load_visual_model, satellite_description, visual_placements
 from geoddp.viz.scene import BACKGROUND_RGB, GHOST, GHOST_COLOR, GHOST_INFLATE, GHOST_OPACITY, ROBOT, SHAPE
 
-from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, run_chromium, screenshot, synthetic_result
+from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, keyframes, run_chromium, screenshot, synthetic_result
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "examples" / "satellite_paper.toml"
@@ -70,19 +70,6 @@ def clips_of(cmds: list[dict]) -> dict[str, dict]:
     assert anims, "no set_animation command"
     prefix = f"/meshcat/{ROBOT}/"
     return {a["path"][len(prefix):]: a["clip"] for a in anims[-1]["animations"]}
-
-
-def keyframes(clip: dict) -> np.ndarray:
-    """(n_keys, 4, 4) transforms from a clip's position and quaternion (x, y, z, w) tracks."""
-    tracks = {t["name"]: t["keys"] for t in clip["tracks"]}
-    pos, quat = tracks[".position"], tracks[".quaternion"]
-    assert [k["time"] for k in pos] == [k["time"] for k in quat] == list(range(len(pos)))
-    out = np.tile(np.eye(4), (len(pos), 1, 1))
-    for k, (p, q) in enumerate(zip(pos, quat)):
-        x, y, z, w = q["value"]
-        out[k, :3, :3] = pin.Quaternion(w, x, y, z).toRotationMatrix()
-        out[k, :3, 3] = p["value"]
-    return out
 
 
 def transforms_under(cmds: list[dict], group: str) -> dict[str, np.ndarray]:

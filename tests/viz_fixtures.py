@@ -10,6 +10,19 @@ import pinocchio as pin
 from geoddp.result import STATUS_CONVERGED_COST, Result
 
 
+def keyframes(clip: dict) -> np.ndarray:
+    """(n_keys, 4, 4) transforms from a clip's position and quaternion (x, y, z, w) tracks."""
+    tracks = {t["name"]: t["keys"] for t in clip["tracks"]}
+    pos, quat = tracks[".position"], tracks[".quaternion"]
+    assert [k["time"] for k in pos] == [k["time"] for k in quat] == list(range(len(pos)))
+    out = np.tile(np.eye(4), (len(pos), 1, 1))
+    for k, (p, q) in enumerate(zip(pos, quat)):
+        x, y, z, w = q["value"]
+        out[k, :3, :3] = pin.Quaternion(w, x, y, z).toRotationMatrix()
+        out[k, :3, 3] = p["value"]
+    return out
+
+
 def synthetic_result(
     horizon: int = 40,
     dt: float = 0.05,
