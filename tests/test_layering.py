@@ -63,6 +63,7 @@ FLOORS: dict[str, int] = {
     "geoddp.api": 4,
     # 5: viewers and figures (read Results)
     "geoddp.viz": 5,
+    "geoddp.simulate": 5,  # plants, policies, disturbances, Monte Carlo (issue 16); reads Results, calls the API
     # 6: the command line and the package's public facade
     "geoddp.cli": 6,
     "geoddp": 6,

@@ -110,6 +110,21 @@ class Satellite:
                 "actuation": self.actuation.copy(), "urdf": None if self.urdf is None else str(self.urdf),
                 "root": "spherical", "nq": 4, "nv": 3}
 
+    # ------------------------------------------------------------------ state chart
+    def retract(self, R: np.ndarray, Omega: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x exp(zeta) = (R exp(eta), Omega + dOmega); R (3, 3), Omega (3,), zeta = (eta, dOmega) (6,)."""
+        E = np.empty((3, 3))
+        kernels.so3_exp(float(zeta[0]), float(zeta[1]), float(zeta[2]), E)
+        return R @ E, Omega + zeta[3:]
+
+    def local(self, R_bar: np.ndarray, Omega_bar: np.ndarray, R: np.ndarray, Omega: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`retract`, the perturbation of the paper's feedback law (eq. dustar):
+        zeta = (log(R_bar^T R), Omega - Omega_bar) (6,), the same chart as the closed-loop kernel."""
+        out = np.empty(6)
+        kernels.so3_log(np.ascontiguousarray(R_bar.T @ R), out[:3])
+        out[3:] = Omega - Omega_bar
+        return out
+
     # ------------------------------------------------------------------ dynamics
     def rollout(self, R0: np.ndarray, Omega0: np.ndarray, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Open-loop rollout: R0 (3,3), Omega0 (3,), controls (H, m) -> R (H+1, 3, 3), Omega (H+1, 3)."""
