@@ -1,5 +1,6 @@
-"""Command line: ``geoddp run SCENE`` and ``geoddp compare SCENE``, where SCENE is a scene file
-(satellite or multibody) or a built-in scene's name (``satellite_paper``, ``quadrotor``, ...);
+"""Command line: ``geoddp run SCENE``, ``geoddp compare SCENE`` and ``geoddp simulate SCENE``,
+where SCENE is a scene file (satellite or multibody) or a built-in scene's name
+(``satellite_paper``, ``quadrotor``, ...);
 ``geoddp multibody NAME`` is an alias of ``geoddp run NAME`` for the built-in multibody scenes.
 
 Exit codes: 0 converged (a verified local minimum, see the README's status table), 1 stopped
@@ -81,6 +82,7 @@ def _parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--json", type=Path, help="write a summary JSON here")
     cmp_.add_argument("--plots", type=Path, help="write convergence figures into this directory")
     cmp_.add_argument("--quiet", action="store_true")
+    _simulate_parser(sub, scene_help)
     return p
 
 
@@ -194,6 +196,88 @@ def _compare(args) -> int:
     return EXIT_CONVERGED if all(r.converged for r in results.values()) else EXIT_NOT_CONVERGED
 
 
+# ---------------------------------------------------------------------- geoddp simulate (issue 16)
+def _simulate_parser(sub, scene_help: str) -> None:
+    from .simulate import POLICIES
+
+    sim = sub.add_parser("simulate", help="fly the scene's plan on a plant (noise, model error): open loop, with the "
+                         "DDP gains or MPC; prints the Monte Carlo table")
+    sim.add_argument("scene", help=scene_help)
+    sim.add_argument("--samples", type=int, help="Monte Carlo samples N (default 1, or the scene's [simulation])")
+    sim.add_argument("--seed", type=int, help="root seed (default 0); the same seed gives the same table")
+    sim.add_argument("--noise", type=float, help="sigma of N(0, sigma^2) added to the velocity at every step (rad/s, m/s)")
+    sim.add_argument("--sensor-noise", type=float, help="sigma of the noise on the measured state (tangent space)")
+    sim.add_argument("--plant", action="append", metavar="KEY=VALUE", default=[],
+                     help="plant change: inertia_scale, mass_scale, actuator_gain (numbers, comma-separated "
+                     "for one per axis or input), integrator (euler | semi_implicit | rk4 | variational), substeps")
+    sim.add_argument("--policy", choices=list(POLICIES), help="closed-loop policy flown beside open loop (default feedback)")
+    sim.add_argument("--steps", type=int, help="plan steps to simulate (default H; more only with --policy mpc)")
+    sim.add_argument("--mpc-horizon", type=int, help="MPC window H_mpc in steps (default min(100, H))")
+    sim.add_argument("--mpc-every", type=int, help="re-solve every this many steps (default 1)")
+    sim.add_argument("--mpc-max-iter", type=int, help="iteration cap per re-solve (default 3)")
+    sim.add_argument("--json", type=Path, help="write the statistics and per-sample measures as JSON here")
+    sim.add_argument("--plots", type=Path, help="write the bundle and error-histogram figures into this directory")
+
+
+def _plant_value(key: str, text: str):
+    if key == "integrator":
+        return text
+    try:
+        vals = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(f"--plant {key}", f"expected a number or comma-separated numbers, got {text!r}") from None
+    if key == "substeps":
+        if len(vals) != 1 or not vals[0].is_integer():
+            raise InputError("--plant substeps", f"expected a positive integer, got {text!r}")
+        return int(vals[0])
+    return vals[0] if len(vals) == 1 else vals
+
+
+def _simulate(args) -> int:
+    """``geoddp simulate SCENE ...``: solve the plan, fly it, print the table (exit 0; 1 if the
+    plan did not converge; 2 on bad input)."""
+    import dataclasses
+
+    from .outputs import strict_json, write_atomic
+    from .scene import load_scene
+    from .simulate import SimulationSpec, simulate_scene
+
+    spec = load_scene(args.scene)
+    _check_outputs(args, [getattr(spec, "source", None), getattr(spec, "urdf", None)])
+    base = getattr(spec, "simulation", None) or SimulationSpec()  # the scene's [simulation] table, if any
+    plant = dict(base.plant)
+    for item in args.plant:
+        key, sep, val = item.partition("=")
+        if not sep or not key:
+            raise InputError("--plant", f"expected KEY=VALUE, got {item!r}")
+        plant[key.strip()] = _plant_value(key.strip(), val.strip())
+    over = {k: val for k, val in (("samples", args.samples), ("seed", args.seed), ("noise", args.noise),
+                                  ("sensor_noise", args.sensor_noise), ("policy", args.policy), ("steps", args.steps),
+                                  ("mpc_horizon", args.mpc_horizon), ("mpc_every", args.mpc_every),
+                                  ("mpc_max_iter", args.mpc_max_iter)) if val is not None}
+    try:
+        sim = dataclasses.replace(base, plant=plant, **over)
+    except InputError as exc:  # name the command-line option
+        name = exc.parameter.removeprefix("simulation.")
+        raise InputError(f"--plant {name[6:]}" if name.startswith("plant.") else "--" + name.replace("_", "-"),
+                         exc.detail) from None
+    mc = simulate_scene(spec, sim)
+    plan = mc.plan
+    print(f"plan: J* = {plan.cost:.10f}  status: {plan.status}")
+    print(f"simulated {sim.samples} sample(s) x {', '.join(mc.policies)}, seed {sim.seed}, noise {sim.noise}, "
+          f"plant {mc.plant or 'as planned'}  ({mc.wall_time_s:.2f} s)")
+    print(mc.table())
+    if args.json:
+        write_atomic(args.json, strict_json({"scene": spec.name, "simulation": dataclasses.asdict(sim), **mc.to_dict()}))
+        _wrote(args.json)
+    if args.plots:
+        from .viz import plot_simulation
+
+        for path in plot_simulation(mc, args.plots).values():
+            _wrote(path)
+    return EXIT_CONVERGED if plan.converged else EXIT_NOT_CONVERGED
+
+
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
@@ -212,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
         except (ValueError, OSError):  # not the main thread
             pass
     try:
-        handler = {"run": _run, "compare": _compare, "multibody": _multibody}[args.command]
+        handler = {"run": _run, "compare": _compare, "multibody": _multibody, "simulate": _simulate}[args.command]
         import numpy as np
 
         # Backstop: every numeric path checks finiteness itself (the solver's status, the

@@ -21,13 +21,16 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from .. import kernels
 from ..models.satellite import Satellite
 from ..multibody_costs import FramePlacement, FrameRotation, FrameTranslation
 
 
 def _angle(R: np.ndarray) -> float:
-    c = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.arccos(c))
+    """|log(R)| in rad, by the robust log (arccos of the trace loses half the digits near 0)."""
+    out = np.empty(3)
+    kernels.so3_log(np.ascontiguousarray(R, dtype=float), out)
+    return float(np.linalg.norm(out))
 
 
 class Targets:
@@ -70,6 +73,29 @@ class Targets:
             if R_ref is not None:
                 out["attitude_rad"] = _angle(R_ref.T @ M.rotation)
         return out
+
+    @property
+    def series_name(self) -> str:
+        """The measure :meth:`series` follows over time: "attitude_rad" (satellite; a frame term
+        with a rotation only), "position_m" (a frame term with a position) or "state"."""
+        if self.satellite:
+            return "attitude_rad"
+        if self.frame is None:
+            return "state"
+        return "position_m" if self.frame[1] is not None else "attitude_rad"
+
+    def series(self, q: np.ndarray, v: np.ndarray, plan_q: np.ndarray, plan_v: np.ndarray) -> np.ndarray:
+        """(N+1,) distance to the target at every step of a run (:attr:`series_name`; "state" is the
+        tangent distance from the plan's final state)."""
+        name = self.series_name
+        if name == "state":
+            return np.array([np.linalg.norm(self.model.local(plan_q[-1], plan_v[-1], q[k], v[k])) for k in range(len(q))])
+        if self.satellite:
+            E = np.ascontiguousarray(np.einsum("ji,njk->nik", self.R_d, q))  # R_d^T R_k
+            out = np.empty((len(E), 3))
+            kernels.so3_log_batch(E, out)
+            return np.linalg.norm(out, axis=1)
+        return np.array([self.terminal(q[k], v[k])[name] for k in range(len(q))])
 
     def measures(self, plan_q: np.ndarray, plan_v: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndarray,
                  dt: float) -> dict[str, float]:

@@ -44,6 +44,8 @@ class MonteCarloResult:
         runs: policy -> its N :class:`SimulationResult` (sample order).
         plant: the plant's changed parameters.  plan_cost: J* of the plan.
         wall_time_s: wall time of all runs.
+        plan_times (H+1,) s, plan_target_error (H+1,): the plan's own distance to the target
+            (the runs' ``target_measure``), for the figures.  plan: the plan's Result.
     """
 
     policies: tuple[str, ...]
@@ -53,6 +55,9 @@ class MonteCarloResult:
     plant: dict[str, Any] = field(default_factory=dict)
     plan_cost: float = float("nan")
     wall_time_s: float = 0.0
+    plan_times: np.ndarray | None = None
+    plan_target_error: np.ndarray | None = None
+    plan: Result | None = None
 
     def measures(self, policy: str) -> dict[str, np.ndarray]:
         """measure -> (N,) values of ``policy``'s runs (only the measures the runs have)."""
@@ -89,9 +94,9 @@ class MonteCarloResult:
             if m not in per[self.policies[0]]:
                 continue
             summ = {p: _summary(per[p][m]) for p in self.policies}
-            for s in STATISTICS:
+            for s in STATISTICS if self.samples > 1 else ("mean",):  # one sample: its value
                 cells = " | ".join(f"{summ[p][s]:.3e}" for p in self.policies)
-                lines.append(f"| {m} ({UNITS[m]}) | {s} | {cells} |")
+                lines.append(f"| {m} ({UNITS[m]}) | {s if self.samples > 1 else 'value'} | {cells} |")
         st = self.statistics()
         for p in self.policies:
             if f"{p}.solve_median_s" in st:
@@ -151,4 +156,6 @@ def monte_carlo(result: Result, problem: Any, *, samples: int = 90, seed: int = 
         for p in pols:
             runs[p.name].append(run(p, plant, targets, result, q0, v0, steps, sample))
     return MonteCarloResult(policies=tuple(p.name for p in pols), samples=N, seed=seed, runs=runs, plant=plant.changed,
-                            plan_cost=float(result.cost), wall_time_s=time.perf_counter() - t0)
+                            plan_cost=float(result.cost), wall_time_s=time.perf_counter() - t0,
+                            plan_times=np.asarray(result.times, dtype=float),
+                            plan_target_error=targets.series(result.q, result.v, result.q, result.v), plan=result)

@@ -42,6 +42,8 @@ class SimulationResult:
         plant: the plant's parameters that differ from the plan's model.
         stats: what the policy measured (MPC: per-step solve times, iterations, real-time factor).
         wall_time_s: the run's wall time.
+        target_error: (N+1,) distance to the target at every step (``target_measure``: see
+            :meth:`geoddp.simulate.errors.Targets.series`).
     """
 
     policy: str
@@ -53,13 +55,17 @@ class SimulationResult:
     plant: dict[str, Any] = field(default_factory=dict)
     stats: dict[str, Any] = field(default_factory=dict)
     wall_time_s: float = 0.0
+    target_error: np.ndarray | None = None
+    target_measure: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (arrays as lists)."""
         return {"policy": self.policy, "times": self.times.tolist(), "q": np.asarray(self.q).tolist(),
                 "v": self.v.tolist(), "u": self.u.tolist(), "errors": dict(self.errors), "plant": dict(self.plant),
                 "stats": {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in self.stats.items()},
-                "wall_time_s": self.wall_time_s}
+                "wall_time_s": self.wall_time_s,
+                "target_measure": self.target_measure,
+                "target_error": None if self.target_error is None else self.target_error.tolist()}
 
 
 def make_policy(policy: Any, result: Result, problem: Any, **mpc_options: Any) -> Any:
@@ -113,8 +119,10 @@ def run(policy: Any, plant: Plant, targets: Targets, plan: Result, q0: np.ndarra
             raise FloatingPointError(f"the simulated state became non-finite at step {k + 1}")
         Q[k + 1], V[k + 1] = q, v
     errors = targets.measures(plan.q, plan.v, Q, V, U, model.dt)
+    series = targets.series(Q, V, plan.q, plan.v)
     return SimulationResult(policy=policy.name, times=np.arange(steps + 1) * model.dt, q=Q, v=V, u=U, errors=errors,
-                            plant=plant.changed, stats=policy.stats(), wall_time_s=time.perf_counter() - t0)
+                            plant=plant.changed, stats=policy.stats(), wall_time_s=time.perf_counter() - t0,
+                            target_error=series, target_measure=targets.series_name)
 
 
 def simulate(result: Result, problem: Any, policy: Any = "feedback", *, plant: Plant | dict | None = None,

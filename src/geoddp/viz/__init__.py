@@ -12,7 +12,8 @@ through ``package_dirs``; or with ``geometry="collision"`` its collision geometr
 forward kinematics (:func:`visual_placements` gives the per-frame world placements), with the
 target pose as a translucent ghost, frame targets as triads, an optional ``trail`` and a camera
 framing the whole trajectory.
-- :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures.
+- :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures;
+  :func:`plot_simulation`: the Monte Carlo bundles and error histograms (issue 16).
 """
 import warnings
 
@@ -26,6 +27,7 @@ from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
 from .model import load_visual_model, visual_placements
+from .simulation import plot_simulation
 
 __all__ = [
     "FigureData",
@@ -36,6 +38,7 @@ __all__ = [
     "export_html",
     "load_visual_model",
     "plot_convergence",
+    "plot_simulation",
     "plot_trajectory",
     "replay",
     "visual_placements",

@@ -1,0 +1,79 @@
+"""Issue 16's surface: ``geoddp simulate`` and the Monte Carlo figures."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from geoddp.cli import main
+from geoddp.simulate import SimulationSpec, simulate_scene
+
+
+def _run(capsys, argv):
+    code = main(argv)
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def test_simulate_prints_the_table_and_writes_json_and_figures(tmp_path, capsys):
+    out_json, plots = tmp_path / "sim.json", tmp_path / "plots"
+    code, out, err = _run(capsys, ["simulate", "satellite_authors_code", "--samples", "12", "--seed", "3", "--noise",
+                                   "0.001", "--json", str(out_json), "--plots", str(plots)])
+    assert code == 0 and err == ""
+    assert "J* = 6.0451953285" in out and "| attitude_rad (rad) | mean |" in out
+    d = json.loads(out_json.read_text())
+    api = simulate_scene("satellite_authors_code", SimulationSpec(samples=12, seed=3, noise=0.001)).statistics()
+    # the CLI's numbers are the API's (same seed, same table)
+    for k in ("open.attitude_rad.mean", "feedback.attitude_rad.max", "feedback.effort.p95"):
+        assert d["statistics"][k] == api[k]
+    assert len(d["measures"]["feedback"]["attitude_rad"]) == 12 and d["simulation"]["noise"] == 0.001
+    mean = float(out.split("| attitude_rad (rad) | mean | ")[1].split(" |")[0])
+    assert mean == pytest.approx(api["open.attitude_rad.mean"], rel=1e-3)
+    for name in ("bundles.png", "errors.png"):
+        assert (plots / name).stat().st_size > 10_000
+
+
+def test_simulate_plant_and_policy_options(capsys):
+    code, out, err = _run(capsys, ["simulate", "satellite_authors_code", "--plant", "inertia_scale=1.2", "--plant",
+                                   "substeps=2", "--policy", "mpc", "--mpc-horizon", "50", "--mpc-every", "5",
+                                   "--mpc-max-iter", "2"])
+    assert code == 0, err
+    assert "'inertia_scale': 1.2" in out and "'substeps': 2" in out and "| open | mpc |" in out
+    assert "re-solve median" in out and "real-time factor" in out
+    # one sample: a value row per measure; MPC (H_mpc = 50 < H) lands closer than open loop
+    row = out.split("| attitude_rad (rad) | value | ")[1].split(" |\n")[0]
+    ol, mpc = (float(x) for x in row.split(" | "))
+    assert mpc < 0.25 * ol
+
+
+@pytest.mark.parametrize("argv, param", [
+    (["--samples", "0"], "--samples"),
+    (["--plant", "inertia=2"], "--plant inertia"),
+    (["--plant", "inertia_scale"], "--plant"),
+    (["--plant", "inertia_scale=big"], "--plant inertia_scale"),
+    (["--plant", "substeps=1.5"], "--plant substeps"),
+    (["--plant", "inertia_scale=-1"], "plant.inertia_scale"),
+    (["--noise", "-1"], "disturbances.velocity_noise"),
+    (["--steps", "301"], "steps"),
+    (["--mpc-every", "0", "--policy", "mpc"], "mpc.every"),
+])
+def test_simulate_bad_input_exits_2_with_one_line(capsys, argv, param):
+    code, out, err = _run(capsys, ["simulate", "satellite_paper", *argv])
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"geoddp: error: {param}:"), err
+
+
+def test_figures_plot_what_the_runs_hold(tmp_path):
+    from geoddp.viz import plot_simulation
+
+    mc = simulate_scene("satellite_authors_code", SimulationSpec(samples=5, seed=1, noise=0.001))
+    figs = plot_simulation(mc, tmp_path)
+    b = figs.data["bundles"].arrays
+    for p in ("open", "feedback"):
+        np.testing.assert_allclose(b[p][:, -1], mc.measures(p)["attitude_rad"], rtol=1e-12)
+        np.testing.assert_allclose(figs.data["errors"].arrays[p], mc.measures(p)["attitude_rad"], rtol=1e-12)
+    assert b["plan"][0] == pytest.approx(np.radians(75.0), abs=0.3)  # starts ~1.3 rad from R_d
+    # Result.attitude_error_deg takes arccos of the trace (~1e-8 relative at 5e-4 rad); ours the log
+    assert b["plan"][-1] == pytest.approx(mc.plan.attitude_error_deg * np.pi / 180, rel=1e-7)
