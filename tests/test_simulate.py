@@ -315,6 +315,7 @@ def test_mpc_warm_start_shifts_and_repeats_the_last_control(authors):
     (lambda p, r: simulate("plan", p), "result"),
     (lambda p, r: monte_carlo(r, p, samples=0), "samples"),
     (lambda p, r: monte_carlo(r, p, samples=2, seed=-1), "seed"),
+    (lambda p, r: monte_carlo(r, p, samples=2, workers=0), "workers"),
     (lambda p, r: SimulationSpec(policy="mcp"), "simulation.policy"),
     (lambda p, r: SimulationSpec.from_dict({"sample": 3}), "simulation.sample"),
     (lambda p, r: plant_from(p.model, {"mass": 2}), "plant.mass"),
@@ -336,3 +337,15 @@ def test_satellite_chart_round_trip_and_the_kernels_zeta():
     R1, Om1 = m.retract(R, Om, zeta)
     np.testing.assert_allclose(m.local(R, Om, R1, Om1), zeta, atol=1e-13)
     np.testing.assert_allclose(m.local(R, Om, R1, Om1)[:3], pin.log3(R.T @ R1), atol=1e-13)
+
+
+def test_monte_carlo_in_two_processes_gives_the_same_numbers(authors):
+    p, r = authors
+    dist = Disturbances(velocity_noise=0.001, sensor_noise=1e-4)
+    a = monte_carlo(r, p, samples=5, seed=11, disturbances=dist)
+    b = monte_carlo(r, p, samples=5, seed=11, disturbances=dist, workers=2)
+    for pol in ("open", "feedback"):
+        for x, y in zip(a.runs[pol], b.runs[pol]):
+            np.testing.assert_array_equal(x.q, y.q)
+            np.testing.assert_array_equal(x.u, y.u)
+    assert a.statistics()["feedback.attitude_rad.p95"] == b.statistics()["feedback.attitude_rad.p95"]

@@ -215,6 +215,7 @@ def _simulate_parser(sub, scene_help: str) -> None:
     sim.add_argument("--mpc-horizon", type=int, help="MPC window H_mpc in steps (default min(100, H))")
     sim.add_argument("--mpc-every", type=int, help="re-solve every this many steps (default 1)")
     sim.add_argument("--mpc-max-iter", type=int, help="iteration cap per re-solve (default 3)")
+    sim.add_argument("--workers", type=int, help="processes for the samples (default 1; the same numbers)")
     sim.add_argument("--json", type=Path, help="write the statistics and per-sample measures as JSON here")
     sim.add_argument("--plots", type=Path, help="write the bundle and error-histogram figures into this directory")
 
@@ -254,7 +255,7 @@ def _simulate(args) -> int:
     over = {k: val for k, val in (("samples", args.samples), ("seed", args.seed), ("noise", args.noise),
                                   ("sensor_noise", args.sensor_noise), ("policy", args.policy), ("steps", args.steps),
                                   ("mpc_horizon", args.mpc_horizon), ("mpc_every", args.mpc_every),
-                                  ("mpc_max_iter", args.mpc_max_iter)) if val is not None}
+                                  ("mpc_max_iter", args.mpc_max_iter), ("workers", args.workers)) if val is not None}
     try:
         sim = dataclasses.replace(base, plant=plant, **over)
     except InputError as exc:  # name the command-line option

@@ -117,10 +117,45 @@ class MonteCarloResult:
         return d
 
 
+_JOB: tuple | None = None  # the forked workers' job (inherited through fork, never pickled)
+
+
+def _samples(job: tuple, indices: Any) -> dict[str, list[SimulationResult]]:
+    pols, plant, targets, result, q0, v0, steps, dist, children = job
+    model = plant.model
+    out: dict[str, list[SimulationResult]] = {p.name: [] for p in pols}
+    for i in indices:
+        sample = dist.draw(np.random.default_rng(children[i]), steps, plant.nv, model.nx, model.dt)
+        for p in pols:
+            out[p.name].append(run(p, plant, targets, result, q0, v0, steps, sample))
+    return out
+
+
+def _worker(indices: list[int]) -> dict[str, list[SimulationResult]]:
+    assert _JOB is not None
+    return _samples(_JOB, indices)
+
+
+def _in_processes(job: tuple, N: int, workers: int) -> list[dict[str, list[SimulationResult]]]:
+    """Blocks of samples in ``workers`` forked processes, in sample order."""
+    import multiprocessing as mp
+
+    global _JOB
+    if "fork" not in mp.get_all_start_methods():
+        return [_samples(job, range(N))]  # no fork (Windows, macOS default): one process
+    blocks = [list(b) for b in np.array_split(np.arange(N), min(workers, N))]
+    _JOB = job
+    try:
+        with mp.get_context("fork").Pool(len(blocks)) as pool:
+            return pool.map(_worker, blocks)
+    finally:
+        _JOB = None
+
+
 def monte_carlo(result: Result, problem: Any, *, samples: int = 90, seed: int = 0,
                 policies: tuple[str, ...] | list[str] = ("open", "feedback"), plant: Plant | dict | None = None,
                 disturbances: Disturbances | None = None, initial_state: tuple[np.ndarray, np.ndarray] | None = None,
-                steps: int | None = None, **mpc_options: Any) -> MonteCarloResult:
+                steps: int | None = None, workers: int = 1, **mpc_options: Any) -> MonteCarloResult:
     """Fly the plan ``result`` of ``problem`` ``samples`` times with each policy (module docstring).
 
     Args:
@@ -128,6 +163,9 @@ def monte_carlo(result: Result, problem: Any, *, samples: int = 90, seed: int = 
         samples: N >= 1.  seed: root seed (int >= 0).
         policies: names among "open", "feedback", "mpc" (each once).
         plant, disturbances, initial_state, steps, mpc_options: as for :func:`~geoddp.simulate.simulate`.
+        workers: processes (>= 1). With more than one, contiguous blocks of samples run in forked
+            processes (POSIX fork: the built plant, policies and problem are inherited, nothing is
+            rebuilt); the results are the same numbers as with one (each sample's seed is its own).
 
     Returns:
         :class:`MonteCarloResult`.
@@ -148,13 +186,19 @@ def monte_carlo(result: Result, problem: Any, *, samples: int = 90, seed: int = 
         if getattr(p, "horizon", None) is not None and steps > p.horizon:
             raise InputError("steps", f"expected at most the plan's H = {H} steps for the {p.name} policy, got {steps}")
     q0, v0 = (problem.q0, problem.v0) if initial_state is None else model.check_state(*initial_state, "initial_state")
+    workers = positive_int(workers, "workers")
     targets = Targets(problem)
     t0 = time.perf_counter()
     runs: dict[str, list[SimulationResult]] = {p.name: [] for p in pols}
-    for ss in np.random.SeedSequence(seed).spawn(N):
-        sample = dist.draw(np.random.default_rng(ss), steps, plant.nv, model.nx, model.dt)
-        for p in pols:
-            runs[p.name].append(run(p, plant, targets, result, q0, v0, steps, sample))
+    children = np.random.SeedSequence(seed).spawn(N)
+    job = (pols, plant, targets, result, q0, v0, steps, dist, children)
+    if workers == 1 or N == 1:
+        chunks = [_samples(job, range(N))]
+    else:
+        chunks = _in_processes(job, N, workers)
+    for chunk in chunks:
+        for name, rs in chunk.items():
+            runs[name].extend(rs)
     return MonteCarloResult(policies=tuple(p.name for p in pols), samples=N, seed=seed, runs=runs, plant=plant.changed,
                             plan_cost=float(result.cost), wall_time_s=time.perf_counter() - t0,
                             plan_times=np.asarray(result.times, dtype=float),

@@ -37,6 +37,7 @@ class SimulationSpec:
         steps: plan steps to simulate (None: H; more only with MPC).
         mpc_horizon (None: min(100, H)), mpc_every, mpc_max_iter, mpc_shrink: MPC's options
             (:class:`~.mpc.MPC`).
+        workers: processes for the samples (:func:`~.montecarlo.monte_carlo`; same numbers).
     """
 
     samples: int = 1
@@ -55,6 +56,7 @@ class SimulationSpec:
     mpc_every: int = 1
     mpc_max_iter: int = 3
     mpc_shrink: bool = False
+    workers: int = 1
 
     def __post_init__(self) -> None:
         put = lambda k, val: object.__setattr__(self, k, val)  # noqa: E731  (frozen dataclass)
@@ -71,6 +73,7 @@ class SimulationSpec:
         for k in ("compare_open_loop", "mpc_shrink"):
             if not isinstance(getattr(self, k), bool):
                 raise InputError(f"simulation.{k}", f"expected true or false, got {getattr(self, k)!r}")
+        put("workers", positive_int(self.workers, "simulation.workers"))
         if self.steps is not None:
             put("steps", positive_int(self.steps, "simulation.steps"))
 
@@ -132,4 +135,4 @@ def simulate_scene(scene: Any, simulation: SimulationSpec | dict | None = None) 
     plan = solve_scene(spec, verbose=False)
     problem = _built_problem(spec)
     return monte_carlo(plan, problem, samples=sim.samples, seed=sim.seed, policies=sim.policies, plant=sim.plant,
-                       disturbances=sim.disturbances(), steps=sim.steps, **sim.mpc_options())
+                       disturbances=sim.disturbances(), steps=sim.steps, workers=sim.workers, **sim.mpc_options())
