@@ -32,7 +32,7 @@ def _controls(problem, rng) -> np.ndarray:
 
 
 def test_every_example_scene_is_covered():
-    assert len(SCENES) == 2 + 13 + 3
+    assert len(SCENES) == 3 + 13 + 3  # satellite_paper, _semi_implicit, _authors_code (issue 16); hard; multibody
 
 
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: f"{p.parent.name}/{p.stem}")
