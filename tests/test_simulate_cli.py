@@ -77,3 +77,38 @@ def test_figures_plot_what_the_runs_hold(tmp_path):
     assert b["plan"][0] == pytest.approx(np.radians(75.0), abs=0.3)  # starts ~1.3 rad from R_d
     # Result.attitude_error_deg takes arccos of the trace (~1e-8 relative at 5e-4 rad); ours the log
     assert b["plan"][-1] == pytest.approx(mc.plan.attitude_error_deg * np.pi / 180, rel=1e-7)
+
+
+def _plan_and_run_clips(text):
+    from geoddp.viz.html import decode_commands
+
+    anims = [c for c in decode_commands(text) if c["type"] == "set_animation"][-1]["animations"]
+    out = {}
+    for a in anims:
+        group, name = a["path"].split("/")[2], a["path"].split("/")[3]
+        out[(group, name)] = a["clip"]
+    return out
+
+
+@pytest.mark.parametrize("scene, plant", [("satellite_authors_code", "inertia_scale=1.2"),
+                                          ("quadrotor", "mass_scale=1.2")])
+def test_html_replays_the_run_beside_an_animated_ghost_of_the_plan(tmp_path, capsys, scene, plant):
+    from geoddp.viz.model import check_replayable, placements_at
+    from viz_fixtures import keyframes
+
+    out = tmp_path / "run.html"
+    code, text, err = _run(capsys, ["simulate", scene, "--plant", plant, "--html", str(out)])
+    assert code == 0, err
+    mc = simulate_scene(scene, SimulationSpec(plant={plant.split("=")[0]: float(plant.split("=")[1])}))
+    run, plan = mc.runs["feedback"][0], mc.plan
+    clips = _plan_and_run_clips(out.read_text())
+    visual, Qplan = check_replayable(plan)
+    _, Qrun = check_replayable(run.to_result(plan))
+    Pp, Pr = placements_at(visual, Qplan), placements_at(visual, Qrun)
+    names = [n for (g, n) in clips if g == "plan_ghost"]
+    assert names and sorted(names) == sorted(n for (g, n) in clips if g == "robot")
+    i = list(visual.names).index(names[0])
+    np.testing.assert_allclose(keyframes(clips[("plan_ghost", names[0])]), Pp[:, i], atol=1e-6)
+    np.testing.assert_allclose(keyframes(clips[("robot", names[0])]), Pr[:, i], atol=1e-6)
+    # the run left the plan (model error): the two animations differ at the end
+    assert np.abs(Pp[-1, i] - Pr[-1, i]).max() > 1e-4

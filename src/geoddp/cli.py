@@ -218,6 +218,8 @@ def _simulate_parser(sub, scene_help: str) -> None:
     sim.add_argument("--workers", type=int, help="processes for the samples (default 1; the same numbers)")
     sim.add_argument("--json", type=Path, help="write the statistics and per-sample measures as JSON here")
     sim.add_argument("--plots", type=Path, help="write the bundle and error-histogram figures into this directory")
+    sim.add_argument("--html", type=Path, help="write an HTML replay of the first sample of the closed-loop policy "
+                     "beside an animated ghost of the plan")
 
 
 def _plant_value(key: str, text: str):
@@ -276,6 +278,11 @@ def _simulate(args) -> int:
 
         for path in plot_simulation(mc, args.plots).values():
             _wrote(path)
+    if args.html:
+        from .viz import export_html
+
+        run = mc.runs[mc.policies[-1]][0]
+        _wrote(export_html(run.to_result(plan), args.html, plan=plan))
     return EXIT_CONVERGED if plan.converged else EXIT_NOT_CONVERGED
 
 

@@ -136,7 +136,8 @@ def render_html(result: Result, scale: float = 1.0, title: str = "geoddp replay"
 
 
 def export_html(result: Result, path: str | Path, scale: float = 1.0, *, geometry: str = "visual",
-                trail: str | None = None, max_mesh_mb: float | None = MAX_MESH_MB) -> Path:
+                trail: str | None = None, max_mesh_mb: float | None = MAX_MESH_MB,
+                plan: Result | None = None) -> Path:
     """Write a self-contained static HTML replay of ``result`` to ``path``.
 
     The file embeds meshcat's three.js viewer, the recorded scene commands and every mesh file
@@ -160,11 +161,14 @@ def export_html(result: Result, path: str | Path, scale: float = 1.0, *, geometr
         max_mesh_mb: refuse (InputError naming ``max_mesh_mb``, with the sizes and the
             ``geometry="collision"`` alternative) to embed more mesh data than this many MB
             (default 20); None: no limit.
+        plan: the plan a simulated run flew (``SimulationResult.to_result(plan)`` as ``result``):
+            drawn as an animated translucent ghost beside the run.
 
     Returns:
         The path written (nothing is written when an InputError is raised).
     """
-    text = render_html(result, scale=scale, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
+    extra = {} if plan is None else {"plan": plan}
+    text = render_html(result, scale=scale, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb, **extra)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, text)  # temp file + rename: a kill never leaves a partial page

@@ -64,6 +64,8 @@ SHAPE = "shape"
 TARGETS = "frame_targets"
 #: Scene-tree name of the group holding the trail (``line`` and ``beads/<k>``).
 TRAIL = "trail"
+#: Scene-tree name of the group holding the animated ghost of a plan (a simulated run's replay).
+PLAN = "plan_ghost"
 #: Default limit (megabytes, 1e6 bytes) on the mesh data a scene embeds.
 MAX_MESH_MB = 20.0
 TRAIL_COLOR = 0xFFC030
@@ -306,7 +308,8 @@ def check_mesh_size(result: Result, visual: VisualModel, copies: int, max_mesh_m
 
 def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, play: bool = True, *,
                 geometry: str = "visual", trail: str | None = None,
-                max_mesh_mb: float | None = MAX_MESH_MB, prepared: tuple | None = None) -> Animation:
+                max_mesh_mb: float | None = MAX_MESH_MB, prepared: tuple | None = None,
+                plan: Result | None = None) -> Animation:
     """The whole replay scene of any result: backdrop, the model's visuals at q_0, the target
     ghost, frame-target triads, the trail, the camera, and the trajectory animation, in that order.
 
@@ -326,6 +329,9 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
             (:func:`check_mesh_size`).
         prepared: what :func:`prepare_scene` returned for this result and these options (the
             live viewer checks before starting its server, and the meshes are loaded once).
+        plan: another Result of the same model (the plan a simulated run flew): drawn as a
+            translucent ghost under ``vis["plan_ghost"]``, animated beside the model (its last
+            configuration held if the run is longer; issue 16).
 
     Returns:
         The animation (one clip per drawn visual object, H+1 keyframes each, fps = 1/dt).
@@ -343,11 +349,20 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
     visual, Q, q_ghost, targets, path = prepared
     placements = placements_at(visual, Q)
     # A visualizer may be replayed into again: nothing of an earlier scene may remain.
-    for group in (ROBOT, GHOST, TARGETS, TRAIL):
+    for group in (ROBOT, GHOST, TARGETS, TRAIL, PLAN):
         vis[group].delete()
     set_backdrop(vis)
     drawn = _draw(vis[ROBOT], visual, placements[0], scale)
     seen = placements[:, drawn]
+    plan_placements = None
+    if plan is not None:
+        _, Qp = check_replayable(plan, geometry)
+        if Qp.shape[1] != Q.shape[1]:
+            raise InputError("plan", f"expected a plan of the same model (nq = {Q.shape[1]}), got nq = {Qp.shape[1]}")
+        Qp = np.vstack([Qp, np.repeat(Qp[-1:], max(0, len(Q) - len(Qp)), axis=0)])[: len(Q)]
+        plan_placements = placements_at(visual, Qp)
+        _draw(vis[PLAN], visual, plan_placements[0], scale, ghost=True)
+        seen = np.concatenate([seen, plan_placements[:, drawn]])
     if q_ghost is not None:
         ghost = placements_at(visual, q_ghost[None])
         _draw(vis[GHOST], visual, ghost[0], scale, ghost=True)
@@ -369,6 +384,12 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
     target, position, _ = camera_view(np.vstack(points), scale)
     _set_camera(vis, target, position)
     anim = model_animation(vis, visual, placements, result.dt, drawn)
+    if plan_placements is not None:
+        for i in drawn:
+            node = vis[PLAN][visual.names[i]]
+            for k in range(plan_placements.shape[0]):
+                with anim.at_frame(node, k) as frame:
+                    frame.set_transform(plan_placements[k, i])
     vis.set_animation(anim, play=play, repetitions=1)
     return anim
 
@@ -419,6 +440,6 @@ def build_satellite(vis: meshcat.Visualizer, scale: float = 1.0) -> None:
     _draw(vis[GHOST], visual, identity, scale, ghost=True)
 
 
-__all__ = ["BACKGROUND_RGB", "GHOST", "MAX_MESH_MB", "ROBOT", "SHAPE", "TARGETS", "TRAIL", "build_satellite",
+__all__ = ["BACKGROUND_RGB", "GHOST", "MAX_MESH_MB", "PLAN", "ROBOT", "SHAPE", "TARGETS", "TRAIL", "build_satellite",
            "build_scene", "camera_view", "check_mesh_size", "check_replayable", "model_animation", "prepare_scene",
            "set_backdrop"]
