@@ -61,6 +61,7 @@ FLOORS: dict[str, int] = {
     "geoddp.multibody_scene": 4,
     "geoddp.multibody_scenes": 4,
     "geoddp.api": 4,
+    "geoddp.simulation_spec": 4,  # the [simulation] table's values (issue 16), read with the scenes
     # 5: viewers and figures (read Results)
     "geoddp.viz": 5,
     "geoddp.simulate": 5,  # plants, policies, disturbances, Monte Carlo (issue 16); reads Results, calls the API

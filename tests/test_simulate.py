@@ -349,3 +349,17 @@ def test_monte_carlo_in_two_processes_gives_the_same_numbers(authors):
             np.testing.assert_array_equal(x.q, y.q)
             np.testing.assert_array_equal(x.u, y.u)
     assert a.statistics()["feedback.attitude_rad.p95"] == b.statistics()["feedback.attitude_rad.p95"]
+
+
+@pytest.mark.parametrize("fields, name", [
+    ({"noise": -0.1}, "simulation.noise"), ({"noise": "big"}, "simulation.noise"),
+    ({"sensor_noise": [[1.0]]}, "simulation.sensor_noise"), ({"wrench": [1.0, float("nan")]}, "simulation.wrench"),
+    ({"wrench_start": -1}, "simulation.wrench_start"), ({"mpc_horizon": 0}, "simulation.mpc_horizon"),
+    ({"mpc_every": 1.5}, "simulation.mpc_every"), ({"plant": {"substeps": 0}}, "simulation.plant.substeps"),
+    ({"plant": {"mass_scale": 0}}, "simulation.plant.mass_scale"), ({"plant": {"integrator": 4}}, "simulation.plant.integrator"),
+    ({"compare_open_loop": 1}, "simulation.compare_open_loop"), ({"workers": 0}, "simulation.workers"),
+])
+def test_simulation_spec_validates_every_field(fields, name):
+    with pytest.raises(InputError) as exc:
+        SimulationSpec(**fields)
+    assert exc.value.parameter == name

@@ -53,10 +53,11 @@ def test_simulate_plant_and_policy_options(capsys):
     (["--plant", "inertia_scale"], "--plant"),
     (["--plant", "inertia_scale=big"], "--plant inertia_scale"),
     (["--plant", "substeps=1.5"], "--plant substeps"),
-    (["--plant", "inertia_scale=-1"], "plant.inertia_scale"),
-    (["--noise", "-1"], "disturbances.velocity_noise"),
+    (["--plant", "inertia_scale=-1"], "--plant inertia_scale"),
+    (["--noise", "-1"], "--noise"),
     (["--steps", "301"], "steps"),
-    (["--mpc-every", "0", "--policy", "mpc"], "mpc.every"),
+    (["--mpc-every", "0", "--policy", "mpc"], "--mpc-every"),
+    (["--mpc-every", "200", "--mpc-horizon", "100", "--policy", "mpc"], "mpc.every"),
 ])
 def test_simulate_bad_input_exits_2_with_one_line(capsys, argv, param):
     code, out, err = _run(capsys, ["simulate", "satellite_paper", *argv])
