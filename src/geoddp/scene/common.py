@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from .. import validate as v
 from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
                               EXPANSIONS)
@@ -23,6 +25,13 @@ TABLES: dict[str, dict[str, bool]] = {
     "solver": {"expansion": False, "switch_ratio": False, "tol": False, "grad_tol": False, "max_iter": False,
                "second_order": False, "initial_controls": False},
 }
+
+
+def readonly(a: Any) -> np.ndarray:
+    """A read-only float64 copy: specs are frozen, arrays included, so a caller cannot edit a shared scene."""
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)

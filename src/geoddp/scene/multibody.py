@@ -54,7 +54,7 @@ import pinocchio as pin
 
 from .. import validate as v
 from ..validate import InputError
-from .common import TABLES, CommonSpec, read_common
+from .common import TABLES, CommonSpec, read_common, readonly
 from .reader import Reader, check_urdf
 
 COST_TYPES = ("frame_placement", "frame_rotation", "frame_translation", "state_regularisation", "control")
@@ -93,12 +93,6 @@ _COST_KEYS = {
     "control": ("weight", "reference"),
 }
 _COMMON_COST_KEYS = ("type", "name")
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.flags.writeable = False
-    return a
 
 
 # --------------------------------------------------------------------------------------
@@ -188,9 +182,9 @@ class MultibodySceneSpec(CommonSpec):
         from ..models import multibody as mbm
 
         put = lambda k, val: object.__setattr__(self, k, val)  # noqa: E731  (frozen dataclass)
-        put("actuation", _readonly(v.finite_array(self.actuation, "actuation", (None, None))))
-        put("q0", _readonly(v.finite_array(self.q0, "q0", (None,))))
-        put("v0", _readonly(v.finite_array(self.v0, "v0", (self.actuation.shape[0],))))
+        put("actuation", readonly(v.finite_array(self.actuation, "actuation", (None, None))))
+        put("q0", readonly(v.finite_array(self.q0, "q0", (None,))))
+        put("v0", readonly(v.finite_array(self.v0, "v0", (self.actuation.shape[0],))))
         put("dt", v.positive_float(self.dt, "dt"))
         put("horizon", v.positive_int(self.horizon, "horizon"))
         put("integrator", v.choice(self.integrator, "integrator", mbm.INTEGRATORS))
@@ -202,7 +196,7 @@ class MultibodySceneSpec(CommonSpec):
             U = v.finite_array(self.initial_controls, "initial_controls")
             if U.shape not in ((m,), (self.horizon, m)):
                 raise InputError("initial_controls", f"expected shape ({m},) or ({self.horizon}, {m}), got shape {U.shape}")
-            put("initial_controls", _readonly(U))
+            put("initial_controls", readonly(U))
 
     @property
     def num_inputs(self) -> int:
@@ -518,7 +512,7 @@ def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: boo
             else:
                 raise r.err(f"{path}.translation", "missing: a frame_translation reference needs translation (m) "
                             "or at_configuration")
-        return CostTermSpec(kind, label, path, frame, _readonly(ref), _readonly(W), gn)
+        return CostTermSpec(kind, label, path, frame, readonly(ref), readonly(W), gn)
 
     if kind == "state_regularisation":
         qr = t.get("q_reference", "neutral")
@@ -543,7 +537,7 @@ def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: boo
             raise r.err(f"{path}.weight", f"missing: give weight (2 nv = {2 * nv}) or q_weight and/or v_weight "
                         f"(nv = {nv})")
         ref = np.concatenate([q_ref, v_ref])
-        return CostTermSpec(kind, label, path, None, _readonly(ref), _readonly(W), gn)
+        return CostTermSpec(kind, label, path, None, readonly(ref), readonly(W), gn)
 
     # control
     W = r.weight(need_weight(), f"{path}.weight", ctx.m)
@@ -553,4 +547,4 @@ def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: boo
         ref = ctx.hover(f"{path}.reference")
     else:
         ref = r.check(v.finite_array, u, f"{path}.reference", (ctx.m,))
-    return CostTermSpec(kind, label, path, None, _readonly(ref), _readonly(W), False)
+    return CostTermSpec(kind, label, path, None, readonly(ref), readonly(W), False)

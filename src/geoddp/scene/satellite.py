@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import validate as v
 from ..validate import InputError
-from .common import TABLES, CommonSpec, read_common
+from .common import TABLES, CommonSpec, read_common, readonly
 from .reader import Reader, check_urdf
 
 INTEGRATORS = ("euler", "semi_implicit")
@@ -52,12 +52,6 @@ SCHEMA: dict[str, dict[str, bool]] = {
     **TABLES,
 }
 REQUIRED = ("model", "initial", "target", "horizon", "cost")
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    # The spec is frozen; make its arrays immutable too so a caller cannot edit a shared scene.
-    a.flags.writeable = False
-    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,15 +122,15 @@ class SceneSpec(CommonSpec):
         for k in ("name", "description", "source"):
             if not isinstance(getattr(self, k), str):
                 raise InputError(k, f"expected a string, got {getattr(self, k)!r}")
-        put("inertia", _readonly(v.inertia_matrix(self.inertia, "inertia")))
-        put("actuation", _readonly(v.actuation_matrix(self.actuation, "actuation")))
+        put("inertia", readonly(v.inertia_matrix(self.inertia, "inertia")))
+        put("actuation", readonly(v.actuation_matrix(self.actuation, "actuation")))
         m = self.actuation.shape[1]
         if self.urdf is not None:
             put("urdf", check_urdf(self.urdf, "urdf", Path.cwd()))
-        put("R0", _readonly(v.rotation_matrix(self.R0, "R0")))
-        put("Omega0", _readonly(v.finite_array(self.Omega0, "Omega0", shape=(3,))))
-        put("Rd", _readonly(v.rotation_matrix(self.Rd, "Rd")))
-        put("Omegad", _readonly(v.finite_array(self.Omegad, "Omegad", shape=(3,))))
+        put("R0", readonly(v.rotation_matrix(self.R0, "R0")))
+        put("Omega0", readonly(v.finite_array(self.Omega0, "Omega0", shape=(3,))))
+        put("Rd", readonly(v.rotation_matrix(self.Rd, "Rd")))
+        put("Omegad", readonly(v.finite_array(self.Omegad, "Omegad", shape=(3,))))
         H = v.time_grid(self.tf, self.dt, tf_name="tf", dt_name="dt")
         put("tf", float(self.tf))
         put("dt", float(self.dt))
@@ -144,13 +138,13 @@ class SceneSpec(CommonSpec):
         if h != H:
             raise InputError("horizon", f"expected tf / dt = {H} (it is derived from tf and dt), got {h}")
         put("integrator", v.choice(self.integrator, "integrator", INTEGRATORS))
-        put("S_u", _readonly(v.spd_matrix(self.S_u, "S_u", m)))
+        put("S_u", readonly(v.spd_matrix(self.S_u, "S_u", m)))
         for k in ("S_R", "S_Omega", "running_S_R", "running_S_Omega"):
-            put(k, _readonly(v.spd_matrix(getattr(self, k), k, 3, semidefinite=True)))
+            put(k, readonly(v.spd_matrix(getattr(self, k), k, 3, semidefinite=True)))
         put("attitude_kind", v.choice(self.attitude_kind, "attitude_kind", ATTITUDE_KINDS))
         self._check_common(SECOND_ORDER)
         if self.initial_controls is not None:
-            put("initial_controls", _readonly(v.finite_array(self.initial_controls, "initial_controls", shape=(H, m))))
+            put("initial_controls", readonly(v.finite_array(self.initial_controls, "initial_controls", shape=(H, m))))
 
     @property
     def num_inputs(self) -> int:
