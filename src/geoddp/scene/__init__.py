@@ -16,15 +16,18 @@ nothing here solves.
 Adding a table
 --------------
 * Shared by every kind (``[limits]``, ``[simulation]``): in ``common.py`` add its keys to
-  :data:`~geoddp.scene.common.TABLES` (``{"limits": {"control_min": False, ...}}``), its fields
+  :data:`~geoddp.scene.common.TABLES` (``"limits": {"control_min": False, ...}``), its fields
   (keyword-only, with defaults) to :class:`~geoddp.scene.common.CommonSpec` and their checks to
-  ``CommonSpec._check_common``, and read it in :func:`~geoddp.scene.common.read_common` (use
-  ``r.table("limits")`` and ``r.check(validator, value, "[limits].key", ...)``: the reader names the
-  key path). Then use the fields in ``build.py`` (the problem or the solver options). A value that
-  needs the model (nv, joint limits) is read by the kind instead, after its model is built.
-* For one kind (``[model].robot``, named postures under ``[initial]``): add the keys to that
-  kind's ``SCHEMA`` and read them in its ``parse`` function, next to the table's other keys; add a
-  field to its spec and use it in ``build.py``.
+  ``CommonSpec._check_common`` (which knows nu, the number of inputs), and read it in
+  :func:`~geoddp.scene.common.read_common` (``t = r.table("limits")``, then
+  ``r.check(validator, t["control_min"], "[limits].control_min", ...)``: the reader names the key
+  path; ``nu`` and, for a multibody scene, the ``pin.Model`` are passed in). Then use the fields in
+  :func:`~geoddp.scene.build.build_problem` (the problem, once for both kinds) or
+  :func:`~geoddp.scene.build.solver_options`. Both specs and both kinds' ``with_overrides`` take
+  the new fields without further code.
+* For one kind (``[model].robot``, ``package_dirs``, named postures under ``[initial]``): add the
+  keys to that kind's ``SCHEMA`` and read them in its ``parse`` function next to the table's other
+  keys; add a field to its spec and use it in its builder (``build._satellite`` / ``build._multibody``).
 * Unknown keys, misplaced keys ("did you mean [horizon].dt?"), missing required keys and
   non-table tables are then reported by the reader without further code.
 """

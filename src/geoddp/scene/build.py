@@ -23,17 +23,25 @@ AnySceneSpec = Union[SceneSpec, MultibodySceneSpec]
 def build_problem(spec: AnySceneSpec):
     """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0); the
     model's backend is chosen when it is built (TSO(3) closed forms for the satellite). A fresh
-    model each call."""
-    if isinstance(spec, SceneSpec):
-        from ..problem import satellite_problem
+    model each call. The shared tables (:mod:`.common`) act on the problem here, once for every kind."""
+    return _satellite(spec) if isinstance(spec, SceneSpec) else _multibody(spec)
 
-        return satellite_problem(
-            inertia=spec.inertia, actuation=spec.actuation, dt=spec.dt, horizon=spec.horizon,
-            R0=spec.R0, Omega0=spec.Omega0, R_d=spec.Rd, Omega_d=spec.Omegad,
-            S_u=spec.S_u, S_R=spec.S_R, S_Omega=spec.S_Omega, attitude_kind=spec.attitude_kind,
-            running_S_R=spec.running_S_R, running_S_Omega=spec.running_S_Omega,
-            integrator=spec.integrator, second_order=spec.second_order, urdf=spec.urdf,
-        )
+
+def _satellite(spec: SceneSpec):
+    """The one-body model of ``spec.urdf`` (default satellite.urdf) with the paper's costs."""
+    from ..problem import satellite_problem
+
+    return satellite_problem(
+        inertia=spec.inertia, actuation=spec.actuation, dt=spec.dt, horizon=spec.horizon,
+        R0=spec.R0, Omega0=spec.Omega0, R_d=spec.Rd, Omega_d=spec.Omegad,
+        S_u=spec.S_u, S_R=spec.S_R, S_Omega=spec.S_Omega, attitude_kind=spec.attitude_kind,
+        running_S_R=spec.running_S_R, running_S_Omega=spec.running_S_Omega,
+        integrator=spec.integrator, second_order=spec.second_order, urdf=spec.urdf,
+    )
+
+
+def _multibody(spec: MultibodySceneSpec):
+    """The multibody model of ``spec.urdf`` with its cost terms."""
     from ..models.multibody import Multibody
     from ..multibody_costs import MultibodyCostSum
     from ..problem import Problem

@@ -54,8 +54,9 @@ class CommonSpec:
     max_iter: int = DEFAULT_MAX_ITER
     second_order: str = DEFAULT_SECOND_ORDER
 
-    def _check_common(self, second_order_kinds: tuple[str, ...]) -> None:
-        """Validate the shared fields under their field names (direct construction, with_overrides)."""
+    def _check_common(self, second_order_kinds: tuple[str, ...], nu: int) -> None:
+        """Validate the shared fields under their field names (direct construction, with_overrides);
+        ``nu``: the spec's number of inputs m (for per-input fields)."""
         put = lambda k, val: object.__setattr__(self, k, val)  # noqa: E731  (frozen dataclass)
         put("expansion", v.choice(self.expansion, "expansion", EXPANSIONS))
         put("switch_ratio", v.bounded_float(self.switch_ratio, "switch_ratio", 0.0, 1.0, False, False))
@@ -65,9 +66,17 @@ class CommonSpec:
         put("second_order", v.choice(self.second_order, "second_order", second_order_kinds))
 
 
-def read_common(r: Reader, second_order_kinds: tuple[str, ...]) -> dict[str, Any]:
-    """The shared tables as :class:`CommonSpec` keyword arguments (``[solver].initial_controls``
-    depends on the model: each kind reads it)."""
+def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: Any = None) -> dict[str, Any]:
+    """The shared tables as :class:`CommonSpec` keyword arguments.
+
+    Args:
+        r: the scene's reader.
+        second_order_kinds: the kind's choices for ``[solver].second_order``.
+        nu: the number of inputs m (for per-input values).
+        model: the kind's ``pin.Model`` if it has one at parse time (multibody), else None.
+
+    ``[solver].initial_controls`` has forms that depend on the kind ("hover"): each kind reads it.
+    """
     s = r.table("solver")
     get = s.get
     return dict(

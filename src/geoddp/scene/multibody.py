@@ -190,7 +190,7 @@ class MultibodySceneSpec(CommonSpec):
         put("integrator", v.choice(self.integrator, "integrator", mbm.INTEGRATORS))
         put("running_costs", tuple(self.running_costs))
         put("terminal_costs", tuple(self.terminal_costs))
-        self._check_common(mbm.SECOND_ORDER_KINDS)
+        self._check_common(mbm.SECOND_ORDER_KINDS, self.num_inputs)
         if self.initial_controls is not None:
             m = self.num_inputs
             U = v.finite_array(self.initial_controls, "initial_controls")
@@ -309,7 +309,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         raise r.err("[[running_costs]]", "expected at least one cost term in [[running_costs]] or [[terminal_costs]]")
 
     # ---- solver
-    common = read_common(r, mbm.SECOND_ORDER_KINDS)
+    common = read_common(r, mbm.SECOND_ORDER_KINDS, m, pm)
     s = r.table("solver")
     U0 = None
     if "initial_controls" in s:

@@ -142,7 +142,7 @@ class SceneSpec(CommonSpec):
         for k in ("S_R", "S_Omega", "running_S_R", "running_S_Omega"):
             put(k, readonly(v.spd_matrix(getattr(self, k), k, 3, semidefinite=True)))
         put("attitude_kind", v.choice(self.attitude_kind, "attitude_kind", ATTITUDE_KINDS))
-        self._check_common(SECOND_ORDER)
+        self._check_common(SECOND_ORDER, m)
         if self.initial_controls is not None:
             put("initial_controls", readonly(v.finite_array(self.initial_controls, "initial_controls", shape=(H, m))))
 
@@ -230,7 +230,7 @@ def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: st
     running_S_R = weight("running_attitude", 3, default=0.0)
     running_S_Omega = weight("running_angular_velocity", 3, default=0.0)
 
-    common = read_common(r, SECOND_ORDER)
+    common = read_common(r, SECOND_ORDER, m)
     solver = r.table("solver")
     U0 = None
     if "initial_controls" in solver:
