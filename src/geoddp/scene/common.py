@@ -16,12 +16,12 @@ import numpy as np
 from .. import validate as v
 from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
                               EXPANSIONS)
-from .reader import Reader
+from .reader import Reader, Schema
 
 DEFAULT_SECOND_ORDER = "exact"
 
 # [table] -> key -> required?  (merged into every kind's schema)
-TABLES: dict[str, dict[str, bool]] = {
+TABLES: Schema = {
     "solver": {"expansion": False, "switch_ratio": False, "tol": False, "grad_tol": False, "max_iter": False,
                "second_order": False, "initial_controls": False},
 }

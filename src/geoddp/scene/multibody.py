@@ -55,7 +55,7 @@ import pinocchio as pin
 from .. import validate as v
 from ..validate import InputError
 from .common import TABLES, CommonSpec, read_common, readonly
-from .reader import Reader, check_urdf
+from .reader import Reader, Schema, check_urdf
 
 COST_TYPES = ("frame_placement", "frame_rotation", "frame_translation", "state_regularisation", "control")
 ACTUATION_TYPES = ("identity", "matrix", "thrusters", "quadrotor", "joints")
@@ -63,7 +63,7 @@ DEFAULT_INTEGRATOR = "euler"
 ROTATION_FORMS = ("quaternion", "rotation", "axis")  # "axis" goes with "angle_deg"
 
 ARRAYS = ("running_costs", "terminal_costs")
-SCHEMA: dict[str, dict[str, bool]] = {  # [table] -> key -> required?
+SCHEMA: Schema = {  # [table] -> key -> required?
     "model": {"kind": True, "urdf": True, "root": False, "gravity": False},
     "actuation": {"type": False, "matrix": False, "positions": False, "directions": False,
                   "arm_length": False, "torque_coefficient": False, "joints": False},

@@ -26,9 +26,6 @@ from ..validate import InputError
 TOP_KEYS = ("name", "description")
 Schema = dict[str, dict[str, bool]]  # [table] -> key -> required?
 
-# Rotation forms a table may offer (which ones a table allows is its schema's choice).
-ROTATION_FORMS = ("quaternion", "rotation", "euler_intrinsic", "axis")  # "axis" goes with "angle_deg"
-
 
 # ------------------------------------------------------------------ files
 

@@ -34,7 +34,7 @@ import numpy as np
 from .. import validate as v
 from ..validate import InputError
 from .common import TABLES, CommonSpec, read_common, readonly
-from .reader import Reader, check_urdf
+from .reader import Reader, Schema, check_urdf
 
 INTEGRATORS = ("euler", "semi_implicit")
 ATTITUDE_KINDS = ("chordal", "geodesic")
@@ -42,7 +42,7 @@ SECOND_ORDER = ("exact", "paper")
 DEFAULT_INTEGRATOR = "euler"
 DEFAULT_ATTITUDE_KIND = "chordal"
 
-SCHEMA: dict[str, dict[str, bool]] = {
+SCHEMA: Schema = {
     "model": {"kind": False, "inertia": True, "actuation": False, "urdf": False},
     "initial": {"quaternion": False, "rotation": False, "angular_velocity": False},
     "target": {"rotation": False, "quaternion": False, "euler_intrinsic": False, "angular_velocity": False},
