@@ -256,9 +256,9 @@ def test_mpc_reuses_the_built_problem(monkeypatch, quad):
     import pinocchio as pin
 
     import geoddp.models.multibody as mbm
-    import geoddp.multibody_scene as mbs
     import geoddp.problem as prob
-    import geoddp.scene as sc
+    import geoddp.scene.build as sb
+    import geoddp.scene.load as sl
 
     p, r = quad
     mpc = MPC(p, horizon=20, every=2, max_iter=2, plan=r)
@@ -273,17 +273,22 @@ def test_mpc_reuses_the_built_problem(monkeypatch, quad):
 
     monkeypatch.setattr(pin, "buildModelFromUrdf", counting("urdf", pin.buildModelFromUrdf))
     monkeypatch.setattr(mbm, "build_checked_model", counting("urdf", mbm.build_checked_model))
-    monkeypatch.setattr(sc, "build_problem", counting("build", sc.build_problem))
-    monkeypatch.setattr(mbs, "build_multibody_problem", counting("build", mbs.build_multibody_problem))
+    monkeypatch.setattr(sb, "_multibody", counting("build", sb._multibody))  # the one builder's two kinds
+    monkeypatch.setattr(sb, "_satellite", counting("build", sb._satellite))
+    monkeypatch.setattr(sl, "_dispatch", counting("build", sl._dispatch))  # every scene read (file or dict)
     monkeypatch.setattr(prob.Problem, "__post_init__", counting("validate", prob.Problem.__post_init__))
     s = simulate(r, p, mpc, plant=plant, steps=10)
     assert counts == {"urdf": 0, "build": 0, "validate": 0}
     assert s.stats["solves"] == 5 and s.stats["every"] == 2
     assert mpc.problem.model is p.model and mpc.problem.running is p.running  # one model, one set of costs
     assert p.horizon == 50 and np.array_equal(p.q0, r.q[0])  # the plan's problem is not changed
-    # the counter works: building the plant parses the URDF
+    # the counters work: building a plant parses the URDF; loading and building a scene are counted
     Plant(p.model, mass_scale=1.1)
     assert counts["urdf"] == 1
+    from geoddp.scene import build_problem as build, load_scene
+
+    build(load_scene("quadrotor"))
+    assert counts["build"] == 2 and counts["validate"] == 1 and counts["urdf"] >= 2
 
 
 def test_mpc_warm_start_shifts_and_repeats_the_last_control(authors):

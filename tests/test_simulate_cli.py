@@ -35,7 +35,8 @@ def test_simulate_prints_the_table_and_writes_json_and_figures(tmp_path, capsys)
 
 
 def test_simulate_plant_and_policy_options(capsys):
-    code, out, err = _run(capsys, ["simulate", "satellite_authors_code", "--plant", "inertia_scale=1.2", "--plant",
+    code, out, err = _run(capsys, ["simulate", "satellite_authors_code", "--samples", "1", "--noise", "0", "--plant",
+                                   "inertia_scale=1.2", "--plant",
                                    "substeps=2", "--policy", "mpc", "--mpc-horizon", "50", "--mpc-every", "5",
                                    "--mpc-max-iter", "2"])
     assert code == 0, err
@@ -98,7 +99,8 @@ def test_html_replays_the_run_beside_an_animated_ghost_of_the_plan(tmp_path, cap
     from viz_fixtures import keyframes
 
     out = tmp_path / "run.html"
-    code, text, err = _run(capsys, ["simulate", scene, "--plant", plant, "--html", str(out)])
+    code, text, err = _run(capsys, ["simulate", scene, "--samples", "1", "--noise", "0", "--plant", plant, "--html",
+                                    str(out)])
     assert code == 0, err
     mc = simulate_scene(scene, SimulationSpec(plant={plant.split("=")[0]: float(plant.split("=")[1])}))
     run, plan = mc.runs["feedback"][0], mc.plan
@@ -113,3 +115,71 @@ def test_html_replays_the_run_beside_an_animated_ghost_of_the_plan(tmp_path, cap
     np.testing.assert_allclose(keyframes(clips[("robot", names[0])]), Pr[:, i], atol=1e-6)
     # the run left the plan (model error): the two animations differ at the end
     assert np.abs(Pp[-1, i] - Pr[-1, i]).max() > 1e-4
+
+
+SCENE_WITH_TABLE = """
+name = "with_simulation"
+[model]
+inertia = [10.0, 11.1, 13.0]
+[initial]
+quaternion = [0.0, 0.0, 0.0, 1.0]
+[target]
+euler_intrinsic = [["x", 30.0], ["z", 70.0]]
+[horizon]
+tf = 1.0
+dt = 0.01
+[cost]
+control = 0.001
+attitude = 1e4
+angular_velocity = 1e4
+[simulation]
+samples = 6
+seed = 4
+noise = 0.002
+policy = "mpc"
+mpc_horizon = 40
+mpc_every = 2
+[simulation.plant]
+inertia_scale = 1.1
+"""
+
+
+def test_the_simulation_table_of_a_scene_file(tmp_path, capsys):
+    from geoddp.scene import load_scene
+    from geoddp.simulation_spec import SimulationSpec as Spec
+
+    path = tmp_path / "s.toml"
+    path.write_text(SCENE_WITH_TABLE)
+    spec = load_scene(path)
+    assert spec.simulation == Spec(samples=6, seed=4, noise=0.002, policy="mpc", mpc_horizon=40, mpc_every=2,
+                                   plant={"inertia_scale": 1.1})
+    mc = simulate_scene(spec)  # the table is the default
+    assert mc.policies == ("open", "mpc") and mc.samples == 6 and mc.plant == {"inertia_scale": 1.1}
+    assert mc.runs["mpc"][0].stats["every"] == 2 and mc.runs["mpc"][0].stats["horizon"] == 40
+    same = simulate_scene(spec, Spec(samples=6, seed=4, noise=0.002, policy="mpc", mpc_horizon=40, mpc_every=2,
+                                     plant={"inertia_scale": 1.1}))
+    assert mc.statistics()["mpc.attitude_rad.mean"] == same.statistics()["mpc.attitude_rad.mean"]
+    # the command line starts from the table and overrides what it is given
+    code, out, err = _run(capsys, ["simulate", str(path), "--samples", "2", "--policy", "feedback"])
+    assert code == 0, err
+    assert "simulated 2 sample(s) x open, feedback, seed 4, noise 0.002" in out and "'inertia_scale': 1.1" in out
+    # the built-in authors' scene carries the authors' test
+    assert load_scene("satellite_authors_code").simulation == Spec(samples=90, seed=0, noise=0.001)
+
+
+@pytest.mark.parametrize("line, param", [
+    ("sample = 3", "[simulation].sample"),
+    ("samples = 0", "[simulation].samples"),
+    ("policy = \"closed\"", "[simulation].policy"),
+    ("noise = -1.0", "[simulation].noise"),
+    ("plant = { inertia = 2.0 }", "[simulation].plant.inertia"),
+    ("plant = { substeps = 0 }", "[simulation].plant.substeps"),
+])
+def test_a_bad_simulation_table_names_its_key(tmp_path, capsys, line, param):
+    path = tmp_path / "bad.toml"
+    head = SCENE_WITH_TABLE.split("[simulation]")[0]
+    path.write_text(head + "[simulation]\n" + line + "\n")
+    code, out, err = _run(capsys, ["simulate", str(path)])
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and f"{param}:" in lines[0] and str(path) in lines[0], err

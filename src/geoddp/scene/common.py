@@ -1,5 +1,6 @@
 """The tables every scene kind shares, once: their keys, their fields on the spec and how they are
-read. Today that is ``[solver]``; ``[limits]`` and ``[simulation]`` belong here too.
+read: ``[solver]`` and ``[simulation]`` (issue 16: :class:`~geoddp.simulation_spec.SimulationSpec`,
+flown by :func:`geoddp.simulate.simulate_scene` and ``geoddp simulate``); ``[limits]`` belongs here too.
 
 :class:`CommonSpec` is the base of both specs (:class:`~geoddp.scene.satellite.SceneSpec`,
 :class:`~geoddp.scene.multibody.MultibodySceneSpec`): its fields are keyword-only with defaults,
@@ -8,12 +9,15 @@ kind's schema, and :func:`read_common` reads every shared table into spec fields
 """
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .. import validate as v
+from ..simulation_spec import SimulationSpec
 from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
                               EXPANSIONS)
 from .reader import Reader, Schema
@@ -24,6 +28,7 @@ DEFAULT_SECOND_ORDER = "exact"
 TABLES: Schema = {
     "solver": {"expansion": False, "switch_ratio": False, "tol": False, "grad_tol": False, "max_iter": False,
                "second_order": False, "initial_controls": False},
+    "simulation": {f.name: False for f in dataclasses.fields(SimulationSpec)},
 }
 
 
@@ -45,6 +50,8 @@ class CommonSpec:
         grad_tol: stopping tolerance on the gradient norm, >= 0.
         max_iter: maximum number of iterations, >= 1.
         second_order: "exact" | "paper" (the paper's: satellite with explicit Euler only).
+        simulation: the ``[simulation]`` table as a :class:`~geoddp.simulation_spec.SimulationSpec`
+            (a dict of its fields is converted), or None when the scene has none.
     """
 
     expansion: str = DEFAULT_EXPANSION
@@ -53,6 +60,7 @@ class CommonSpec:
     grad_tol: float = DEFAULT_GRAD_TOL
     max_iter: int = DEFAULT_MAX_ITER
     second_order: str = DEFAULT_SECOND_ORDER
+    simulation: SimulationSpec | None = None
 
     def _check_common(self, second_order_kinds: tuple[str, ...], nu: int) -> None:
         """Validate the shared fields under their field names (direct construction, with_overrides);
@@ -64,6 +72,11 @@ class CommonSpec:
         put("grad_tol", v.nonnegative_float(self.grad_tol, "grad_tol"))
         put("max_iter", v.positive_int(self.max_iter, "max_iter"))
         put("second_order", v.choice(self.second_order, "second_order", second_order_kinds))
+        if isinstance(self.simulation, Mapping):
+            put("simulation", SimulationSpec.from_dict(dict(self.simulation)))
+        elif self.simulation is not None and not isinstance(self.simulation, SimulationSpec):
+            raise v.InputError("simulation", f"expected a SimulationSpec, a dict of its fields or None, got "
+                               f"{type(self.simulation).__name__}")
 
 
 def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: Any = None) -> dict[str, Any]:
@@ -80,6 +93,7 @@ def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: 
     s = r.table("solver")
     get = s.get
     return dict(
+        simulation=r.check(_simulation, r.table("simulation")) if "simulation" in r.data else None,
         expansion=r.check(v.choice, get("expansion", DEFAULT_EXPANSION), "[solver].expansion", EXPANSIONS),
         switch_ratio=r.check(v.bounded_float, get("switch_ratio", DEFAULT_SWITCH_RATIO), "[solver].switch_ratio",
                              0.0, 1.0, False, False),
@@ -89,3 +103,11 @@ def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: 
         second_order=r.check(v.choice, get("second_order", DEFAULT_SECOND_ORDER), "[solver].second_order",
                              second_order_kinds),
     )
+
+
+def _simulation(table: dict[str, Any]) -> SimulationSpec:
+    """The ``[simulation]`` table (keys already checked by the reader), its errors named by key path."""
+    try:
+        return SimulationSpec.from_dict(table)
+    except v.InputError as exc:  # "simulation.plant.substeps" -> "[simulation].plant.substeps"
+        raise v.InputError("[simulation]." + exc.parameter.removeprefix("simulation."), exc.detail) from None
