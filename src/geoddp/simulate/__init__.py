@@ -8,7 +8,10 @@ gains or with MPC; Monte Carlo statistics (issue 16).
     errors.py       terminal, tracking and effort measures
     run.py          simulate(): one run -> SimulationResult
     montecarlo.py   monte_carlo(): N seeded samples -> MonteCarloResult (distribution table)
-    scene.py        SimulationSpec and simulate_scene(): the entry point of the CLI and sweeps
+    scene.py        simulate_scene(): the entry point of the CLI and sweeps
+
+SimulationSpec (the ``[simulation]`` table's values), POLICIES and PLANT_KEYS live in
+:mod:`geoddp.simulation_spec`, below the scene readers that hold them; re-exported here.
 """
 from __future__ import annotations
 
@@ -18,7 +21,8 @@ from .mpc import MPC
 from .plant import PLANT_KEYS, Plant, plant_from
 from .policy import Feedback, OpenLoop
 from .run import POLICIES, SimulationResult, simulate
-from .scene import SimulationSpec, simulate_scene
+from ..simulation_spec import SimulationSpec
+from .scene import simulate_scene
 
 __all__ = ["Disturbances", "Feedback", "MPC", "MonteCarloResult", "OpenLoop", "PLANT_KEYS", "POLICIES", "Plant",
            "SimulationResult", "SimulationSpec", "monte_carlo", "plant_from", "simulate", "simulate_scene"]
