@@ -368,3 +368,18 @@ def test_simulation_spec_validates_every_field(fields, name):
     with pytest.raises(InputError) as exc:
         SimulationSpec(**fields)
     assert exc.value.parameter == name
+
+
+def test_mpc_windows_recede_or_shrink_to_the_plan_end(authors):
+    p, r = authors
+    shrink = MPC(p, horizon=100, every=50, max_iter=1, shrink=True, plan=r)
+    simulate(r, p, shrink, steps=300)
+    assert shrink.windows == [100, 100, 100, 100, 100, 50]  # window k .. min(k + 100, H = 300)
+    recede = MPC(p, horizon=100, every=50, max_iter=1, plan=r)
+    simulate(r, p, recede, steps=350)
+    assert recede.windows == [100] * 7
+    # between re-solves the policy is the latest solution's feedback law: with the model as the
+    # plant and no noise, zeta = 0 and the applied controls are that solution's
+    mpc = MPC(p, horizon=60, every=4, max_iter=2, plan=r)
+    s = simulate(r, p, mpc, steps=4)
+    np.testing.assert_array_equal(s.u, mpc._sol.controls[:4])
