@@ -487,3 +487,118 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
 
 }  // namespace dyn
 }  // namespace geoddp
+
+namespace geoddp {
+namespace dyn {
+
+// ------------------------------------------------------------------ factored second order
+void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bool semi_) {
+  N = N_;
+  nv = model.nv;
+  m = m_;
+  dt = dt_;
+  semi = semi_;
+  groups.clear();
+  for (const JointGroup& g : joint_groups(model))
+    if (g.kind == SO3 || g.kind == SE3) groups.push_back(g);
+  const int nz = 2 * nv + m;
+  gJ = gD = gM = 0;
+  for (const JointGroup& g : groups) {
+    gJ += g.nv * g.nv;
+    gD += g.nv * g.nv * g.nv;
+    gM += g.nv * g.nv * nz;
+  }
+  const size_t n3 = (size_t)N * nv * nv * nv;
+  for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
+  Minv.resize((size_t)N * nv * nv);
+  az.resize((size_t)N * nv * nz);
+  F1.resize((size_t)N * nv * nz);
+  Jr.resize((size_t)N * gJ);
+  Dsym.resize((size_t)N * gD);
+  Mrec.resize((size_t)N * gM);
+}
+
+// Per node: the first-order part exactly as expansion() computes it (same expressions, so Phi and
+// B are bitwise those of order 1), then RNEA's second-order tensors and the reconstruction's group
+// blocks copied into `t` instead of being assembled into Theta, Gamma, Xi.
+void expansion_contracted(const Setup& s, const double* Q, const double* V, const double* U, int N, int threads,
+                          double* Phi, double* B, SecondOrderTerms& t) {
+  const Model& model = *s.model;
+  const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv, nz = n + m;
+  const double dt = s.dt;
+  const bool semi = s.integrator == SEMI_IMPLICIT;
+  t.resize(model, m, N, dt, semi);
+  const std::vector<JointGroup> groups = joint_groups(model);
+  lie::Mat3 C3[3];
+  lie::Mat6 C6[6];
+  lie::so3_structure(C3);
+  lie::se3_structure(C6);
+  CMatMap Hm(s.H, nv, m);
+  const size_t n3 = (size_t)nv * nv * nv;
+  parallel_for(N, pass_threads(threads, 2), [&](int b0, int e0, int) {
+    NodeWork w(model, m);
+    RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
+    RowMat A(nv, nv), Jr(nv, nv), Ds, Cp, Mz;
+    std::vector<double> Dt((size_t)nv * nv * nv);
+    Eigen::VectorXd omega(nv);
+    for (int k = b0; k < e0; ++k) {
+      w.q = CVecMap(Q + (size_t)k * nq, nq);
+      w.v = CVecMap(V + (size_t)k * nv, nv);
+      w.tau = Hm * CVecMap(U + (size_t)k * m, m);
+      node_derivatives(s, w, F1.data(), false);
+      omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
+      block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
+      if (semi) {
+        W1 = F1;
+      } else {
+        W1.setZero();
+        W1.middleCols(nv, nv).setIdentity();
+      }
+      JW.noalias() = Jr * W1;
+      G1.topRows(nv) = dt * JW;
+      G1.topLeftCorner(nv, nv) += A;
+      G1.bottomRows(nv) = F1;
+      MatMap(Phi + (size_t)k * n * n, n, n) = G1.leftCols(n);
+      MatMap(B + (size_t)k * n * m, n, m) = G1.rightCols(m);
+      // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses them
+      pinocchio::ComputeRNEASecondOrderDerivatives(model, w.data, w.q, w.v, w.a);
+      std::copy(w.data.d2tau_dqdq.data(), w.data.d2tau_dqdq.data() + n3, t.Iqq.data() + k * n3);
+      std::copy(w.data.d2tau_dvdv.data(), w.data.d2tau_dvdv.data() + n3, t.Ivv.data() + k * n3);
+      std::copy(w.data.d2tau_dqdv.data(), w.data.d2tau_dqdv.data() + n3, t.Iqv.data() + k * n3);
+      std::copy(w.data.d2tau_dadq.data(), w.data.d2tau_dadq.data() + n3, t.dM.data() + k * n3);
+      MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
+      MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);
+      azk.leftCols(nv) = w.aq;
+      azk.middleCols(nv, nv) = w.av;
+      azk.rightCols(m) = w.au;
+      MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
+      // the reconstruction's group blocks
+      double* jr = t.Jr.data() + (size_t)k * t.gJ;
+      double* dsym = t.Dsym.data() + (size_t)k * t.gD;
+      double* mrec = t.Mrec.data() + (size_t)k * t.gM;
+      for (const JointGroup& g : groups) {
+        if (g.kind != SO3 && g.kind != SE3) continue;
+        const int o = g.idx_v, d = g.nv;
+        MatMap(jr, d, d) = Jr.block(o, o, d, d);
+        jr += d * d;
+        const auto JWs = JW.middleRows(o, d);
+        const auto As = A.block(o, o, d, d);
+        for (int p = 0; p < d; ++p) {
+          for (int a = 0; a < d; ++a)
+            for (int c = 0; c < d; ++c)
+              dsym[(size_t)(p * d + a) * d + c] = 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] +
+                                                         Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
+          if (g.kind == SO3) Cp = C3[p]; else Cp = C6[p];
+          Ds.noalias() = As.transpose().lazyProduct(Cp);
+          Mz.noalias() = (0.5 * dt) * Ds.lazyProduct(JWs);
+          MatMap(mrec + (size_t)p * d * nz, d, nz) = Mz;
+        }
+        dsym += d * d * d;
+        mrec += d * d * nz;
+      }
+    }
+  });
+}
+
+}  // namespace dyn
+}  // namespace geoddp

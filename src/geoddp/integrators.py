@@ -30,7 +30,7 @@ zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -52,10 +52,13 @@ class Expansion:
     Theta: np.ndarray | None = None
     Gamma: np.ndarray | None = None
     Xi: np.ndarray | None = None
+    # Compiled multibody models may keep the second-order terms factored instead (Theta, Gamma, Xi
+    # then None): a geoddp._core.SecondOrderTerms, contracted with V_x' by the backward pass.
+    terms: Any = None
 
     @property
     def is_second_order(self) -> bool:
-        return self.Theta is not None
+        return self.Theta is not None or self.terms is not None
 
 
 def expand(

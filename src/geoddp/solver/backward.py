@@ -52,6 +52,10 @@ def backward(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float,
     -(gamma d1 - gamma^2 / 2 d2) (so d1 - d2 / 2 at gamma = 1).
     """
     second = lin.order == 2
+    if second and lin.second_order is not None:  # factored terms: contracted with V_x' in the pass
+        return _core.backward_pass_contracted(
+            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+            lin.second_order, reg, ws.k, ws.K, ws.quu_eig)
     return _pass(lin.Phi.shape[1])(
         lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
         lin.Theta if second else ws.empty_theta,
@@ -113,7 +117,11 @@ def node_quu(lin: Linearisation, node: int) -> np.ndarray:
         Qxx = lin.l_xx[k] + P.T @ Vxx @ P
         Qux = lin.l_ux[k] + Bk.T @ Vxx @ P
         Quu = lin.l_uu[k] + Bk.T @ Vxx @ Bk
-        if second:
+        if second and lin.second_order is not None:
+            S = lin.second_order.contract(k, Vx)
+            n = Vx.shape[0]
+            Qxx, Qux, Quu = Qxx + S[:n, :n], Qux + S[n:, :n], Quu + S[n:, n:]
+        elif second:
             Qxx = Qxx + np.einsum("i,iab->ab", Vx, lin.Theta[k])
             Qux = Qux + np.einsum("i,iac->ca", Vx, lin.Gamma[k])
             Quu = Quu + np.einsum("i,iab->ab", Vx, lin.Xi[k])
