@@ -13,6 +13,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Core>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -79,13 +80,26 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
 //     Dsym (d, d, d): [p][a][c] = sym_(a,c) dJr[p, a] / d omega_c (the 1/2 dJr[rho] rho term);
 //     Mrec (d, d, nz): [p] = dt/2 A_s^T C_p Jr_s W_s (the 1/2 [A eta, Jr rho] term; C_p the
 //     structure constants, W_s the group's rows of the velocity increment's Jacobian).
+// An uninitialised float64 buffer: every entry is written before it is read, and zeroing
+// megabytes per linearisation (4 nv^3 per node) cost as much as filling them.
+struct Buffer {
+  std::unique_ptr<double[]> p;
+  size_t n = 0;
+  void resize(size_t k) {
+    if (k != n) p.reset(k ? new double[k] : nullptr), n = k;
+  }
+  double* data() { return p.get(); }
+  const double* data() const { return p.get(); }
+  size_t size() const { return n; }
+};
+
 struct SecondOrderTerms {
   int N = 0, nv = 0, m = 0;
   double dt = 0.0;
   bool semi = false;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gM = 0;      // per-node sizes of the group blocks
-  std::vector<double> Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, Mrec;
+  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, Mrec;
   int nz() const { return 2 * nv + m; }
   void resize(const Model& model, int m_, int N_, double dt_, bool semi_);
 };

@@ -18,7 +18,9 @@ except ImportError:  # not built, or built against another pin: numba runs every
 # Which backward pass runs: the C++ one (geoddp._core.backward_pass, the same recursion with Eigen
 # products; tests/test_core_riccati.py checks it against numba's to 1e-12) for nx > 6 when the
 # extension imports, numba's otherwise. At nx = 6 (the satellite on TSO(3)) numba's kernel has the
-# dimensions inlined as literals and is the faster one.
+# dimensions inlined as literals and is the faster one. A second-order Linearisation whose terms
+# are factored (lin.second_order, compiled multibody models) runs _core.backward_pass_contracted,
+# which contracts them with V_x' node by node instead of reading Theta, Gamma, Xi.
 COMPILED_MIN_NX = 7
 
 
