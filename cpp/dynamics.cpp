@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "lie.hpp"
+#include "pool.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -53,38 +54,29 @@ int default_threads() {
   return hc == 0 ? 1 : (int)std::min(hc, 2u);
 }
 
-// The default for a pass: a first-order node costs 1.5-5 us, about the price of starting a
-// thread, so first-order passes run on one worker (measured: 0.34 ms with one, 0.41 ms with two
-// on the quadrotor's 150 nodes); second-order passes use default_threads().
-static int pass_threads(int threads, int order) {
-  if (threads > 0) return threads;
-  return order >= 2 ? default_threads() : 1;
-}
+// The default for a pass: default_threads() workers of the persistent pool (cpp/pool.hpp), but at
+// least MIN_NODES_PER_WORKER nodes each (a first-order node costs 1.5-5 us; waking a pooled worker
+// costs about as much as one node, starting a std::thread ~10 nodes, which is why first-order
+// passes ran on one thread before the pool).
+static const int MIN_NODES_PER_WORKER = 16;
 
-// Runs fn(begin, end, worker) on contiguous chunks of [0, N) with up to `threads` workers.
+// Runs fn(begin, end, worker) on contiguous chunks of [0, N) with `threads` workers (<= 0: the
+// default above). The
+// chunks depend only on N and the worker count, and each node's arithmetic is the same on any
+// worker, so results do not depend on the number of threads (tested).
 template <typename Fn>
 static void parallel_for(int N, int threads, Fn fn) {
-  int T = threads <= 0 ? default_threads() : threads;
+  int T = threads > 0 ? threads : std::min(default_threads(), std::max(1, N / MIN_NODES_PER_WORKER));
   T = std::max(1, std::min(T, N));
   if (T == 1) {
     fn(0, N, 0);
     return;
   }
-  std::vector<std::thread> pool;
-  std::vector<std::exception_ptr> errors(T);
-  for (int t = 0; t < T; ++t) {
+  const std::function<void(int)> task = [&](int t) {
     const int b = (int)((long)N * t / T), e = (int)((long)N * (t + 1) / T);
-    pool.emplace_back([&, b, e, t]() {
-      try {
-        fn(b, e, t);
-      } catch (...) {
-        errors[t] = std::current_exception();
-      }
-    });
-  }
-  for (auto& th : pool) th.join();
-  for (auto& err : errors)
-    if (err) std::rethrow_exception(err);
+    fn(b, e, t);
+  };
+  WorkerPool::get().run(T, task);
 }
 
 static inline bool all_finite(const Eigen::VectorXd& x) { return x.allFinite(); }
@@ -322,7 +314,7 @@ void velocity_derivatives(const Setup& s, const double* Q, const double* V, cons
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, nz = 2 * nv + m;
   CMatMap Hm(s.H, nv, m);
-  parallel_for(N, pass_threads(threads, order), [&](int b, int e, int) {
+  parallel_for(N, threads, [&](int b, int e, int) {
     NodeWork w(model, m);
     for (int k = b; k < e; ++k) {
       w.q = CVecMap(Q + (size_t)k * nq, nq);
@@ -381,7 +373,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   lie::so3_structure(C3);
   lie::se3_structure(C6);
   CMatMap Hm(s.H, nv, m);
-  parallel_for(N, pass_threads(threads, order), [&](int b0, int e0, int) {
+  parallel_for(N, threads, [&](int b0, int e0, int) {
     NodeWork w(model, m);
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
     RowMat A(nv, nv), Jr(nv, nv), G2(order >= 2 ? n : 0, (Eigen::Index)nz * nz);
@@ -535,7 +527,7 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
   lie::se3_structure(C6);
   CMatMap Hm(s.H, nv, m);
   const size_t n3 = (size_t)nv * nv * nv;
-  parallel_for(N, pass_threads(threads, 2), [&](int b0, int e0, int) {
+  parallel_for(N, threads, [&](int b0, int e0, int) {
     NodeWork w(model, m);
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
     RowMat A(nv, nv), Jr(nv, nv), Ds, Cp, Mz;

@@ -114,8 +114,8 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
 void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* omega, double* A, double* Jr,
                  double* D);
 
-// Worker threads of a second-order pass when threads <= 0 ("default"); first-order passes then
-// run on one (per-node work is below a thread's start-up cost).
+// Worker threads of a pass when threads <= 0 ("default"): min(cores, 2), and at least 16 nodes
+// per worker (workers come from a persistent pool, cpp/pool.hpp).
 int default_threads();
 
 }  // namespace dyn

@@ -161,3 +161,37 @@ def test_solve_history_equals_tensor_form(expansion):
     # so it agrees to 1e-10 of the first gradient (measured: 2.3e-11 absolute at 237), not relatively
     x, y = a.grad_norm_history, b.grad_norm_history
     assert x.shape == y.shape and np.abs(x - y).max() <= 1e-10 * y.max()
+
+
+def test_threads_give_identical_terms():
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=9)
+    args = (mb.pin_model, mb.actuation, mb.dt, compiled.INTEGRATORS["semi_implicit"], Q, V, U)
+    Phi1, B1, t1 = core.expansion_contracted(*args, 1)
+    Phi2, B2, t2 = core.expansion_contracted(*args, 2)
+    assert np.array_equal(Phi1, Phi2) and np.array_equal(B1, B2)
+    for k in range(U.shape[0]):
+        Vx = rng.normal(size=mb.nx)
+        assert np.array_equal(t1.contract(k, Vx), t2.contract(k, Vx))
+
+
+def _child_expansion(conn, case):
+    mb, Q, V, U, _ = _setup(case, "euler", H=40)
+    conn.send(mb.expansion(Q, V, U, order=1).Phi)  # default threads: 2 workers on >= 2 cores
+    conn.close()
+
+
+def test_worker_pool_survives_fork():
+    """The core's persistent worker pool (cpp/pool.hpp) after a fork: the child builds its own."""
+    import multiprocessing as mp
+
+    mb, Q, V, U, _ = _setup(CASES[0], "euler", H=40)
+    ref = mb.expansion(Q, V, U, order=1).Phi  # the parent's pool is running now
+    ctx = mp.get_context("fork")
+    parent, child = ctx.Pipe()
+    proc = ctx.Process(target=_child_expansion, args=(child, CASES[0]))
+    proc.start()
+    assert parent.poll(60), "the forked child did not answer (pool deadlock?)"
+    got = parent.recv()
+    proc.join(10)
+    assert proc.exitcode == 0 and np.array_equal(got, ref)
+    assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)  # the parent's pool still works

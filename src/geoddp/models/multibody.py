@@ -84,8 +84,8 @@ class Multibody:
             geoddp._core imports, else "python"), "compiled" or "python" (the oracle). Holds the
             resolved choice after construction.
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
-            core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) for second-order
-            passes, one for first-order passes (their nodes cost about a thread's start-up).
+            core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) workers of a
+            persistent pool, at least 16 nodes each, for first- and second-order passes alike.
         contract: with the compiled backend, keep the second-order terms of a solve's expansion
             factored and contract them with V_x' inside the backward pass (True, the default:
             :meth:`expansion` with ``contracted=True``) instead of forming Theta, Gamma, Xi;
