@@ -195,3 +195,43 @@ def test_worker_pool_survives_fork():
     proc.join(10)
     assert proc.exitcode == 0 and np.array_equal(got, ref)
     assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)  # the parent's pool still works
+
+
+@pytest.mark.parametrize("contract", [True, False])
+def test_speculative_restarts_equal_one_pass_at_a_time(contract, monkeypatch):
+    """regularised_backward runs two lambdas of its sequence side by side after a failure; lambda,
+    (d1, d2), the restart count and every written gain equal the sequential loop's exactly."""
+    from geoddp.solver import backward as bw
+
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=30)
+    mb.contract = contract
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    lin = lc if contract else lt
+    # make the pass fail for small lambda: an indefinite control Hessian at a few nodes
+    lin.l_uu = lin.l_uu.copy()
+    lin.l_uu[[3, 17, 29]] -= 40.0 * np.eye(mb.nu)
+    H, m, n = U.shape[0], mb.nu, mb.nx
+    opt = SolverOptions()
+
+    def sequential(lin, ws, lam, opt):  # the loop as it was: one pass at a time
+        restarts = 0
+        while True:
+            failed, d1, d2 = backward(lin, ws, lam)
+            if failed < 0:
+                break
+            restarts += 1
+            lam = max(lam * opt.reg_increase, opt.reg_min)
+            if lam > opt.reg_max:
+                break
+        return lam, d1, d2, restarts
+
+    for lam0, reg_max in ((0.0, opt.reg_max), (1e-3, opt.reg_max), (0.0, 1e-2), (0.0, 1e-2 * opt.reg_increase)):
+        o = SolverOptions(reg_max=reg_max)
+        wa, wb = Workspace(H, m, n), Workspace(H, m, n)
+        for w in (wa, wb):  # same stale contents before the call
+            w.k[:], w.K[:], w.quu_eig[:] = 7.0, -3.0, 5.0
+        a = bw.regularised_backward(lin, wa, lam0, o)
+        b = sequential(lin, wb, lam0, o)
+        assert a == b and a[3] >= 2, (a, b)
+        assert np.array_equal(wa.k, wb.k) and np.array_equal(wa.K, wb.K) and np.array_equal(wa.quu_eig, wb.quu_eig)
+    assert bw._speculation_pool(lin) is not None or core.default_threads() < 2

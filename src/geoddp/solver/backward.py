@@ -45,6 +45,21 @@ class Workspace:
         self.empty_theta = np.zeros((0, nx, nx, nx))
         self.empty_gamma = np.zeros((0, nx, nx, m))
         self.empty_xi = np.zeros((0, nx, m, m))
+        self._spare: Workspace | None = None
+
+    def spare(self) -> "Workspace":
+        """A second set of buffers of the same shapes (for a speculative pass), made once."""
+        if self._spare is None:
+            self._spare = Workspace(self.k.shape[0], self.k.shape[1], self.K.shape[2])
+        return self._spare
+
+    def take(self, other: "Workspace", failed: int) -> None:
+        """Copy what a pass into ``other`` that stopped at node ``failed`` (-1: none) wrote: the
+        gains and quu_eig of nodes failed+1 .. H-1, exactly as if that pass had run here."""
+        lo = failed + 1
+        self.k[lo:] = other.k[lo:]
+        self.K[lo:] = other.K[lo:]
+        self.quu_eig[lo:] = other.quu_eig[lo:]
 
 
 def backward(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float, float]:
@@ -73,21 +88,61 @@ def gradient(lin: Linearisation, ws: Workspace) -> np.ndarray:
     return ws.grad
 
 
+_SPECULATION: dict = {"pid": None, "pool": None}
+
+
+def _speculation_pool(lin: Linearisation):
+    """A one-worker thread pool for speculative passes, or None where they cannot run side by side:
+    only the compiled passes release the GIL (numba's do not), and only with two or more cores.
+    Made per process (a forked child gets its own: the parent's worker thread does not exist there)."""
+    if _core is None or _core.default_threads() < 2:
+        return None
+    if lin.second_order is None and lin.Phi.shape[1] < COMPILED_MIN_NX:
+        return None
+    import os
+
+    if _SPECULATION["pid"] != os.getpid():
+        from concurrent.futures import ThreadPoolExecutor
+
+        _SPECULATION["pool"] = ThreadPoolExecutor(max_workers=1, thread_name_prefix="geoddp-backward")
+        _SPECULATION["pid"] = os.getpid()
+    return _SPECULATION["pool"]
+
+
 def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions) -> tuple[float, float, float, int]:
     """Backward pass restarted from k = H with a larger lambda while Q_uu + lambda I is not
     positive definite (Remark rem:theta): lambda <- max(reg_increase lambda, reg_min).
 
     Returns (lambda, d1, d2, restarts); lambda > opt.reg_max means it gave up.
+
+    Once a pass has failed (the first iterations restart 30-50 times on the real robots), the
+    passes at the next two lambdas of that same sequence run side by side (the compiled pass
+    releases the GIL; the second into ``ws.spare()``): the first of them that factorises is taken.
+    Each pass is deterministic and independent of the other, so lambda, the gains, (d1, d2) and
+    the restart count are exactly those of running the sequence one pass at a time (tested).
     """
     restarts = 0
-    while True:
-        failed, d1, d2 = backward(lin, ws, lam)
-        if failed < 0:
-            break
+    failed, d1, d2 = backward(lin, ws, lam)
+    pool = _speculation_pool(lin) if failed >= 0 else None
+    while failed >= 0:
         restarts += 1
         lam = max(lam * opt.reg_increase, opt.reg_min)
         if lam > opt.reg_max:
             break
+        nxt = max(lam * opt.reg_increase, opt.reg_min)
+        if pool is None or nxt > opt.reg_max:
+            failed, d1, d2 = backward(lin, ws, lam)
+            continue
+        spare = ws.spare()
+        ahead = pool.submit(backward, lin, spare, nxt)
+        failed, d1, d2 = backward(lin, ws, lam)
+        f2, e1, e2 = ahead.result()
+        if failed < 0:
+            break
+        # the pass at lam failed: the one at nxt is the next of the sequence
+        restarts += 1
+        lam, failed, d1, d2 = nxt, f2, e1, e2
+        ws.take(spare, f2)
     return lam, d1, d2, restarts
 
 
