@@ -66,7 +66,7 @@ def test_contraction_equals_tensors(case, integrator):
     e = mb.expansion(Q, V, U, order=2)
     ec = mb.expansion(Q, V, U, order=2, contracted=True)
     e1 = mb.expansion(Q, V, U, order=1)
-    assert ec.Theta is None and ec.Gamma is None and ec.Xi is None and ec.is_second_order
+    assert ec.Theta is None and ec.Gamma is None and ec.Xi is None and ec.terms is not None
     assert np.array_equal(ec.Phi, e1.Phi) and np.array_equal(ec.B, e1.B)
     t = ec.terms
     assert (t.N, t.nv, t.m) == (U.shape[0], mb.nv, mb.nu)
