@@ -235,3 +235,14 @@ def test_speculative_restarts_equal_one_pass_at_a_time(contract, monkeypatch):
         assert a == b and a[3] >= 2, (a, b)
         assert np.array_equal(wa.k, wb.k) and np.array_equal(wa.K, wb.K) and np.array_equal(wa.quu_eig, wb.quu_eig)
     assert bw._speculation_pool(lin) is not None or core.default_threads() < 2
+
+
+def test_linearisation_tensors_materialise_the_factored_terms():
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=5)
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    for a, b in zip(lc.tensors(), lt.tensors()):
+        assert a.shape == b.shape and np.abs(a - b).max() <= 1e-13 * max(1.0, np.abs(b).max())
+    assert lt.tensors()[0] is lt.Theta
+    with pytest.raises(ValueError):
+        Linearisation(order=1, Phi=lt.Phi, B=lt.B, Theta=None, Gamma=None, Xi=None, l_x=lt.l_x, l_u=lt.l_u,
+                      l_xx=lt.l_xx, l_ux=lt.l_ux, l_uu=lt.l_uu, lf_x=lt.lf_x, lf_xx=lt.lf_xx).tensors()

@@ -76,6 +76,25 @@ class Linearisation:
     lf_xx: np.ndarray
     second_order: Any = None
 
+    def tensors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Theta, Gamma, Xi) of an order-2 linearisation as dense arrays (shapes above), formed
+        from ``second_order`` by contracting with each unit vector when the tensors are factored
+        (H nx contractions: for consumers that need them whole; the backward pass does not)."""
+        if self.order != 2:
+            raise ValueError("tensors(): an order-1 linearisation has no second-order terms")
+        if self.second_order is None:
+            return self.Theta, self.Gamma, self.Xi
+        H, n, m = self.B.shape
+        Theta, Gamma, Xi = np.empty((H, n, n, n)), np.empty((H, n, n, m)), np.empty((H, n, m, m))
+        e = np.zeros(n)
+        for k in range(H):
+            for i in range(n):
+                e[i] = 1.0
+                S = self.second_order.contract(k, e)
+                e[i] = 0.0
+                Theta[k, i], Gamma[k, i], Xi[k, i] = S[:n, :n], S[:n, n:], S[n:, n:]
+        return Theta, Gamma, Xi
+
     @classmethod
     def from_parts(cls, order: int, dynamics: Any, running: Any, terminal: Any) -> "Linearisation":
         """Bundle a dynamics expansion (attributes Phi, B, Theta, Gamma, Xi) and running / terminal
