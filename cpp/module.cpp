@@ -16,6 +16,7 @@
 
 namespace geoddp {
 void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
+void bind_contracted(pybind11::module_& m);  // contracted_bindings.cpp
 }
 
 namespace py = pybind11;
@@ -222,4 +223,5 @@ PYBIND11_MODULE(_core, m) {
       "quu_eig (H,); returns (failed node or -1, d1, d2).");
 
   geoddp::bind_costs(m);  // cost terms: cost_frame_term, cost_state_regularisation, ...
+  geoddp::bind_contracted(m);  // SecondOrderTerms, expansion_contracted, backward_pass_contracted
 }
