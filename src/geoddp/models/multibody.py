@@ -68,9 +68,10 @@ def root_of(model: pin.Model) -> str:
     """The root kind of a built ``pin.Model``: "free_flyer" or "spherical" when its first joint
     (the one on the universe) is a free flyer or a spherical joint, else "fixed" (the first link is
     welded to the world and every joint is a robot joint)."""
-    if model.njoints < 2 or model.parents[1] != 0:
+    first = 1  # joint 0 is the universe
+    if model.njoints <= first or model.parents[first] != 0:
         return "fixed"
-    kind = model.joints[1].shortname()
+    kind = model.joints[first].shortname()
     return {"JointModelFreeFlyer": "free_flyer", "JointModelSpherical": "spherical"}.get(kind, "fixed")
 
 
