@@ -158,21 +158,60 @@ def test_bad_robot_keys_name_their_key_path(tmp_path, model, initial, frame, key
     assert e.parameter == key and detail in e.detail, (e.parameter, e.detail)
 
 
-def test_package_uri_resolving_nowhere_names_package_dirs(tmp_path):
-    """The UR5 URDF copied out of example-robot-data without package_dirs: its
-    package://example-robot-data/... URIs resolve nowhere (ROS_PACKAGE_PATH emptied)."""
-    spec = robots.find("ur5")
-    shutil.copy(spec.urdf, tmp_path / "ur5.urdf")
-    (tmp_path / "pkgs").mkdir()
-    import os
+ONE_LINK = """<robot name="one">
+  <link name="base"/>
+  <link name="arm">
+    <inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
+    <visual><geometry><mesh filename="package://{package}/meshes/arm.stl"/></geometry></visual>
+  </link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="10" velocity="10"/></joint>
+</robot>
+"""
+ONE_LINK_SCENE = """
+[model]
+kind = "multibody"
+urdf = "urdf/one.urdf"
+root = "fixed"
+{extra}
+[horizon]
+dt = 0.1
+steps = 3
+[[terminal_costs]]
+type = "state_regularisation"
+q_weight = 1.0
+"""
 
-    old = {k: os.environ.pop(k, None) for k in ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH")}
-    try:
-        e = error(scene(tmp_path, 'urdf = "ur5.urdf"\npackage_dirs = "pkgs"'))
-    finally:
-        os.environ.update({k: v for k, v in old.items() if v is not None})
+
+def test_package_uri_resolving_nowhere_names_package_dirs(tmp_path, monkeypatch):
+    """A URDF naming package://nowhere_pkg/...: found in none of package_dirs, the URDF's folder,
+    its parent and grandparent, example-robot-data, ROS_PACKAGE_PATH (emptied here): the error
+    names [model].package_dirs and lists where it looked. The same URDF next to its package loads."""
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    (tmp_path / "urdf").mkdir()
+    (tmp_path / "urdf" / "one.urdf").write_text(ONE_LINK.format(package="nowhere_pkg"))
+    (tmp_path / "pkgs").mkdir()
+    p = tmp_path / "s.toml"
+    p.write_text(ONE_LINK_SCENE.format(extra='package_dirs = "pkgs"'))
+    e = error(p)
     assert e.parameter == "[model].package_dirs"
-    assert "expected a directory holding package 'example-robot-data'" in e.detail and str(tmp_path / "pkgs") in e.detail
+    assert "expected a directory holding package 'nowhere_pkg'" in e.detail
+    assert str(tmp_path / "pkgs") in e.detail and str(tmp_path / "urdf") in e.detail
+    p.write_text(ONE_LINK_SCENE.format(extra=""))
+    assert error(p).parameter == "[model].package_dirs"  # without package_dirs too: the defaults found nothing
+    # the package found (its mesh file missing: not an error for the solve)
+    (tmp_path / "pkgs" / "nowhere_pkg" / "meshes").mkdir(parents=True)
+    p.write_text(ONE_LINK_SCENE.format(extra='package_dirs = "pkgs"'))
+    assert load_scene(p).package_dirs == (str(tmp_path / "pkgs"),)
+
+
+def test_a_robot_urdf_named_by_path_finds_its_meshes_without_package_dirs(tmp_path):
+    """A scene naming example-robot-data's URDF by path and no package_dirs (as scenes written
+    before these keys did) still loads: its package is found where the replay finds it."""
+    spec = robots.find("ur5")
+    s = load_scene(scene(tmp_path, f'urdf = "{spec.urdf}"'))
+    assert s.package_dirs == () and robots.check_meshes(spec.urdf) == []
 
 
 def test_missing_mesh_in_a_scene_leaves_the_solve_unchanged(tmp_path):

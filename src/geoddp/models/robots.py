@@ -13,7 +13,9 @@ Mesh URIs resolve as Pinocchio's URDF parser resolves them (:func:`resolve_mesh`
 ``package://PKG/REST`` is searched in the given ``package_dirs`` in order, then in the
 directories of ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH`` (each with ``/share``) as
 ``<dir>/PKG/REST``; ``file://PATH`` and absolute paths are taken as they are; a relative path is
-relative to the URDF's directory. A ``package://`` URI whose package is in none of these
+relative to the URDF's directory. Scenes and the replay also search, after the given
+directories, the URDF's directory, its parent and grandparent and example-robot-data's package
+directory (:func:`default_package_dirs`). A ``package://`` URI whose package is in none of these
 directories is a configuration error (InputError naming ``package_dirs``); a package that is
 found but lacks one mesh file is a missing mesh: the solve does not need meshes, and the replay
 draws the rest of the model and names the missing file.
@@ -38,8 +40,8 @@ import pinocchio as pin
 from ..validate import InputError, closest
 from .multibody import Multibody
 
-__all__ = ["RobotSpec", "names", "find", "resolve_mesh", "mesh_uris", "check_meshes", "postures",
-           "configuration", "load"]
+__all__ = ["RobotSpec", "names", "find", "resolve_mesh", "mesh_uris", "check_meshes", "default_package_dirs",
+           "example_robot_data_dir", "postures", "configuration", "load"]
 
 INSTALL_HINT = "pip install 'geoddp[robots]' (example-robot-data and its loaders)"
 _MESH = re.compile(r"<mesh\b[^>]*\bfilename\s*=\s*([\"'])(.*?)\1", re.S)
@@ -134,6 +136,38 @@ def find(name: Any, parameter: str = "robot") -> RobotSpec:
                      (str(robots.parent.parent.resolve()),), posture)
 
 
+def example_robot_data_dir() -> str | None:
+    """The package directory of the installed ``example-robot-data`` (the folder holding
+    ``example-robot-data/robots/...``, which its URDFs' ``package://example-robot-data/...`` URIs
+    name), or None when it is not installed.
+
+    Found by the rule ``example_robot_data.getModelPath`` uses (``<entry>/../../../share`` for each
+    ``sys.path`` entry), so the data package alone is enough: its Python loaders are not imported.
+    """
+    import sys
+
+    for entry in sys.path:
+        share = Path(entry or ".") / ".." / ".." / ".." / "share"
+        if (share / "example-robot-data" / "robots").is_dir():
+            return str(share.resolve())
+    return None
+
+
+def default_package_dirs(urdf: str | Path | None) -> tuple[str, ...]:
+    """Where ``package://`` URIs are searched after the given package_dirs (the replay searches
+    the same, :func:`geoddp.viz.model.package_dirs`): the URDF's own directory, its parent and its
+    grandparent (``<pkg>/urdf/robot.urdf`` naming ``package://<pkg>/meshes/...``), then the package
+    directory of example-robot-data when installed."""
+    dirs = []
+    if urdf:
+        here = Path(str(urdf)).resolve().parent
+        dirs += [str(here), str(here.parent), str(here.parent.parent)]
+    erd = example_robot_data_dir()
+    if erd is not None:
+        dirs.append(erd)
+    return tuple(dict.fromkeys(dirs))
+
+
 def _search_dirs(package_dirs: tuple[str, ...] | list[str]) -> list[str]:
     dirs = [str(d) for d in package_dirs]
     for var, suffix in (("ROS_PACKAGE_PATH", ""), ("AMENT_PREFIX_PATH", "share")):
@@ -181,13 +215,15 @@ def mesh_uris(urdf: str | Path) -> list[str]:
 
 def check_meshes(urdf: str | Path, package_dirs: tuple[str, ...] | list[str] = (),
                  parameter: str = "package_dirs") -> list[str]:
-    """Resolve every mesh of a URDF (:func:`resolve_mesh`); the URIs of the missing ones.
+    """Resolve every mesh of a URDF (:func:`resolve_mesh`) as the replay will: in
+    ``package_dirs``, then :func:`default_package_dirs`; the URIs of the missing ones.
 
     Raises:
         InputError: naming ``parameter`` for a ``package://`` URI whose package is found nowhere.
     """
     base = Path(urdf).resolve().parent
-    return [u for u in mesh_uris(urdf) if resolve_mesh(u, package_dirs, base, parameter) is None]
+    dirs = list(dict.fromkeys([str(d) for d in package_dirs] + list(default_package_dirs(urdf))))
+    return [u for u in mesh_uris(urdf) if resolve_mesh(u, dirs, base, parameter) is None]
 
 
 def postures(model: pin.Model, srdf: str | Path | None) -> dict[str, np.ndarray]:

@@ -23,7 +23,6 @@ from __future__ import annotations
 import difflib
 import os
 import re
-import sys
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..models.multibody import ROOTS, _root_joint
+from ..models.robots import default_package_dirs, example_robot_data_dir  # noqa: F401  (re-exported here)
 from ..models.satellite import DEFAULT_URDF as SATELLITE_URDF
 from ..result import Result, rotations_to_quaternions
 from ..validate import InputError
@@ -101,21 +101,6 @@ _PLACEHOLDER_SIZE = 1.2345e-9
 _MISSING_MESH = re.compile(r"Mesh (.+) could not be found")
 
 
-def example_robot_data_dir() -> str | None:
-    """The package directory of the installed ``example-robot-data`` (the folder holding
-    ``example-robot-data/robots/...``, which its URDFs' ``package://example-robot-data/...`` URIs
-    name), or None when it is not installed.
-
-    Found by the rule ``example_robot_data.getModelPath`` uses (``<entry>/../../../share`` for each
-    ``sys.path`` entry), so the data package alone is enough: its Python loaders are not imported.
-    """
-    for entry in sys.path:
-        share = Path(entry or ".") / ".." / ".." / ".." / "share"
-        if (share / "example-robot-data" / "robots").is_dir():
-            return str(share.resolve())
-    return None
-
-
 def package_dirs(description: dict) -> tuple[str, ...]:
     """Where ``package://`` mesh URIs of a described model are searched, in order.
 
@@ -135,13 +120,7 @@ def package_dirs(description: dict) -> tuple[str, ...]:
         given = [given]
     if not isinstance(given, (list, tuple)) or not all(isinstance(d, (str, os.PathLike)) for d in given):
         raise InputError("result.multibody.package_dirs", f"expected a path or a list of paths, got {given!r}")
-    dirs = [str(d) for d in given]
-    if description.get("urdf"):
-        here = Path(str(description["urdf"])).resolve().parent
-        dirs += [str(here), str(here.parent), str(here.parent.parent)]
-    erd = example_robot_data_dir()
-    if erd is not None:
-        dirs.append(erd)
+    dirs = [str(d) for d in given] + list(default_package_dirs(description.get("urdf")))
     return tuple(dict.fromkeys(dirs))  # first occurrence wins, order kept
 
 
