@@ -24,6 +24,7 @@ PACKAGE = ROOT / "src" / "geoddp"
 SATELLITE = ("satellite_authors_code", "satellite_paper", "satellite_semi_implicit")
 MULTIBODY = ("quadrotor", "space_manipulator", "spacecraft_docking")
 HARD = tuple(sorted(p.stem for p in (PACKAGE / "data" / "scenes" / "hard").glob("*.toml")))
+ROBOTS = ("hector_fly", "solo12_reorient", "ur5_reach")  # example-robot-data's robots by name
 
 QUAD_SCENE = (data.scene_dir() / "multibody" / "quadrotor.toml").read_text()
 
@@ -32,17 +33,19 @@ def test_the_builtin_data_is_the_package_folder():
     assert data.urdf_dir() == PACKAGE / "data" / "urdf" and data.scene_dir() == PACKAGE / "data" / "scenes"
     assert data.urdf_names() == ("quadrotor.urdf", "satellite.urdf", "space_manipulator.urdf", "spacecraft.urdf")
     assert len(HARD) == 13
-    assert data.scene_names() == tuple(sorted(SATELLITE + MULTIBODY + HARD))
+    assert data.scene_names() == tuple(sorted(SATELLITE + MULTIBODY + HARD + ROBOTS))
     # The repository's examples/ is the package's scene folder, not a copy.
     assert (ROOT / "examples").resolve() == data.scene_dir()
 
 
-@pytest.mark.parametrize("name", SATELLITE + MULTIBODY + HARD)
+@pytest.mark.parametrize("name", SATELLITE + MULTIBODY + HARD + ROBOTS)
 def test_every_builtin_scene_loads_by_name_as_from_its_file(name):
     path = data.scene_path(name)
     by_name, by_file = load_scene(name), load_scene(path)
     assert by_name.name == name and by_name.source == by_file.source == str(path)
-    assert isinstance(by_name, MultibodySceneSpec if name in MULTIBODY else SceneSpec)
+    assert isinstance(by_name, MultibodySceneSpec if name in MULTIBODY + ROBOTS else SceneSpec)
+    if name in ROBOTS:
+        assert by_name.robot == name.split("_")[0] and by_name.urdf == by_file.urdf
     if name in MULTIBODY:
         assert by_name.urdf.parent == data.urdf_dir() and by_name.urdf == by_file.urdf
 
@@ -110,7 +113,7 @@ def test_the_build_ships_every_data_file():
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     backend = cfg["build-system"]["build-backend"]
     files = _data_files()
-    assert len(files) == 4 + 19
+    assert len(files) == 4 + 19 + 3  # URDFs + scenes + the three robot scenes
     if backend.startswith("setuptools"):
         globs = cfg["tool"]["setuptools"]["package-data"]["geoddp"]
         missing = [f for f in files if not any(f.match(g) and len(f.parts) == len(PurePosixPath(g).parts)

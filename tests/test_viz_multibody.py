@@ -22,7 +22,7 @@ from geoddp.viz.html import STATUS_ID, decode_commands, record_scene
 from geoddp.viz.model import load_visual_model, visual_placements
 
 MODELS = urdf_dir()  # the built-in URDFs (package data)
-from geoddp.viz.scene import BACKGROUND_RGB, GHOST, ROBOT, SHAPE
+from geoddp.viz.scene import BACKGROUND_RGB, GHOST, ROBOT, SHAPE, TARGETS
 import umsgpack  # noqa: E402
 
 from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, keyframes, multibody_result, run_chromium, screenshot
@@ -144,9 +144,16 @@ def test_shapes_have_urdf_sizes_and_colours(manip):
     base = objects[f"/meshcat/{ROBOT}/base_0/{SHAPE}"]
     assert [base["geometries"][0][k] for k in ("width", "height", "depth")] == [1.2, 1.0, 1.2]
     assert base["materials"][0]["color"] == (round(0.78 * 255) << 16) | (round(0.63 * 255) << 8) | round(0.40 * 255)
-    # only the manipulator's own objects, and no ghost: its target_rotation is the end effector's,
-    # not the root's (geoddp.viz.model.ghost_configuration)
-    assert set(objects) == {f"/meshcat/{ROBOT}/{n}/{SHAPE}" for n in MANIPULATOR_OBJECTS}
+    # the manipulator's own objects and the triad of its terminal frame target (the end
+    # effector's placement, from the problem's description), and no ghost: its target_rotation
+    # is the end effector's, not the root's (geoddp.viz.model.ghost_configuration)
+    triad = {p for p in objects if p.startswith(f"/meshcat/{TARGETS}/")}
+    (target,) = manip.multibody["frame_targets"]
+    assert triad == {f"/meshcat/{TARGETS}/0_{target['frame']}/{a}" for a in ("x", "y", "z", "origin")}
+    M = [np.asarray(c["matrix"]).reshape(4, 4).T for c in cmds
+         if c["type"] == "set_transform" and c["path"] == f"/meshcat/{TARGETS}/0_{target['frame']}"]
+    np.testing.assert_array_equal(M[0], np.asarray(target["placement"]))
+    assert set(objects) - triad == {f"/meshcat/{ROBOT}/{n}/{SHAPE}" for n in MANIPULATOR_OBJECTS}
     assert not any(c["path"].startswith(f"/meshcat/{GHOST}") for c in cmds if c["type"] in ("set_object", "set_transform"))
 
 

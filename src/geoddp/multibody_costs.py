@@ -59,6 +59,8 @@ zero, where W r = 0) are honoured alike.
 """
 from __future__ import annotations
 
+import difflib
+
 import os
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -113,8 +115,8 @@ def _frame_id(model: pin.Model, frame_name: Any, name: str) -> int:
         raise InputError(name, f"expected a frame name (str), got {type(frame_name).__name__}")
     if not model.existFrame(frame_name):
         names = [f.name for f in model.frames]
-        guess = closest(frame_name, names)
-        hint = f"; did you mean {guess!r}?" if guess else ""
+        close = difflib.get_close_matches(frame_name, names, n=3) or [g for g in [closest(frame_name, names)] if g]
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
         raise InputError(name, f"expected the name of a frame of model {model.name!r}, got {frame_name!r}{hint}")
     return int(model.getFrameId(frame_name))
 

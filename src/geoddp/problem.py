@@ -29,7 +29,8 @@ from .costs import (
     CostSum,
 )
 from .models.satellite import Satellite, satellite_model
-from .multibody_costs import ControlRegularisation, FramePlacement, FrameRotation, MultibodyCostSum, StateRegularisation
+from .multibody_costs import (ControlRegularisation, FramePlacement, FrameRotation, FrameTranslation, MultibodyCostSum,
+                              StateRegularisation)
 from .validate import InputError, choice, finite_array, positive_int
 
 ATTITUDE_KINDS = ("chordal", "geodesic")
@@ -129,18 +130,28 @@ class Problem:
         """Model description for the Result: the model's :meth:`description` (kind, dt,
         integrator, and what rebuilds it: inertia/actuation/urdf on TSO(3); urdf, urdf_xml, root,
         nq, nv for a multibody) and the terminal cost's targets: ``target_rotation`` (3, 3) (an
-        attitude term's R_d or a frame placement's or rotation's target; identity without one) and
-        ``target_angular_velocity`` (3,) (zero without a rate term)."""
+        attitude term's R_d or a frame placement's or rotation's target; identity without one),
+        ``target_angular_velocity`` (3,) (zero without a rate term) and, when the terminal cost has
+        frame placement or translation terms, ``frame_targets``: their final references as
+        ``{"frame", "placement" (4, 4)}`` or ``{"frame", "position" (3,)}`` (metres), which the
+        replay draws as triads."""
         R_d, Omega_d = np.eye(3), np.zeros(3)
+        targets = []  # what the replay draws as frame-target triads (geoddp.viz.model.frame_targets)
         for t in getattr(self.terminal, "terms", []):
             if isinstance(t, FramePlacement):
                 R_d = t.M_ref[-1, :3, :3].copy()  # (K, 4, 4) references; the last is the final node's
+                targets.append({"frame": t.frame_name, "placement": np.asarray(t.M_ref[-1], dtype=float).tolist()})
             elif isinstance(t, FrameRotation):
                 R_d = t.R_ref[-1].copy()
+            elif isinstance(t, FrameTranslation):
+                targets.append({"frame": t.frame_name, "position": np.asarray(t.p_ref[-1], dtype=float).tolist()})
             R_d = getattr(t, "R_d", R_d)
             Omega_d = getattr(t, "Omega_d", Omega_d)
-        return {**self.model.description(), "target_rotation": np.array(R_d, dtype=float),
-                "target_angular_velocity": np.array(Omega_d, dtype=float)}
+        out = {**self.model.description(), "target_rotation": np.array(R_d, dtype=float),
+               "target_angular_velocity": np.array(Omega_d, dtype=float)}
+        if targets:
+            out["frame_targets"] = targets
+        return out
 
     # ------------------------------------------------------------ arrays over the horizon
     def rollout(self, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -33,8 +33,10 @@ from .solver.status import (  # noqa: F401
 )
 
 # Keys of the model description that make up ``Result.multibody`` (what the viewer rebuilds from).
-# the last two are optional: the viewer's mesh search path and frame-target triads
-_MULTIBODY_KEYS = ("urdf", "urdf_xml", "root", "nq", "nv", "package_dirs", "frame_targets")
+# optional: the viewer's mesh search path, frame-target triads, and for a model handed over as a
+# pin.Model (Multibody.from_model) the serialised model and its visual geometry records
+_MULTIBODY_KEYS = ("urdf", "urdf_xml", "root", "nq", "nv", "package_dirs", "frame_targets", "pin_model",
+                   "geometry_objects")
 
 
 def rotations_to_quaternions(rotations: np.ndarray) -> np.ndarray:

@@ -7,6 +7,8 @@ same lookups work from a source checkout, an editable install and a plain ``pip 
     geoddp/data/scenes/NAME.toml               satellite scenes (satellite_paper, ...)
     geoddp/data/scenes/multibody/NAME.toml     the three multibody scenes
     geoddp/data/scenes/hard/NAME.toml          the 13 hard cases
+    geoddp/data/scenes/robots/NAME.toml        real robots of example-robot-data by name
+                                               (ur5_reach, solo12_reorient, hector_fly)
 
 A built-in scene is named by its file stem (``quadrotor``, ``satellite_paper``,
 ``tumbling_5rads``); stems are unique across the scene folders. The repository's ``examples/``

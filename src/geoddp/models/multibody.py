@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..urdf_checks import build_checked_model
+from ..urdf_checks import build_checked_model, check_model
 
 from ..lie import product as cfg
 from ..linalg import symmetric_from_upper
@@ -62,6 +62,55 @@ FD_STEP = 1e-5
 
 def _root_joint(root: str):
     return {"free_flyer": pin.JointModelFreeFlyer(), "spherical": pin.JointModelSpherical(), "fixed": None}[root]
+
+
+def root_of(model: pin.Model) -> str:
+    """The root kind of a built ``pin.Model``: "free_flyer" or "spherical" when its first joint
+    (the one on the universe) is a free flyer or a spherical joint, else "fixed" (the first link is
+    welded to the world and every joint is a robot joint)."""
+    first = 1  # joint 0 is the universe
+    if model.njoints <= first or model.parents[first] != 0:
+        return "fixed"
+    kind = model.joints[first].shortname()
+    return {"JointModelFreeFlyer": "free_flyer", "JointModelSpherical": "spherical"}.get(kind, "fixed")
+
+
+def _primitive_record(shape) -> dict | None:
+    """The JSON record of a coal primitive (what the replay redraws), or None for other shapes."""
+    kind = type(shape).__name__
+    if kind == "Box":
+        return {"shape": "box", "size": (2.0 * np.asarray(shape.halfSide)).tolist()}
+    if kind == "Sphere":
+        return {"shape": "sphere", "radius": float(shape.radius)}
+    if kind in ("Cylinder", "Capsule"):
+        return {"shape": kind.lower(), "radius": float(shape.radius), "length": 2.0 * float(shape.halfLength)}
+    return None
+
+
+def geometry_records(model: pin.Model, geometry: pin.GeometryModel) -> list[dict]:
+    """Plain (JSON) records of a visual ``pin.GeometryModel`` attached to ``model``: per object its
+    name, parent joint and frame *names*, placement in the parent joint frame (4, 4; metres),
+    colour (RGBA in [0, 1]), and either the mesh file (absolute path, scale (3,)) or a primitive
+    (box size (3,); sphere radius; cylinder / capsule radius and length, metres). Objects that are
+    neither (e.g. a height field built in code) are left out: the replay draws none of them.
+    :func:`geoddp.viz.model.load_visual_model` rebuilds the geometry model from these."""
+    out = []
+    for obj in geometry.geometryObjects:
+        rec = {"name": obj.name, "joint": model.names[obj.parentJoint],
+               "frame": model.frames[obj.parentFrame].name if obj.parentFrame < len(model.frames) else None,
+               "placement": obj.placement.homogeneous.tolist(), "color": np.asarray(obj.meshColor, float).tolist(),
+               "override_material": bool(obj.overrideMaterial)}
+        path = getattr(obj, "meshPath", "") or ""
+        if Path(path).suffix.lower() in (".dae", ".stl", ".obj"):
+            rec.update(mesh=str(Path(path).resolve()) if Path(path).exists() else path,
+                       scale=np.asarray(obj.meshScale, float).tolist())
+        else:
+            prim = _primitive_record(obj.geometry)
+            if prim is None:
+                continue
+            rec.update(prim)
+        out.append(rec)
+    return out
 
 
 @dataclass
@@ -92,7 +141,7 @@ class Multibody:
             both give the same Q-function blocks to round-off (tests/test_core_contracted.py).
     """
 
-    urdf: str | Path
+    urdf: str | Path | None
     root: str = "free_flyer"
     actuation: np.ndarray | None = None
     dt: float = field(kw_only=True)  # required, by keyword
@@ -102,6 +151,9 @@ class Multibody:
     backend: str = "auto"
     threads: int = 0
     contract: bool = True
+    package_dirs: tuple[str, ...] = field(default=(), kw_only=True)
+    source_model: pin.Model | None = field(default=None, kw_only=True, repr=False)
+    visual_model: pin.GeometryModel | None = field(default=None, kw_only=True, repr=False)
     pin_model: pin.Model = field(init=False, repr=False)
     groups: list = field(init=False, repr=False)
     _variational: variational.VariationalEuler | None = field(init=False, repr=False, default=None)
@@ -128,21 +180,30 @@ class Multibody:
             compiled.require()
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
-        if not isinstance(self.urdf, (str, Path)):
-            raise InputError("urdf", f"expected a path to a URDF file, got {type(self.urdf).__name__}")
-        self.urdf = Path(self.urdf)
-        if not self.urdf.is_file():
-            raise InputError("urdf", f"expected an existing URDF file, got {str(self.urdf)!r} (no such file)")
-        rj = _root_joint(self.root)
-        model = build_checked_model(self.urdf, rj)  # encoding, axes, masses, inertias; urdfdom's stderr captured
+        if isinstance(self.package_dirs, (str, os.PathLike)):
+            self.package_dirs = (self.package_dirs,)
+        if not isinstance(self.package_dirs, (list, tuple)) or not all(isinstance(d, (str, os.PathLike)) for d in self.package_dirs):
+            raise InputError("package_dirs", f"expected a path or a list of paths, got {self.package_dirs!r}")
+        self.package_dirs = tuple(str(d) for d in self.package_dirs)
+        source = "model" if self.source_model is not None else "urdf"
+        if self.source_model is not None:
+            model = self._from_source()
+        else:
+            if not isinstance(self.urdf, (str, Path)):
+                raise InputError("urdf", f"expected a path to a URDF file, got {type(self.urdf).__name__}")
+            self.urdf = Path(self.urdf)
+            if not self.urdf.is_file():
+                raise InputError("urdf", f"expected an existing URDF file, got {str(self.urdf)!r} (no such file)")
+            rj = _root_joint(self.root)
+            model = build_checked_model(self.urdf, rj)  # encoding, axes, masses, inertias; urdfdom's stderr captured
         if model.nv == 0:
-            raise InputError("urdf", "expected at least one degree of freedom, got nv = 0 (fixed root, no joints)")
+            raise InputError(source, "expected at least one degree of freedom, got nv = 0 (fixed root, no joints)")
         if not self.gravity:
             model.gravity = pin.Motion.Zero()
         try:
             self.groups = cfg.joint_groups(model)
         except ValueError as exc:
-            raise InputError("urdf", str(exc)) from None
+            raise InputError(source, str(exc)) from None
         self.pin_model = model
         if self.actuation is None:
             self.actuation = np.eye(model.nv)
@@ -158,12 +219,101 @@ class Multibody:
             self._variational = variational.VariationalEuler(model, self.groups, self.actuation, self.dt)
         self._data = model.createData()
 
+    @classmethod
+    def from_model(cls, model: pin.Model, geometry: pin.GeometryModel | None = None, root: str | None = None, *,
+                   dt: float, actuation: np.ndarray | None = None, integrator: str = "euler",
+                   gravity: bool | None = None, backend: str = "auto", threads: int = 0, contract: bool = True,
+                   urdf: str | Path | None = None, package_dirs: tuple[str, ...] | list[str] | str = ()) -> "Multibody":
+        """A model from a ``pin.Model`` built (and possibly edited) in Python.
+
+        The model is copied: later edits of ``model`` do not change this one. Anything Pinocchio
+        can build works: a reduced model (``pin.buildReducedModel``), edited inertias, masses or
+        placements, joints added in code. Costs name its frames by their names in ``model``.
+
+        Args:
+            model: the kinematic tree with its inertias (kg, m, kg m^2) and gravity.
+            geometry: its visual ``pin.GeometryModel`` (optional): the replay draws it (meshes by
+                file, primitives by size); without one, the replay rebuilds the visuals from
+                ``urdf`` when given (links found by name in ``model``), else draws none.
+            root: the root joint kind, read from the model (its first joint: free flyer,
+                spherical, else "fixed"); when given it must match, since the root is part of a
+                built model (build with ``pin.JointModelFreeFlyer()`` for a floating base).
+            dt: time step, s. actuation, integrator, backend, threads, contract: as for the constructor.
+            gravity: None keeps ``model.gravity``; False sets it to zero; True requires the
+                model's gravity to be non-zero (Pinocchio's default, -9.81 m/s^2 along world z,
+                when the model has none).
+            urdf: the URDF the model was built from (optional): only for the replay's visuals.
+            package_dirs: where ``package://`` mesh URIs of ``urdf`` are found (the replay).
+
+        Raises:
+            InputError: naming ``model`` (not a ``pin.Model``, no degree of freedom, non-finite
+                or non-physical inertias), ``geometry`` (not a ``pin.GeometryModel``, or an
+                object on a joint the model does not have), ``root`` (mismatch), or the other
+                parameters as for the constructor.
+        """
+        if not isinstance(model, pin.Model):
+            raise InputError("model", f"expected a pinocchio.Model, got {type(model).__name__}")
+        if geometry is not None and not isinstance(geometry, pin.GeometryModel):
+            raise InputError("geometry", f"expected a pinocchio.GeometryModel or None, got {type(geometry).__name__}")
+        detected = root_of(model)
+        if root is not None:
+            root = choice(root, "root", ROOTS)
+            if root != detected:
+                raise InputError("root", f"expected the model's own root {detected!r} (its first joint is "
+                                 f"{model.joints[1].shortname() if model.njoints > 1 else 'none'}), got {root!r}; the root "
+                                 "joint is part of a built pin.Model: build it with pin.JointModelFreeFlyer() (or "
+                                 "JointModelSpherical()) for a floating base")
+        has_gravity = bool(np.any(model.gravity.vector))
+        if gravity is None:
+            gravity = has_gravity
+        if urdf is not None:
+            if not isinstance(urdf, (str, Path)) or not Path(urdf).is_file():
+                raise InputError("urdf", f"expected an existing URDF file or None, got {urdf!r}")
+        copy = pin.Model(model)
+        if gravity and not has_gravity:
+            copy.gravity = pin.Motion(np.array([0.0, 0.0, -9.81]), np.zeros(3))
+        return cls(None if urdf is None else Path(urdf), root=detected, actuation=actuation, dt=dt,
+                   integrator=integrator, gravity=bool(gravity), backend=backend, threads=threads, contract=contract,
+                   package_dirs=package_dirs, source_model=copy,
+                   visual_model=None if geometry is None else pin.GeometryModel(geometry))
+
+    def _from_source(self) -> pin.Model:
+        """Checks of a model handed over in Python (see :meth:`from_model`)."""
+        model = self.source_model
+        if not isinstance(model, pin.Model):
+            raise InputError("model", f"expected a pinocchio.Model, got {type(model).__name__}")
+        detected = root_of(model)
+        if self.root != detected:
+            raise InputError("root", f"expected the model's own root {detected!r}, got {self.root!r}")
+        check_model(model, "model")
+        geometry = self.visual_model
+        if geometry is not None:
+            for obj in geometry.geometryObjects:
+                if obj.parentJoint >= model.njoints:
+                    raise InputError("geometry", f"object {obj.name!r} hangs on joint {obj.parentJoint}, but the model has "
+                                     f"{model.njoints} joints: pass the geometry model built (or reduced) with this model")
+        return pin.Model(model)
+
     def description(self) -> dict:
         """What a Result needs to rebuild the model without the solver: kind "multibody", dt,
-        integrator, the URDF (absolute path and its text as solved), the root joint kind, nq, nv."""
-        urdf = Path(self.urdf).resolve()
-        return {"kind": "multibody", "dt": self.dt, "integrator": self.integrator, "urdf": str(urdf),
-                "urdf_xml": read_urdf_text(urdf), "root": self.root, "nq": self.nq, "nv": self.nv}
+        integrator, the root joint kind, nq, nv, and the model itself: the URDF (absolute path and
+        its text as solved) for a model built from one; for a model handed over as a ``pin.Model``
+        (:meth:`from_model`) the model serialised (``pin_model``: Pinocchio's text archive, exact),
+        its visual geometry as plain records (``geometry_objects``,
+        :func:`geometry_records`) when one was given, and the URDF when one was named.
+        ``package_dirs`` when given (where ``package://`` mesh URIs are found)."""
+        out = {"kind": "multibody", "dt": self.dt, "integrator": self.integrator, "root": self.root,
+               "nq": self.nq, "nv": self.nv}
+        if self.urdf is not None:
+            urdf = Path(self.urdf).resolve()
+            out.update(urdf=str(urdf), urdf_xml=read_urdf_text(urdf))
+        if self.source_model is not None:
+            out["pin_model"] = self.pin_model.saveToString()
+            if self.visual_model is not None:
+                out["geometry_objects"] = geometry_records(self.pin_model, self.visual_model)
+        if self.package_dirs:
+            out["package_dirs"] = list(self.package_dirs)
+        return out
 
     # ------------------------------------------------------------------ sizes
     @property

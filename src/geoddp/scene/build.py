@@ -47,7 +47,8 @@ def _multibody(spec: MultibodySceneSpec):
     from ..problem import Problem
 
     model = Multibody(spec.urdf, root=spec.root, actuation=np.array(spec.actuation), dt=spec.dt,
-                      integrator=spec.integrator, gravity=spec.gravity, second_order=spec.second_order)
+                      integrator=spec.integrator, gravity=spec.gravity, second_order=spec.second_order,
+                      package_dirs=spec.package_dirs)
     pm = model.pin_model
     running = MultibodyCostSum([c.build(pm) for c in spec.running_costs], model=pm)
     terminal = MultibodyCostSum([c.build(pm) for c in spec.terminal_costs], model=pm, terminal=True)

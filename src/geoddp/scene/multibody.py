@@ -8,15 +8,24 @@ parser checks every key against the model it names (frame and joint names, nq, n
 Schema (``?`` = optional, with its default; paths as they appear in error messages)::
 
     name? = file stem                   description? = ""
-    [model]      kind = "multibody", urdf (path, relative to the scene file),
-                 root? = "free_flyer" (free_flyer | spherical | fixed), gravity? = true
+    [model]      kind = "multibody", and exactly one of
+                   robot (a robot of example-robot-data by name: "ur5", "solo12", ...; the
+                     optional extra geoddp[robots]) | urdf (path, relative to the scene file),
+                 package_dirs? (path | list of paths, relative to the scene file: where the
+                   URDF's package:// mesh URIs are found, before ROS_PACKAGE_PATH; a robot's
+                   own directory is added), srdf? (path: named postures; a robot's own SRDF),
+                 root? = the robot's root (free flyer or fixed), else "free_flyer"
+                   (free_flyer | spherical | fixed), gravity? = true
     [actuation]? type? = "identity" (identity | matrix | thrusters | quadrotor | joints)
                  matrix (nv x m)                     for type = "matrix"
                  positions, directions (k x 3)       for type = "thrusters" (free-flyer root)
                  arm_length, torque_coefficient      for type = "quadrotor" (free-flyer root)
                  joints (list of joint names)        for type = "joints"; with thrusters or
                                                      quadrotor: joint motors after the root's
-    [initial]?   q (nq) | a root pose: translation? (3, free flyer), and one of
+    [initial]?   q: (nq) | a posture name ("neutral" or a group_state of the SRDF:
+                 "standing", "half_sitting", ...) | {posture? = "neutral", joints? = {joint
+                 name = value (rad | m; the joint's nq coordinates for a multi-coordinate joint)}}
+                 | a root pose: translation? (3, free flyer), and one of
                  quaternion (x,y,z,w) | rotation (3x3) | axis (3) + angle_deg; default neutral
                  v? = 0 (nv)
     [horizon]    dt (s), exactly one of steps (H) | tf (s, a multiple of dt),
@@ -64,7 +73,8 @@ ROTATION_FORMS = ("quaternion", "rotation", "axis")  # "axis" goes with "angle_d
 
 ARRAYS = ("running_costs", "terminal_costs")
 SCHEMA: Schema = {  # [table] -> key -> required?
-    "model": {"kind": True, "urdf": True, "root": False, "gravity": False},
+    "model": {"kind": True, "urdf": False, "robot": False, "package_dirs": False, "srdf": False, "root": False,
+              "gravity": False},
     "actuation": {"type": False, "matrix": False, "positions": False, "directions": False,
                   "arm_length": False, "torque_coefficient": False, "joints": False},
     "initial": {"q": False, "v": False, "translation": False, "quaternion": False, "rotation": False,
@@ -145,7 +155,8 @@ class MultibodySceneSpec(CommonSpec):
 
     Attributes:
         name, description: free text; source: scene file path or ``"<dict>"``.
-        urdf: absolute path of the URDF. root: "free_flyer" | "spherical" | "fixed".
+        urdf: absolute path of the URDF (a robot's: example-robot-data's file).
+        root: "free_flyer" | "spherical" | "fixed".
         gravity: Pinocchio's default gravity on (True) or off.
         actuation: (nv, m) input-to-generalised-force matrix.
         q0: (nq,) initial configuration; v0: (nv,) initial velocity.
@@ -153,6 +164,8 @@ class MultibodySceneSpec(CommonSpec):
         integrator: one of :data:`geoddp.models.multibody.INTEGRATORS`.
         running_costs, terminal_costs: tuples of :class:`CostTermSpec`.
         initial_controls: None (zeros), (m,) constant input or (H, m) sequence.
+        package_dirs: absolute directories searched for the URDF's ``package://`` mesh URIs.
+        robot: the example-robot-data name of ``[model].robot``, or None.
         expansion, switch_ratio, tol, grad_tol, max_iter, second_order: the ``[solver]`` table
             (:class:`~geoddp.scene.common.CommonSpec`).
 
@@ -175,6 +188,8 @@ class MultibodySceneSpec(CommonSpec):
     running_costs: tuple[CostTermSpec, ...]
     terminal_costs: tuple[CostTermSpec, ...]
     initial_controls: np.ndarray | None = None
+    package_dirs: tuple[str, ...] = ()
+    robot: str | None = None
 
     kind = "multibody"
 
@@ -263,8 +278,8 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
 
     # ---- model
     model_t = r.table("model")
-    urdf = r.check(check_urdf, model_t["urdf"], "[model].urdf", base_dir)
-    root = r.check(v.choice, model_t.get("root", "free_flyer"), "[model].root", mbm.ROOTS)
+    urdf, robot, default_root, package_dirs, srdf = _model_source(r, model_t, base_dir)
+    root = r.check(v.choice, model_t.get("root", default_root), "[model].root", mbm.ROOTS)
     gravity = r.boolean(model_t.get("gravity", True), "[model].gravity")
     horizon_t = r.table("horizon")
     dt = r.check(v.positive_float, horizon_t["dt"], "[horizon].dt")
@@ -279,7 +294,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         H = r.check(v.time_grid, horizon_t["tf"], dt, tf_name="[horizon].tf", dt_name="[horizon].dt")
     # The model without actuation first: frame, joint and dimension checks need it.
     try:
-        bare = mbm.Multibody(urdf, root=root, dt=dt, integrator=integrator, gravity=gravity)
+        bare = mbm.Multibody(urdf, root=root, dt=dt, integrator=integrator, gravity=gravity, package_dirs=package_dirs)
     except InputError as e:
         raise r.err(f"[model].{e.parameter}", e.detail) from None
     pm = bare.pin_model
@@ -292,7 +307,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
 
     # ---- initial state
     init_t = r.table("initial")
-    q0 = _initial_q(r, init_t, pm, root)
+    q0 = _initial_q(r, init_t, pm, root, srdf)
     v0 = r.check(v.finite_array, init_t.get("v", np.zeros(nv)), "[initial].v", (nv,))
 
     def hover(path: str) -> np.ndarray:
@@ -326,8 +341,49 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     return MultibodySceneSpec(
         name=name, description=description, source=source, urdf=urdf, root=root, gravity=gravity,
         actuation=actuation, q0=q0, v0=v0, dt=dt, horizon=H, integrator=integrator,
-        running_costs=tuple(running), terminal_costs=tuple(terminal), initial_controls=U0, **common,
+        running_costs=tuple(running), terminal_costs=tuple(terminal), initial_controls=U0,
+        package_dirs=package_dirs, robot=robot, **common,
     )
+
+
+def _model_source(r: Reader, t: Mapping[str, Any], base_dir: Path) -> tuple[Path, str | None, str, tuple[str, ...], Path | None]:
+    """(URDF path, robot name or None, default root, package_dirs, SRDF or None) of ``[model]``:
+    exactly one of ``robot`` (:func:`geoddp.models.robots.find`) and ``urdf``. Every
+    ``package://`` mesh URI must name a package found in package_dirs (or ROS_PACKAGE_PATH /
+    AMENT_PREFIX_PATH); a missing mesh file inside a found package is not an error here (the
+    solve does not need meshes; the replay names it)."""
+    from ..models import robots
+
+    if ("robot" in t) == ("urdf" in t):
+        got = "both" if "robot" in t else "neither"
+        raise r.err("[model]", f"expected exactly one of robot (a robot of example-robot-data by name) | urdf (a path), got {got}")
+    dirs: list[str] = []
+    if "package_dirs" in t:
+        val = t["package_dirs"]
+        items = [val] if isinstance(val, str) else val
+        if not isinstance(items, list) or not all(isinstance(d, str) and d for d in items):
+            raise r.err("[model].package_dirs", f"expected a directory path or a list of them, got {val!r}")
+        for i, d in enumerate(items):
+            p = (base_dir / Path(d).expanduser()).resolve()
+            if not p.is_dir():
+                where = "[model].package_dirs" + ("" if isinstance(val, str) else f"[{i}]")
+                raise r.err(where, f"expected an existing directory, got {d!r} (resolved to {p})")
+            dirs.append(str(p))
+    robot, srdf, root = None, None, "free_flyer"
+    if "robot" in t:
+        spec = r.check(robots.find, t["robot"], "[model].robot")
+        robot, urdf, srdf, root = spec.name, spec.urdf, spec.srdf, spec.root
+        dirs += [d for d in spec.package_dirs if d not in dirs]
+    else:
+        urdf = r.check(check_urdf, t["urdf"], "[model].urdf", base_dir)
+    if "srdf" in t:
+        val = t["srdf"]
+        p = (base_dir / Path(val).expanduser()).resolve() if isinstance(val, str) and val else None
+        if p is None or not p.is_file():
+            raise r.err("[model].srdf", f"expected an existing SRDF file, got {val!r}" + (f" (resolved to {p})" if p else ""))
+        srdf = p
+    r.check(robots.check_meshes, urdf, dirs, "[model].package_dirs")
+    return urdf, robot, root, tuple(dirs), srdf
 
 
 def _joint_columns(r: Reader, val: Any, pm: pin.Model, root: str, path: str) -> np.ndarray:
@@ -406,12 +462,15 @@ def _actuation(r: Reader, t: Mapping[str, Any], pm: pin.Model, root: str) -> np.
     return A
 
 
-def _initial_q(r: Reader, t: Mapping[str, Any], pm: pin.Model, root: str) -> np.ndarray:
+def _initial_q(r: Reader, t: Mapping[str, Any], pm: pin.Model, root: str, srdf: Path | None = None) -> np.ndarray:
     pose = [k for k in _POSE_KEYS if k in t]
     if "q" in t:
         if pose:
             raise r.err("[initial]", f"expected q or a root pose ({', '.join(_POSE_KEYS)}), got q and {', '.join(pose)}")
-        return _configuration(r, t["q"], pm, "[initial].q")
+        q = t["q"]
+        if isinstance(q, (str, Mapping)):
+            return _posture(r, q, pm, srdf)
+        return _configuration(r, q, pm, "[initial].q")
     q = pin.neutral(pm)
     R = r.rotation(t, "[initial]", ROTATION_FORMS, required=False)
     if "translation" in t:
@@ -427,6 +486,20 @@ def _initial_q(r: Reader, t: Mapping[str, Any], pm: pin.Model, root: str) -> np.
         else:
             q[i : i + 4] = pin.Quaternion(R).coeffs()
     return q
+
+
+def _posture(r: Reader, val: Any, pm: pin.Model, srdf: Path | None) -> np.ndarray:
+    """``[initial].q`` as a posture name or ``{posture, joints}`` (:func:`geoddp.models.robots.configuration`)."""
+    from ..models import robots
+
+    named = robots.postures(pm, srdf)
+    if isinstance(val, str):
+        return r.check(robots.configuration, pm, named, val, None, "[initial].q")
+    r.keys(val, ["posture", "joints"], "[initial].q", "[initial].q")
+    joints = val.get("joints", {})
+    if not isinstance(joints, Mapping):
+        raise r.err("[initial].q.joints", f"expected a table of joint name = value, got {joints!r}")
+    return r.check(robots.configuration, pm, named, val.get("posture", "neutral"), joints, "[initial].q.posture")
 
 
 def _configuration(r: Reader, val: Any, pm: pin.Model, path: str) -> np.ndarray:

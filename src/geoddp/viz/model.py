@@ -23,7 +23,6 @@ from __future__ import annotations
 import difflib
 import os
 import re
-import sys
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..models.multibody import ROOTS, _root_joint
+from ..models.robots import default_package_dirs, example_robot_data_dir  # noqa: F401  (re-exported here)
 from ..models.satellite import DEFAULT_URDF as SATELLITE_URDF
 from ..result import Result, rotations_to_quaternions
 from ..validate import InputError
@@ -101,21 +101,6 @@ _PLACEHOLDER_SIZE = 1.2345e-9
 _MISSING_MESH = re.compile(r"Mesh (.+) could not be found")
 
 
-def example_robot_data_dir() -> str | None:
-    """The package directory of the installed ``example-robot-data`` (the folder holding
-    ``example-robot-data/robots/...``, which its URDFs' ``package://example-robot-data/...`` URIs
-    name), or None when it is not installed.
-
-    Found by the rule ``example_robot_data.getModelPath`` uses (``<entry>/../../../share`` for each
-    ``sys.path`` entry), so the data package alone is enough: its Python loaders are not imported.
-    """
-    for entry in sys.path:
-        share = Path(entry or ".") / ".." / ".." / ".." / "share"
-        if (share / "example-robot-data" / "robots").is_dir():
-            return str(share.resolve())
-    return None
-
-
 def package_dirs(description: dict) -> tuple[str, ...]:
     """Where ``package://`` mesh URIs of a described model are searched, in order.
 
@@ -135,13 +120,7 @@ def package_dirs(description: dict) -> tuple[str, ...]:
         given = [given]
     if not isinstance(given, (list, tuple)) or not all(isinstance(d, (str, os.PathLike)) for d in given):
         raise InputError("result.multibody.package_dirs", f"expected a path or a list of paths, got {given!r}")
-    dirs = [str(d) for d in given]
-    if description.get("urdf"):
-        here = Path(str(description["urdf"])).resolve().parent
-        dirs += [str(here), str(here.parent), str(here.parent.parent)]
-    erd = example_robot_data_dir()
-    if erd is not None:
-        dirs.append(erd)
+    dirs = [str(d) for d in given] + list(default_package_dirs(description.get("urdf")))
     return tuple(dict.fromkeys(dirs))  # first occurrence wins, order kept
 
 
@@ -185,6 +164,19 @@ def load_visual_model(description: dict, geometry: str = "visual") -> VisualMode
     root = description.get("root")
     if root not in ROOTS:
         raise InputError("result.multibody.root", f"expected one of {ROOTS}, got {root!r}")
+    if description.get("pin_model") is not None:
+        return _load_handed_over(description, geometry)
+    xml = _urdf_text(description)
+    dirs = package_dirs(description)
+    rj = _root_joint(root)
+    try:
+        model = pin.buildModelFromXML(xml) if rj is None else pin.buildModelFromXML(xml, rj)
+    except (ValueError, RuntimeError) as exc:
+        raise InputError("result.multibody", f"expected a valid URDF ({exc})") from None
+    return _geometry_from_urdf(model, xml, dirs, root, geometry)
+
+
+def _urdf_text(description: dict) -> str:
     xml = description.get("urdf_xml")
     if xml is None:
         path = description.get("urdf")
@@ -195,12 +187,89 @@ def load_visual_model(description: dict, geometry: str = "visual") -> VisualMode
                 xml = f.read()
         except OSError as exc:
             raise InputError("result.multibody.urdf", f"expected a readable URDF file, got {path!r} ({exc})") from None
-    dirs = package_dirs(description)
-    rj = _root_joint(root)
+    return xml
+
+
+def _load_handed_over(description: dict, geometry: str) -> VisualModel:
+    """A model handed over as a ``pin.Model`` (``Multibody.from_model``): the serialised model,
+    and its visuals from the geometry records when given (``geometry_objects``), else from the
+    URDF named with it (links found by name in the model: a reduced model keeps every link's
+    frame), else none (with a warning)."""
+    model = pin.Model()
     try:
-        model = pin.buildModelFromXML(xml) if rj is None else pin.buildModelFromXML(xml, rj)
-    except (ValueError, RuntimeError) as exc:
-        raise InputError("result.multibody", f"expected a valid URDF ({exc})") from None
+        model.loadFromString(str(description["pin_model"]))
+    except (ValueError, RuntimeError, TypeError) as exc:
+        raise InputError("result.multibody.pin_model", f"expected Pinocchio's text archive of a model ({exc})") from None
+    root = description["root"]
+    dirs = package_dirs(description)
+    records = description.get("geometry_objects")
+    if records is not None:
+        return _geometry_from_records(model, records, dirs, root)
+    if description.get("urdf_xml") is not None or description.get("urdf") is not None:
+        return _geometry_from_urdf(model, _urdf_text(description), dirs, root, geometry)
+    warnings.warn("this model was handed over as a pin.Model without a visual geometry model or URDF: "
+                  "nothing of it can be drawn (pass geometry= to Multibody.from_model)", UserWarning, stacklevel=3)
+    return VisualModel(model, pin.GeometryModel(), (), root, geometry, (), dirs)
+
+
+def _geometry_from_records(model: pin.Model, records: list, dirs: tuple[str, ...], root: str) -> VisualModel:
+    """Rebuild a visual geometry model from :func:`geoddp.models.multibody.geometry_records`:
+    meshes loaded by coal (as Pinocchio's URDF parser does), primitives by size. A mesh file that
+    is gone is left out with a warning naming it."""
+    import coal
+
+    if not isinstance(records, (list, tuple)):
+        raise InputError("result.multibody.geometry_objects", f"expected a list of records, got {type(records).__name__}")
+    gmodel = pin.GeometryModel()
+    missing: list[str] = []
+    loader = coal.MeshLoader()
+    for i, rec in enumerate(records):
+        where = f"result.multibody.geometry_objects[{i}]"
+        try:
+            joint = rec["joint"]
+            if not model.existJointName(joint):
+                raise InputError(where + ".joint", f"expected a joint of the model, got {joint!r}")
+            jid = model.getJointId(joint)
+            frame = rec.get("frame")
+            fid = model.getFrameId(frame) if frame is not None and model.existFrame(frame) else 0
+            placement = pin.SE3(np.asarray(rec["placement"], dtype=float))
+            if "mesh" in rec:
+                path = str(rec["mesh"])
+                if not os.path.isfile(path):
+                    missing.append(path)
+                    continue
+                scale = np.asarray(rec.get("scale", [1.0, 1.0, 1.0]), dtype=float)
+                shape = loader.load(path, scale)
+            else:
+                kind = rec["shape"]
+                if kind == "box":
+                    shape = coal.Box(*np.asarray(rec["size"], dtype=float))
+                elif kind == "sphere":
+                    shape = coal.Sphere(float(rec["radius"]))
+                elif kind == "cylinder":
+                    shape = coal.Cylinder(float(rec["radius"]), float(rec["length"]))
+                elif kind == "capsule":
+                    shape = coal.Capsule(float(rec["radius"]), float(rec["length"]))
+                else:
+                    raise InputError(where + ".shape", f"expected box, sphere, cylinder or capsule, got {kind!r}")
+            obj = pin.GeometryObject(str(rec["name"]), jid, fid, placement, shape)
+            if "mesh" in rec:
+                obj.meshPath = path
+                obj.meshScale = scale
+            obj.meshColor = np.asarray(rec.get("color", [0.8, 0.8, 0.8, 1.0]), dtype=float)
+            obj.overrideMaterial = bool(rec.get("override_material", False))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(where, f"expected a geometry record (name, joint, placement, mesh or shape), got {exc!r}") from None
+        gmodel.addGeometryObject(obj)
+    for filename in missing:
+        warnings.warn(f"mesh file {filename!r} not found: the visual objects using it are not drawn, the rest of the "
+                      "model is", UserWarning, stacklevel=3)
+    names = tuple(o.name.replace("/", "_") for o in gmodel.geometryObjects)
+    return VisualModel(model, gmodel, names, root, "visual", tuple(missing), dirs)
+
+
+def _geometry_from_urdf(model: pin.Model, xml: str, dirs: tuple[str, ...], root: str, geometry: str) -> VisualModel:
+    """The URDF's visual (or collision) geometry on ``model``; meshes found nowhere left out."""
     missing: list[str] = []
     while True:
         try:
@@ -218,7 +287,7 @@ def load_visual_model(description: dict, geometry: str = "visual") -> VisualMode
         gmodel.removeGeometryObject(name)
     for filename in missing:
         warnings.warn(f"mesh file {filename!r} not found (searched package_dirs {list(dirs)} and ROS_PACKAGE_PATH): "
-                      f"the {geometry} objects using it are not drawn, the rest of the model is", UserWarning, stacklevel=2)
+                      f"the {geometry} objects using it are not drawn, the rest of the model is", UserWarning, stacklevel=3)
     names = tuple(o.name.replace("/", "_") for o in gmodel.geometryObjects)
     return VisualModel(model, gmodel, names, root, geometry, tuple(missing), dirs)
 

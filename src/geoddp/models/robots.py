@@ -1,0 +1,314 @@
+"""Real robots by name: the URDFs, SRDF postures and meshes of ``example-robot-data``.
+
+``example-robot-data`` (the optional extra ``geoddp[robots]``) ships URDFs, SRDFs and meshes of
+some fifty robots; its loader classes (``example_robot_data.ROBOTS``) name, per robot, the URDF,
+the SRDF, whether the root is a free flyer and the SRDF's reference posture. :func:`find` reads
+only those class attributes (the loaders themselves are never instantiated: that would parse the
+URDF and load every mesh) and returns a :class:`RobotSpec`; :meth:`RobotSpec.multibody` builds the
+:class:`geoddp.models.multibody.Multibody` from the URDF path, and :meth:`RobotSpec.pin_models`
+builds the ``pin.Model`` with its visual ``pin.GeometryModel`` for users who edit the model
+before :meth:`Multibody.from_model <geoddp.models.multibody.Multibody.from_model>`.
+
+Mesh URIs resolve as Pinocchio's URDF parser resolves them (:func:`resolve_mesh`):
+``package://PKG/REST`` is searched in the given ``package_dirs`` in order, then in the
+directories of ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH`` (each with ``/share``) as
+``<dir>/PKG/REST``; ``file://PATH`` and absolute paths are taken as they are; a relative path is
+relative to the URDF's directory. Scenes and the replay also search, after the given
+directories, the URDF's directory, its parent and grandparent and example-robot-data's package
+directory (:func:`default_package_dirs`). A ``package://`` URI whose package is in none of these
+directories is a configuration error (InputError naming ``package_dirs``); a package that is
+found but lacks one mesh file is a missing mesh: the solve does not need meshes, and the replay
+draws the rest of the model and names the missing file.
+
+Postures (:func:`configuration`): "neutral" (``pin.neutral``) or any ``group_state`` of the
+robot's SRDF (``pin.loadReferenceConfigurations``: "standing", "half_sitting", ...), optionally
+with a mapping of joint names to values on top (radians or metres for one-coordinate joints, the
+joint's nq coordinates as a list otherwise).
+"""
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..validate import InputError, closest
+from .multibody import Multibody
+
+__all__ = ["RobotSpec", "names", "find", "resolve_mesh", "mesh_uris", "check_meshes", "default_package_dirs",
+           "example_robot_data_dir", "postures", "configuration", "load"]
+
+INSTALL_HINT = "pip install 'geoddp[robots]' (example-robot-data and its loaders)"
+_MESH = re.compile(r"<mesh\b[^>]*\bfilename\s*=\s*([\"'])(.*?)\1", re.S)
+
+
+def _erd():
+    """The ``example_robot_data`` module, or InputError naming ``robot`` when not installed."""
+    try:
+        import example_robot_data
+    except ImportError:
+        raise InputError("robot", f"robots by name need example-robot-data: {INSTALL_HINT}") from None
+    return example_robot_data
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Where a robot of ``example-robot-data`` lives and how its loader builds it.
+
+    Attributes:
+        name: its name in ``example_robot_data.ROBOTS`` ("ur5", "panda", "solo12", ...).
+        urdf: absolute path of the URDF.
+        srdf: absolute path of the SRDF (postures), or None.
+        root: "free_flyer" when its loader adds a free-flyer root, else "fixed".
+        package_dirs: directories ``package://`` URIs of the URDF are searched in (the
+            ``share`` directory holding ``example-robot-data/robots/...``).
+        default_posture: the loader's reference posture (a group_state of the SRDF), or None.
+    """
+
+    name: str
+    urdf: Path
+    srdf: Path | None
+    root: str
+    package_dirs: tuple[str, ...]
+    default_posture: str | None
+
+    def multibody(self, *, dt: float, root: str | None = None, **kwargs: Any) -> Multibody:
+        """The :class:`Multibody` of this robot from its URDF (root: the loader's unless given;
+        other keywords as for ``Multibody``: actuation, integrator, gravity, backend, threads)."""
+        return Multibody(self.urdf, root=root or self.root, dt=dt, package_dirs=self.package_dirs, **kwargs)
+
+    def pin_models(self, root: str | None = None) -> tuple[pin.Model, pin.GeometryModel]:
+        """(model, visual geometry) as ``pin.buildModelsFromUrdf`` builds them, meshes loaded:
+        what a Pinocchio user edits (inertias, ``pin.buildReducedModel``) before
+        :meth:`Multibody.from_model`."""
+        rj = pin.JointModelFreeFlyer() if (root or self.root) == "free_flyer" else None
+        args = (str(self.urdf), list(self.package_dirs)) + ((rj,) if rj is not None else ())
+        model, visual = pin.buildModelsFromUrdf(*args, geometry_types=pin.GeometryType.VISUAL)
+        return model, visual
+
+    def postures(self, model: pin.Model) -> dict[str, np.ndarray]:
+        """Named configurations (nq,) of ``model``: "neutral" and the SRDF's group states."""
+        return postures(model, self.srdf)
+
+
+def names() -> tuple[str, ...]:
+    """Names of the robots ``example-robot-data`` describes by a URDF, sorted."""
+    erd = _erd()
+    return tuple(sorted(n for n, cls in erd.ROBOTS.items() if getattr(cls, "urdf_filename", "")))
+
+
+def find(name: Any, parameter: str = "robot") -> RobotSpec:
+    """The robot called ``name`` in ``example-robot-data``.
+
+    Raises:
+        InputError: naming ``parameter``: not a string, an unknown name (with the closest names
+            and the full list), a robot described only by an SDF file, or example-robot-data
+            not installed (with the pip command).
+    """
+    erd = _erd()
+    known = names()
+    if not isinstance(name, str) or name not in known:
+        import difflib
+
+        close = difflib.get_close_matches(str(name), known, n=3) or [g for g in [closest(str(name), known)] if g]
+        hint = f"did you mean {', '.join(map(repr, close))}? " if close else ""
+        raise InputError(parameter, f"expected a robot of example-robot-data, got {name!r}; {hint}known robots: {', '.join(known)}")
+    cls = erd.ROBOTS[name]
+    subpath = os.path.join(cls.path, cls.urdf_subpath, cls.urdf_filename)
+    try:
+        robots = Path(erd.getModelPath(subpath))
+    except OSError:
+        raise InputError(parameter, f"expected the files of robot {name!r} to be installed, got none at {subpath} "
+                                    f"({INSTALL_HINT})") from None
+    urdf = (robots / subpath).resolve()
+    srdf = None
+    if getattr(cls, "srdf_filename", ""):
+        p = robots / cls.path / cls.srdf_subpath / cls.srdf_filename
+        srdf = p.resolve() if p.is_file() else None
+    posture = getattr(cls, "ref_posture", None) if srdf is not None else None
+    # URIs read package://example-robot-data/robots/...: the package directory is robots/../..
+    return RobotSpec(name, urdf, srdf, "free_flyer" if getattr(cls, "free_flyer", False) else "fixed",
+                     (str(robots.parent.parent.resolve()),), posture)
+
+
+def example_robot_data_dir() -> str | None:
+    """The package directory of the installed ``example-robot-data`` (the folder holding
+    ``example-robot-data/robots/...``, which its URDFs' ``package://example-robot-data/...`` URIs
+    name), or None when it is not installed.
+
+    Found by the rule ``example_robot_data.getModelPath`` uses (``<entry>/../../../share`` for each
+    ``sys.path`` entry), so the data package alone is enough: its Python loaders are not imported.
+    """
+    import sys
+
+    for entry in sys.path:
+        share = Path(entry or ".") / ".." / ".." / ".." / "share"
+        if (share / "example-robot-data" / "robots").is_dir():
+            return str(share.resolve())
+    return None
+
+
+def default_package_dirs(urdf: str | Path | None) -> tuple[str, ...]:
+    """Where ``package://`` URIs are searched after the given package_dirs (the replay searches
+    the same, :func:`geoddp.viz.model.package_dirs`): the URDF's own directory, its parent and its
+    grandparent (``<pkg>/urdf/robot.urdf`` naming ``package://<pkg>/meshes/...``), then the package
+    directory of example-robot-data when installed."""
+    dirs = []
+    if urdf:
+        here = Path(str(urdf)).resolve().parent
+        dirs += [str(here), str(here.parent), str(here.parent.parent)]
+    erd = example_robot_data_dir()
+    if erd is not None:
+        dirs.append(erd)
+    return tuple(dict.fromkeys(dirs))
+
+
+def _search_dirs(package_dirs: tuple[str, ...] | list[str]) -> list[str]:
+    dirs = [str(d) for d in package_dirs]
+    for var, suffix in (("ROS_PACKAGE_PATH", ""), ("AMENT_PREFIX_PATH", "share")):
+        dirs += [os.path.join(d, suffix) if suffix else d for d in os.environ.get(var, "").split(os.pathsep) if d]
+    return dirs
+
+
+def resolve_mesh(uri: str, package_dirs: tuple[str, ...] | list[str] = (), base_dir: str | Path | None = None,
+                 parameter: str = "package_dirs") -> Path | None:
+    """The file a URDF mesh ``filename`` names, resolved as Pinocchio resolves it (module
+    docstring), or None when its package is found but the file is not (a missing mesh).
+
+    Args:
+        uri: ``package://PKG/REST``, ``file://PATH``, an absolute or a relative path.
+        package_dirs: directories searched first for ``package://`` URIs.
+        base_dir: the URDF's directory (relative paths); the current directory if None.
+        parameter: named in the error.
+
+    Raises:
+        InputError: naming ``parameter`` when a ``package://`` URI's package is in none of the
+            directories searched (they are listed).
+    """
+    if uri.startswith("package://"):
+        rest = uri[len("package://"):]
+        package = rest.split("/", 1)[0]
+        dirs = _search_dirs(package_dirs)
+        for d in dirs:
+            if os.path.isfile(os.path.join(d, rest)):
+                return Path(d, rest).resolve()
+        if not any(os.path.isdir(os.path.join(d, package)) for d in dirs):
+            raise InputError(parameter, f"expected a directory holding package {package!r} (for {uri!r}), got none among "
+                                        f"{dirs or '[] (no package_dirs, ROS_PACKAGE_PATH or AMENT_PREFIX_PATH)'}")
+        return None
+    path = Path(uri[len("file://"):] if uri.startswith("file://") else uri)
+    if not path.is_absolute():
+        path = Path(base_dir or ".") / path
+    return path.resolve() if path.is_file() else None
+
+
+def mesh_uris(urdf: str | Path) -> list[str]:
+    """Every distinct ``<mesh filename>`` of a URDF file, in order."""
+    text = Path(urdf).read_text(encoding="utf-8")
+    return list(dict.fromkeys(m.group(2) for m in _MESH.finditer(text)))
+
+
+def check_meshes(urdf: str | Path, package_dirs: tuple[str, ...] | list[str] = (),
+                 parameter: str = "package_dirs") -> list[str]:
+    """Resolve every mesh of a URDF (:func:`resolve_mesh`) as the replay will: in
+    ``package_dirs``, then :func:`default_package_dirs`; the URIs of the missing ones.
+
+    Raises:
+        InputError: naming ``parameter`` for a ``package://`` URI whose package is found nowhere.
+    """
+    base = Path(urdf).resolve().parent
+    dirs = list(dict.fromkeys([str(d) for d in package_dirs] + list(default_package_dirs(urdf))))
+    return [u for u in mesh_uris(urdf) if resolve_mesh(u, dirs, base, parameter) is None]
+
+
+def postures(model: pin.Model, srdf: str | Path | None) -> dict[str, np.ndarray]:
+    """Named configurations (nq,) of ``model``: "neutral" (``pin.neutral``) and each
+    ``group_state`` of the SRDF (``pin.loadReferenceConfigurations``: joints the state does not
+    name keep their neutral value; quaternions normalised)."""
+    out = {"neutral": pin.neutral(model)}
+    if srdf is not None:
+        m = pin.Model(model)  # loading writes into the model: keep the caller's untouched
+        pin.loadReferenceConfigurations(m, str(srdf), False)
+        for entry in m.referenceConfigurations:  # boost map entries: .key(), .data()
+            out[str(entry.key())] = pin.normalize(m, np.array(entry.data(), dtype=float))
+    return out
+
+
+def _joint_value(model: pin.Model, joint: str, value: Any, q: np.ndarray, path: str) -> None:
+    jid = model.getJointId(joint)
+    jm = model.joints[jid]
+    i, nq, nv = jm.idx_q, jm.nq, jm.nv
+    if nq == 1 or (nq == 2 and nv == 1):  # revolute / prismatic, or continuous (cos, sin)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise InputError(path, f"expected a finite number (rad or m) for joint {joint!r}, got {value!r}")
+        if nq == 1:
+            q[i] = float(value)
+        else:
+            q[i:i + 2] = np.cos(value), np.sin(value)
+        return
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape != (nq,) or not np.all(np.isfinite(arr)):
+        raise InputError(path, f"expected the {nq} coordinates of joint {joint!r} ({jm.shortname()}), got {value!r}")
+    q[i:i + nq] = arr
+
+
+def configuration(model: pin.Model, named: Mapping[str, np.ndarray], posture: Any = "neutral",
+                  joints: Mapping[str, Any] | None = None, parameter: str = "initial.q") -> np.ndarray:
+    """A configuration (nq,): the posture called ``posture`` with ``joints`` set on top.
+
+    Args:
+        model: the model the configuration is for.
+        named: the named postures (:func:`postures`).
+        posture: a name in ``named``.
+        joints: joint name -> value: a number (rad, or m for a prismatic joint) for a
+            one-degree-of-freedom joint (a continuous joint's angle is written as (cos, sin)),
+            else the joint's nq coordinates (a free flyer's (x, y, z, qx, qy, qz, qw)).
+        parameter: named in errors (``initial.q``; ``initial.joints.<name>`` for a joint).
+
+    Raises:
+        InputError: an unknown posture or joint name (with the closest names), a value of the
+            wrong kind, or a result that is not a normalised configuration.
+    """
+    if not isinstance(posture, str) or posture not in named:
+        import difflib
+
+        keys = list(named)
+        close = difflib.get_close_matches(str(posture), keys, n=3) or [g for g in [closest(str(posture), keys)] if g]
+        hint = f"did you mean {', '.join(map(repr, close))}? " if close else ""
+        raise InputError(parameter, f"expected a named posture, got {posture!r}; {hint}postures: {', '.join(keys)}")
+    q = np.array(named[posture], dtype=float)
+    if joints:
+        if not isinstance(joints, Mapping):
+            raise InputError(parameter, f"expected a mapping of joint names to values, got {type(joints).__name__}")
+        jnames = [str(n) for n in model.names[1:]]
+        base = parameter.rsplit(".", 1)[0] if "." in parameter else parameter
+        for joint, value in joints.items():
+            path = f"{base}.joints.{joint}"
+            if joint not in jnames:
+                import difflib
+
+                close = difflib.get_close_matches(str(joint), jnames, n=3)
+                hint = f"; did you mean {', '.join(map(repr, close))}?" if close else f"; joints: {', '.join(jnames)}"
+                raise InputError(path, f"expected a joint name of the model, got {joint!r}{hint}")
+            _joint_value(model, joint, value, q, path)
+    if not pin.isNormalized(model, q, 1e-9):
+        raise InputError(parameter, "expected unit quaternions, got a non-normalised configuration")
+    return q
+
+
+def load(name: str, *, dt: float, root: str | None = None, check_mesh_dirs: bool = True, **kwargs: Any) -> Multibody:
+    """The :class:`Multibody` of robot ``name`` of example-robot-data (from its URDF; see
+    :meth:`RobotSpec.multibody` for the keywords). ``check_mesh_dirs`` resolves every mesh URI
+    first (:func:`check_meshes`), so a broken installation fails here rather than in the replay."""
+    spec = find(name)
+    if check_mesh_dirs:
+        check_meshes(spec.urdf, spec.package_dirs)
+    return spec.multibody(dt=dt, root=root, **kwargs)
