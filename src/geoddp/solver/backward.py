@@ -30,11 +30,17 @@ class Workspace:
     """Per-solve buffers (Crocoddyl's 'data'): allocated once, reused every iteration.
 
     k (H, m) feedforward and K (H, m, nx) feedback gains of the last backward pass, grad (H, m)
-    the last gradient, quu_eig (H,) the smallest eigenvalue of each node's regularised Q_uu.
+    the last gradient, quu_eig (H,) the smallest eigenvalue of each node's regularised Q_uu. With
+    control limits also bounds, active (H, m), k_box (H, m) and the value function at node 0.
     """
 
-    def __init__(self, horizon: int, nu: int, nx: int) -> None:
+    def __init__(self, horizon: int, nu: int, nx: int, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         H, m = horizon, nu
+        # control limits (lower, upper), each (H, m), or None: then every pass is the unconstrained one
+        self.bounds = bounds
+        self.active = np.zeros((H, m), dtype=np.int8)  # the last box pass's active set (-1 lower, +1 upper)
+        self.k_box = np.zeros((H, m))  # the last box pass's feedforward: the next one's warm start
+        self.Vx0, self.Vxx0 = np.zeros(nx), np.zeros((nx, nx))
         self.k = np.zeros((H, m))
         self.K = np.zeros((H, m, nx))
         self.grad = np.zeros((H, m))
@@ -45,20 +51,46 @@ class Workspace:
         self.empty_xi = np.zeros((0, nx, m, m))
 
 
-def backward(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float, float]:
+def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | None = None) -> tuple[int, float, float]:
     """One backward pass with Q_uu + reg I; gains into ws.k, ws.K.
+
+    With control limits (ws.bounds; ``u_bar`` (H, m) the nominal controls) the unconstrained pass
+    runs first: when it factorises and every full-step control u_bar_k - k_k lies in the box, each
+    node's box QP has that unconstrained minimiser as its solution (a strictly convex QP whose
+    unconstrained minimiser is feasible) and the value functions coincide, so its gains are the
+    box pass's, bit for bit the unconstrained solver's (inactive limits change nothing). Otherwise
+    the compiled box pass (geoddp._core.backward_pass_box, cpp/riccati.cpp, for every model)
+    recomputes the gains: box QP per node by projected Newton, warm-started from its previous
+    feedforward; the active set goes to ws.active.
 
     Returns (failed node or -1, d1, d2): the model's decrease for a step gamma is
     -(gamma d1 - gamma^2 / 2 d2) (so d1 - d2 / 2 at gamma = 1).
     """
     second = lin.order == 2
-    return _pass(lin.Phi.shape[1])(
+    theta = lin.Theta if second else ws.empty_theta
+    gamma = lin.Gamma if second else ws.empty_gamma
+    xi = lin.Xi if second else ws.empty_xi
+    out = _pass(lin.Phi.shape[1])(
         lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
-        lin.Theta if second else ws.empty_theta,
-        lin.Gamma if second else ws.empty_gamma,
-        lin.Xi if second else ws.empty_xi,
-        second, reg, ws.k, ws.K, ws.quu_eig,
+        theta, gamma, xi, second, reg, ws.k, ws.K, ws.quu_eig,
     )
+    if ws.bounds is None:
+        return out
+    lower, upper = ws.bounds
+    if out[0] < 0:
+        u_full = u_bar - ws.k
+        if np.all((u_full >= lower) & (u_full <= upper)):  # NaN fails the test: the box pass decides
+            ws.active[:] = 0
+            ws.k_box[:] = ws.k
+            return out
+    ws.k[:] = ws.k_box  # warm start of every node's box QP
+    out = _core.backward_pass_box(
+        lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+        theta, gamma, xi, second, reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0,
+    )
+    if out[0] < 0:
+        ws.k_box[:] = ws.k
+    return out
 
 
 def gradient(lin: Linearisation, ws: Workspace) -> np.ndarray:
@@ -67,15 +99,19 @@ def gradient(lin: Linearisation, ws: Workspace) -> np.ndarray:
     return ws.grad
 
 
-def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions) -> tuple[float, float, float, int]:
+def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions,
+                         u_bar: np.ndarray | None = None) -> tuple[float, float, float, int]:
     """Backward pass restarted from k = H with a larger lambda while Q_uu + lambda I is not
     positive definite (Remark rem:theta): lambda <- max(reg_increase lambda, reg_min).
+
+    With control limits the same rule holds for the box pass: it fails at a node where the whole
+    Q_uu + lambda I is not positive definite, so every box QP it solves is strictly convex.
 
     Returns (lambda, d1, d2, restarts); lambda > opt.reg_max means it gave up.
     """
     restarts = 0
     while True:
-        failed, d1, d2 = backward(lin, ws, lam)
+        failed, d1, d2 = backward(lin, ws, lam, u_bar)
         if failed < 0:
             break
         restarts += 1
@@ -85,11 +121,11 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
     return lam, d1, d2, restarts
 
 
-def factorisable_gains(lin: Linearisation, ws: Workspace, opt: SolverOptions) -> None:
+def factorisable_gains(lin: Linearisation, ws: Workspace, opt: SolverOptions, u_bar: np.ndarray | None = None) -> None:
     """Gains for the user where the lambda = 0 pass failed: the smallest lambda >= reg_min (on the
     reg_increase grid, up to reg_max) whose Q_uu factorises."""
     lam = opt.reg_min
-    while backward(lin, ws, lam)[0] >= 0 and lam < opt.reg_max:
+    while backward(lin, ws, lam, u_bar)[0] >= 0 and lam < opt.reg_max:
         lam *= opt.reg_increase
 
 
