@@ -140,7 +140,7 @@ static const double BOX_MIN_STEP = 1e-12;  // below: the decrease is round-off, 
 namespace {
 
 struct BoxWork {
-  Eigen::VectorXd g, rhs, xt, dx;
+  Eigen::VectorXd g, rhs, xt, dx, Hy;
   std::vector<signed char> cl, prev;
   std::vector<int> fidx;
   RowMat Lf;
@@ -191,8 +191,9 @@ void face_newton(const RowMat& Hq, const Eigen::VectorXd& q, const Eigen::Vector
   for (int a = 0; a < nf; ++a) out[w.fidx[a]] = w.rhs[a];
 }
 
-double qp_value(const RowMat& Hq, const Eigen::VectorXd& q, const Eigen::VectorXd& y) {
-  return 0.5 * y.dot(Hq * y) - q.dot(y);
+double qp_value(const RowMat& Hq, const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::VectorXd& Hy) {
+  Hy.noalias() = Hq * y;
+  return 0.5 * y.dot(Hy) - q.dot(y);
 }
 
 // The projected Newton iteration (see box_qp in riccati.hpp); on return w.cl, w.fidx, w.Lf
@@ -226,7 +227,7 @@ int box_qp_impl(const RowMat& Hq, const Eigen::VectorXd& q, const double* lo, co
       prev_full = true;
       continue;
     }
-    const double f0 = qp_value(Hq, q, x);
+    const double f0 = qp_value(Hq, q, x, w.Hy);
     double step = 1.0;
     bool ok = false, clipped = false;
     while (step >= BOX_MIN_STEP) {
@@ -237,7 +238,7 @@ int box_qp_impl(const RowMat& Hq, const Eigen::VectorXd& q, const double* lo, co
         clipped |= c != y;
         w.xt[i] = c;
       }
-      if (qp_value(Hq, q, w.xt) - f0 <= BOX_ARMIJO * step * sdotg) {
+      if (qp_value(Hq, q, w.xt, w.Hy) - f0 <= BOX_ARMIJO * step * sdotg) {
         ok = true;
         break;
       }
@@ -279,7 +280,8 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
   // Q blocks as in backward_pass (kept separate so that the unconstrained pass stays untouched).
   Eigen::VectorXd Vx = CVec(Vx_final, n), Qx(n), Qu(m), kk(m), QuuK(m), lo(m), hi(m);
   RowMat Vxx = CMat(Vxx_final, n, n);
-  RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), Hq(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n), QuuKK(m, n);
+  RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), Hq(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n), QuuKK(m, n),
+      KKf(m, n);
   BoxWork w;
   double s1 = 0.0, s2 = 0.0;
   *d1 = 0.0;
@@ -340,10 +342,10 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
     KK.setZero();
     if (!w.fidx.empty()) {  // free rows: (Q_uu + reg I)_ff^-1 Q_ux,f; clamped rows stay zero
       const int nf = (int)w.fidx.size();
-      RowMat rhs(nf, n);
-      for (int a = 0; a < nf; ++a) rhs.row(a) = Qux.row(w.fidx[a]);
+      for (int a = 0; a < nf; ++a) KKf.row(a) = Qux.row(w.fidx[a]);
+      auto rhs = KKf.topRows(nf);
       cholesky_solve(w.Lf, rhs);
-      for (int a = 0; a < nf; ++a) KK.row(w.fidx[a]) = rhs.row(a);
+      for (int a = 0; a < nf; ++a) KK.row(w.fidx[a]) = KKf.row(a);
     }
     for (int a = 0; a < m; ++a) active[(size_t)k * m + a] = (signed char)(-w.cl[a]);  // k at its lower = u at upper
     Eigen::Map<Eigen::VectorXd>(k_ff + (size_t)k * m, m) = kk;
@@ -353,16 +355,19 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
     s2 += kk.dot(QuuK);
     // The full value update: V(zeta) = Q(zeta, -k - K zeta), exact for any k, K (clamped rows,
     // reg > 0); the short form Qx - K^T Qu (Crocoddyl's box solvers) holds only for k = Quu^-1 Qu.
+    //   Vx  = Qx  - K^T Qu  - Qux^T k + K^T Quu k = Qx  - Qux^T k + K^T (Quu k - Qu)
+    //   Vxx = Qxx - K^T Qux - Qux^T K + K^T Quu K = Qxx - Qux^T K + K^T (Quu K - Qux)
+    QuuK -= Qu;
     QuuKK.noalias() = Quu * KK;
+    QuuKK -= Qux;
     Vx = Qx;
-    Vx.noalias() -= KK.transpose() * Qu;
     Vx.noalias() -= Qux.transpose() * kk;
     Vx.noalias() += KK.transpose() * QuuK;
     Vxx = Qxx;
-    Vxx.noalias() -= KK.transpose() * Qux;
     Vxx.noalias() -= Qux.transpose() * KK;
     Vxx.noalias() += KK.transpose() * QuuKK;
-    Vxx = (0.5 * (Vxx + Vxx.transpose())).eval();
+    for (int i = 0; i < n; ++i)  // exactly symmetric (the two products round differently)
+      for (int j = i + 1; j < n; ++j) Vxx(i, j) = Vxx(j, i) = 0.5 * (Vxx(i, j) + Vxx(j, i));
   }
   if (Vx0) Eigen::Map<Eigen::VectorXd>(Vx0, n) = Vx;
   if (Vxx0) Eigen::Map<RowMat>(Vxx0, n, n) = Vxx;

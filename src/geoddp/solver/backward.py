@@ -58,7 +58,8 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
     runs first: when it factorises and every full-step control u_bar_k - k_k lies in the box, each
     node's box QP has that unconstrained minimiser as its solution (a strictly convex QP whose
     unconstrained minimiser is feasible) and the value functions coincide, so its gains are the
-    box pass's, bit for bit the unconstrained solver's (inactive limits change nothing). Otherwise
+    box pass's, bit for bit the unconstrained solver's (inactive limits change nothing). The
+    unconstrained attempt is skipped while the last box pass had inputs on a bound. Otherwise
     the compiled box pass (geoddp._core.backward_pass_box, cpp/riccati.cpp, for every model)
     recomputes the gains: box QP per node by projected Newton, warm-started from its previous
     feedforward; the active set goes to ws.active.
@@ -70,19 +71,21 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
     theta = lin.Theta if second else ws.empty_theta
     gamma = lin.Gamma if second else ws.empty_gamma
     xi = lin.Xi if second else ws.empty_xi
-    out = _pass(lin.Phi.shape[1])(
-        lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
-        theta, gamma, xi, second, reg, ws.k, ws.K, ws.quu_eig,
-    )
-    if ws.bounds is None:
-        return out
-    lower, upper = ws.bounds
-    if out[0] < 0:
-        u_full = u_bar - ws.k
-        if np.all((u_full >= lower) & (u_full <= upper)):  # NaN fails the test: the box pass decides
-            ws.active[:] = 0
-            ws.k_box[:] = ws.k
+    # the unconstrained pass, unless the last box pass had inputs on a bound (then it is wasted work)
+    if ws.bounds is None or not ws.active.any():
+        out = _pass(lin.Phi.shape[1])(
+            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+            theta, gamma, xi, second, reg, ws.k, ws.K, ws.quu_eig,
+        )
+        if ws.bounds is None:
             return out
+        if out[0] < 0:
+            u_full = u_bar - ws.k
+            lower, upper = ws.bounds
+            if np.all((u_full >= lower) & (u_full <= upper)):  # NaN fails the test: the box pass decides
+                ws.k_box[:] = ws.k
+                return out
+    lower, upper = ws.bounds
     ws.k[:] = ws.k_box  # warm start of every node's box QP
     out = _core.backward_pass_box(
         lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
