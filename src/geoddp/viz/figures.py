@@ -153,12 +153,17 @@ def _draw_limits(ax, t: np.ndarray, u: np.ndarray, limits: tuple[np.ndarray, np.
         active = np.where(u >= hi, 1, np.where(u <= lo, -1, 0))
     active = np.asarray(active)
     intervals = []
+    drawn: list[np.ndarray] = []
     for j in range(u.shape[1]):
         c = COLORS[j % len(COLORS)]
         for bound in (lo[:, j], hi[:, j]):
-            if np.isfinite(bound).any():
-                ax.stairs(np.where(np.isfinite(bound), bound, np.nan), t, color=c, ls="--", lw=0.9, alpha=0.8,
-                          baseline=None)
+            if not np.isfinite(bound).any() or any(np.array_equal(bound, b) for b in drawn):
+                continue
+            drawn.append(bound)
+            # a bound several inputs share is drawn once, in grey; an input's own in its colour
+            shared = sum(np.array_equal(bound, lo[:, i]) or np.array_equal(bound, hi[:, i]) for i in range(u.shape[1]))
+            ax.stairs(np.where(np.isfinite(bound), bound, np.nan), t, color="0.35" if shared > 1 else c, ls="--",
+                      lw=0.9, alpha=0.8, baseline=None)
         on = np.concatenate(([False], active[:, j] != 0, [False]))
         starts, ends = np.flatnonzero(~on[:-1] & on[1:]), np.flatnonzero(on[:-1] & ~on[1:])
         for a, b in zip(starts, ends):  # nodes a .. b-1 saturated: [t_a, t_b)
