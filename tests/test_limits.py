@@ -350,3 +350,21 @@ def test_controls_figure_draws_bounds_and_shades_saturation(table1, tmp_path):
     for _, a, b in sat:
         covered[(t[:-1] >= a) & (t[:-1] < b)] = True
     np.testing.assert_array_equal(covered, r.active_set[:, 2] != 0)
+
+
+# ------------------------------------------------------------------ URDF effort limits
+def test_effort_limits_from_the_urdf():
+    from geoddp.limits import effort_limits
+
+    p = scenes.space_manipulator()  # three arm joints with effort="50" on a free-flying base
+    lo, hi = effort_limits(p.model.pin_model.effortLimit, p.model.actuation)
+    np.testing.assert_array_equal(hi, [50.0, 50.0, 50.0])
+    np.testing.assert_array_equal(lo, -hi)
+    # no effort given (a free flyer's DBL_MAX, or 0): unbounded
+    lo, hi = effort_limits(np.array([1.79e308, 0.0, 7.5]), np.eye(3))
+    np.testing.assert_array_equal(hi, [np.inf, np.inf, 7.5])
+    # thrusters are not joint motors
+    q = scenes.quadrotor()
+    with pytest.raises(InputError) as e:
+        effort_limits(q.model.pin_model.effortLimit, q.model.actuation)
+    assert e.value.parameter == "[limits].effort_limits" and "input 0" in str(e.value)

@@ -17,7 +17,7 @@ import numpy as np
 
 from .validate import InputError
 
-__all__ = ["ControlLimits", "as_limits", "check_inside", "active_set", "projected_gradient"]
+__all__ = ["ControlLimits", "as_limits", "check_inside", "active_set", "projected_gradient", "effort_limits"]
 
 
 def _bound(x: Any, name: str, horizon: int, m: int, infinite: float) -> np.ndarray:
@@ -115,3 +115,35 @@ def projected_gradient(U: np.ndarray, grad: np.ndarray, lower: np.ndarray, upper
     blocked = ((U <= lower) & (grad > 0.0)) | ((U >= upper) & (grad < 0.0)) | (lower == upper)
     out[blocked] = 0.0
     return out
+
+
+# Pinocchio's effortLimit for a degree of freedom whose URDF gives no effort (a free flyer's, a
+# joint without <limit>): the largest double. Efforts at or above this, and 0 (which URDF files
+# write for "unspecified" on continuous joints), are read as unbounded.
+_UNBOUNDED_EFFORT = 1e300
+
+
+def effort_limits(effort: np.ndarray, actuation: np.ndarray, name: str = "[limits].effort_limits"
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Symmetric input bounds -effort <= u_j <= effort from a URDF's joint effort limits.
+
+    Args:
+        effort: (nv,) Pinocchio's ``model.effortLimit`` (N m for revolute joints, N for prismatic).
+        actuation: (nv, m) the model's tau = H u; every input must drive one joint directly (its
+            column a unit vector e_i), the input then takes joint i's effort limit.
+
+    Returns (lower (m,), upper (m,)); an effort of 0 or >= 1e300 (none given) is unbounded.
+    Raises InputError naming ``name`` when an input is not a joint motor (a thruster, a coupled
+    transmission): its limit must then be given as numbers.
+    """
+    effort = np.asarray(effort, dtype=float)
+    Hm = np.asarray(actuation, dtype=float)
+    upper = np.empty(Hm.shape[1])
+    for j in range(Hm.shape[1]):
+        nz = np.flatnonzero(Hm[:, j])
+        if nz.size != 1 or Hm[nz[0], j] != 1.0:
+            raise InputError(name, f"input {j} is not a joint motor (its actuation column is not a unit vector: "
+                             f"{Hm[:, j].tolist()}); give control_min / control_max instead")
+        e = effort[nz[0]]
+        upper[j] = np.inf if (not np.isfinite(e) or e <= 0.0 or e >= _UNBOUNDED_EFFORT) else e
+    return -upper, upper
