@@ -12,7 +12,7 @@ gravity = true
 [horizon]
 dt = 0.05
 steps = 40
-integrator = "semi_implicit"
+integrator = "{integrator}"
 [[running_costs]]
 type = "control"
 weight = 1e-4
@@ -38,11 +38,11 @@ initial_controls = "hover"
 """
 
 
-def panda_scene(folder: Path, solver: str = "") -> Path:
+def panda_scene(folder: Path, solver: str = "", integrator: str = "semi_implicit") -> Path:
     """Write the scene into ``folder`` (the URDF stays in example-robot-data) and return its path."""
     import example_robot_data
 
     urdf = Path(example_robot_data.load("panda").urdf).resolve()
     path = folder / "panda_reach.toml"
-    path.write_text(SCENE.format(urdf=urdf, solver=solver))
+    path.write_text(SCENE.format(urdf=urdf, solver=solver, integrator=integrator))
     return path
