@@ -55,20 +55,21 @@ class ControlLimits:
     lower: Any = None
     upper: Any = None
 
-    def resolve(self, horizon: int, m: int) -> tuple[np.ndarray, np.ndarray]:
-        """(H, m) float64 lower and upper arrays; InputError naming ``limits.lower`` /
-        ``limits.upper`` for NaN, a wrong length, +inf as a lower or -inf as an upper bound, or
-        lower > upper anywhere."""
-        lo = _bound(self.lower, "limits.lower", horizon, m, -np.inf)
-        hi = _bound(self.upper, "limits.upper", horizon, m, np.inf)
+    def resolve(self, horizon: int, m: int, names: tuple[str, str] = ("limits.lower", "limits.upper")
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """(H, m) float64 lower and upper arrays; InputError naming ``names`` (the lower's, the
+        upper's; a scene passes its keys) for NaN, a wrong length, +inf as a lower or -inf as an
+        upper bound, or lower > upper anywhere (named by the lower's name)."""
+        lo = _bound(self.lower, names[0], horizon, m, -np.inf)
+        hi = _bound(self.upper, names[1], horizon, m, np.inf)
         if np.isposinf(lo).any():
-            raise InputError("limits.lower", "+inf is not a lower bound (use -inf for an unbounded side)")
+            raise InputError(names[0], "+inf is not a lower bound (use -inf for an unbounded side)")
         if np.isneginf(hi).any():
-            raise InputError("limits.upper", "-inf is not an upper bound (use inf for an unbounded side)")
+            raise InputError(names[1], "-inf is not an upper bound (use inf for an unbounded side)")
         bad = lo > hi
         if bad.any():
             k, i = np.argwhere(bad)[0]
-            raise InputError("limits.lower", f"expected lower <= upper, got lower = {lo[k, i]} > upper = {hi[k, i]} "
+            raise InputError(names[0], f"expected lower <= upper, got lower = {lo[k, i]} > upper = {hi[k, i]} "
                              f"at node {k}, input {i}")
         return lo, hi
 

@@ -14,6 +14,7 @@ rollout_closed_loop, expansion, description), so this one class serves both.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -69,6 +70,11 @@ class Problem:
                 raise InputError(name, f"expected costs on the model's tangent space (nx = {self.model.nx}), got nx = {nx}")
         self.limits = as_limits(self.limits)
         self._bounds = None if self.limits is None else self.limits.resolve(self.horizon, self.model.nu)
+
+    def with_limits(self, limits: Any) -> "Problem":
+        """The same problem (model, costs, horizon, initial state shared) with other control limits
+        (any form the ``limits`` attribute takes; None removes them)."""
+        return dataclasses.replace(self, limits=limits)
 
     def control_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(lower, upper), each (H, m) float64 (-inf / inf where unbounded), or None without limits."""
