@@ -277,6 +277,31 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
                       bool second_order, double reg, const double* u_bar, const double* lower, const double* upper,
                       double* k_ff, double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0,
                       double* d1, double* d2) {
+  // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i from the dense tensors (Remark rem:theta)
+  const SecondOrderHook dense = [&](int k, const Eigen::VectorXd& Vx, BoxRowMat& Qxx, BoxRowMat& Qux,
+                                    BoxRowMat& Quu) {
+    const double* Th = Theta + (size_t)k * n * n * n;
+    const double* Ga = Gamma + (size_t)k * n * n * m;
+    const double* X = Xi + (size_t)k * n * m * m;
+    for (int i = 0; i < n; ++i) {
+      const double v = Vx[i];
+      if (v == 0.0) continue;
+      Qxx += v * CMat(Th + (size_t)i * n * n, n, n);
+      Qux += v * CMat(Ga + (size_t)i * n * m, n, m).transpose();
+      Quu += v * CMat(X + (size_t)i * m * m, m, m);
+    }
+  };
+  return backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final,
+                                second_order ? &dense : nullptr, reg, u_bar, lower, upper, k_ff, K_fb, quu_eig,
+                                active, Vx0, Vxx0, d1, d2);
+}
+
+int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                           const double* lu, const double* lxx, const double* lux, const double* luu,
+                           const double* Vx_final, const double* Vxx_final, const SecondOrderHook* second,
+                           double reg, const double* u_bar, const double* lower, const double* upper, double* k_ff,
+                           double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1,
+                           double* d2) {
   // Q blocks as in backward_pass (kept separate so that the unconstrained pass stays untouched).
   Eigen::VectorXd Vx = CVec(Vx_final, n), Qx(n), Qu(m), kk(m), QuuK(m), lo(m), hi(m);
   RowMat Vxx = CMat(Vxx_final, n, n);
@@ -300,18 +325,7 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
     Qux.noalias() += Bk.transpose() * VxxPhi;
     Quu = CMat(luu + (size_t)k * m * m, m, m);
     Quu.noalias() += Bk.transpose() * VxxB;
-    if (second_order) {
-      const double* Th = Theta + (size_t)k * n * n * n;
-      const double* Ga = Gamma + (size_t)k * n * n * m;
-      const double* X = Xi + (size_t)k * n * m * m;
-      for (int i = 0; i < n; ++i) {
-        const double v = Vx[i];
-        if (v == 0.0) continue;
-        Qxx += v * CMat(Th + (size_t)i * n * n, n, n);
-        Qux += v * CMat(Ga + (size_t)i * n * m, n, m).transpose();
-        Quu += v * CMat(X + (size_t)i * m * m, m, m);
-      }
-    }
+    if (second) (*second)(k, Vx, Qxx, Qux, Quu);
     upper_to_full(Qxx);
     upper_to_full(Quu);
     // Regularisation rule: the whole Q_uu + reg I must be positive definite (the caller raises reg

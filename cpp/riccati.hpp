@@ -3,8 +3,13 @@
 // (reads only the upper triangle of the symmetric blocks l_xx, l_uu, Vxx_final, Theta_i, Xi_i).
 #pragma once
 
+#include <Eigen/Core>
+#include <functional>
+
 namespace geoddp {
 namespace ric {
+
+typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> BoxRowMat;
 
 // Shapes (row-major, float64): Phi (H, n, n), B (H, n, m), lx (H, n), lu (H, m), lxx (H, n, n),
 // lux (H, m, n), luu (H, m, m), Vx_final (n), Vxx_final (n, n), and if second_order Theta
@@ -35,6 +40,19 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
                       bool second_order, double reg, const double* u_bar, const double* lower, const double* upper,
                       double* k_ff, double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0,
                       double* d1, double* d2);
+
+// backward_pass_box with the second-order terms supplied by a hook (null: first order): at node
+// k it adds sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] (Vx = V_x' of node k + 1) into
+// Qxx (n, n), Qux (m, n; Gamma_i^T) and Quu (m, m), upper triangles at least. Lets a backend that
+// keeps the second order factored (a contraction with V_x') run the same box pass.
+typedef std::function<void(int k, const Eigen::VectorXd& Vx, BoxRowMat& Qxx, BoxRowMat& Qux, BoxRowMat& Quu)>
+    SecondOrderHook;
+int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                           const double* lu, const double* lxx, const double* lux, const double* luu,
+                           const double* Vx_final, const double* Vxx_final, const SecondOrderHook* second,
+                           double reg, const double* u_bar, const double* lower, const double* upper, double* k_ff,
+                           double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1,
+                           double* d2);
 
 // One box QP: min_x 1/2 x^T Hq x - q^T x over lo <= x <= hi (m,), Hq (m, m) symmetric positive
 // definite, by projected Newton from x (in: warm start, clipped into the box; out: the
