@@ -18,7 +18,8 @@ The floors follow DESIGN.md, mapped onto today's module names. Where the code ta
 * ``data`` (the built-in URDFs and scenes) is on floor 0, not under ``scene/``: the models read
   ``satellite.urdf`` from it.
 * ``reference`` (scipy's L-BFGS on the same problem) is a second solver: floor 3.
-* ``scene_common`` holds what both scene readers share: floor 4, with them.
+* ``multibody_scene`` and ``multibody_scenes`` are the old names of ``scene.multibody`` and
+  ``scene.builtin`` (re-exports): floor 4, with the ``scene`` package.
 * The root package's ``__init__`` is the public facade, floor 6: nothing inside imports it.
 """
 from __future__ import annotations
@@ -57,7 +58,6 @@ FLOORS: dict[str, int] = {
     "geoddp.result": 3,
     "geoddp.reference": 3,
     # 4: scenes (readers, builders, built-in scene builders) and the API
-    "geoddp.scene_common": 4,
     "geoddp.scene": 4,
     "geoddp.multibody_scene": 4,
     "geoddp.multibody_scenes": 4,
@@ -240,10 +240,10 @@ def problems(graph: dict[str, set[str]], floors: dict[str, int]) -> list[str]:
 def test_every_module_is_read():
     """The scan sees the package (so an empty graph cannot pass) and the imports it should."""
     graph = import_graph()
-    assert {"geoddp.cli", "geoddp.scene", "geoddp.multibody_scene", "geoddp.viz.scene", "geoddp.validate",
-            "geoddp.data", "geoddp.scene_common"} <= set(graph)
-    assert "geoddp.multibody_scene" in graph["geoddp.scene"]       # lazy, inside functions
-    assert "geoddp.scene_common" in graph["geoddp.multibody_scene"]
+    assert {"geoddp.cli", "geoddp.scene", "geoddp.scene.reader", "geoddp.multibody_scene", "geoddp.viz.scene",
+            "geoddp.validate", "geoddp.data"} <= set(graph)
+    assert "geoddp.models.multibody" in graph["geoddp.scene.multibody"]  # lazy, inside functions
+    assert "geoddp.scene.reader" in graph["geoddp.scene.multibody"]
     assert "geoddp.validate" in graph["geoddp.data"]
     assert "geoddp.viz" in graph["geoddp.cli"]                     # `from . import viz`, lazy
     assert "geoddp.models.multibody" in graph["geoddp.viz.model"]  # `from ..models.multibody import`

@@ -291,10 +291,11 @@ def test_live_loopback_replay_of_the_full_model(manip):
 
 def test_cli_multibody_view_and_html(monkeypatch, tmp_path, capsys):
     """``geoddp multibody NAME --view --html``: the solved multibody result goes to both."""
-    from geoddp import cli, multibody_scenes
+    from geoddp import cli
+    from geoddp.scene import builtin
 
-    full = multibody_scenes.scene_spec
-    monkeypatch.setattr(multibody_scenes, "scene_spec",
+    full = builtin.scene_spec
+    monkeypatch.setattr(builtin, "scene_spec",
                         lambda name, integrator=None, **kw: full(name, integrator, dt=0.2, horizon=10))
     seen = []
 

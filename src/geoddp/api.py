@@ -5,19 +5,9 @@ import weakref
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from .multibody_scene import MultibodySceneSpec
 from .result import Result
-from .scene import AnySceneSpec, SceneSpec, build_problem, load_scene, solver_options
+from .scene import AnySceneSpec, MultibodySceneSpec, SceneSpec, build_problem, initial_controls, load_scene, solver_options
 from .solver import solve
-
-
-def initial_controls(spec: AnySceneSpec) -> np.ndarray | None:
-    """The scene's (H, m) initial control guess, or None for zeros."""
-    if isinstance(spec, MultibodySceneSpec):
-        return spec.initial_control_sequence()
-    return None if spec.initial_controls is None else np.array(spec.initial_controls)
 
 
 # A spec is frozen, arrays included, and the solver never changes a problem: the problem built

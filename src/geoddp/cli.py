@@ -49,7 +49,7 @@ def _check_outputs(args, inputs) -> None:
 def _parser() -> argparse.ArgumentParser:
     from .data import scene_names
     from .models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
-    from .multibody_scenes import NAMES as MULTIBODY_SCENES
+    from .scene.builtin import NAMES as MULTIBODY_SCENES
     from .solver.options import EXPANSIONS
 
     scene_help = ("scene file (TOML: satellite, or [model] kind = \"multibody\") or a built-in scene's name: "
@@ -86,7 +86,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _multibody(args) -> int:
     """``geoddp multibody NAME``: ``geoddp run NAME`` with an optional integrator override."""
-    from .multibody_scenes import scene_spec
+    from .scene.builtin import scene_spec
 
     # The built-in scene's file, with its initial controls (hover thrust for the quadrotor).
     return _solve_and_report(scene_spec(args.scene, integrator=args.integrator), args)
@@ -105,7 +105,7 @@ def _run(args) -> int:
 
 def _solve_and_report(spec, args) -> int:
     from .api import solve_scene
-    from .multibody_scene import MultibodySceneSpec, terminal_frame_errors
+    from .scene import MultibodySceneSpec, terminal_frame_errors
 
     multibody = isinstance(spec, MultibodySceneSpec)
     if multibody:

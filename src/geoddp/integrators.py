@@ -53,9 +53,14 @@ class Expansion:
     Gamma: np.ndarray | None = None
     Xi: np.ndarray | None = None
 
-    @property
-    def is_second_order(self) -> bool:
-        return self.Theta is not None
+    @classmethod
+    def from_blocks(cls, n: int, G1: np.ndarray, G2: np.ndarray | None = None) -> "Expansion":
+        """Contiguous Phi, B from the Jacobian G1 (H, n, n + m) of zeta+ in (zeta, du), and Theta,
+        Gamma, Xi from its Hessian G2 (H, n, n + m, n + m) if given."""
+        c = np.ascontiguousarray
+        if G2 is None:
+            return cls(c(G1[:, :, :n]), c(G1[:, :, n:]))
+        return cls(c(G1[:, :, :n]), c(G1[:, :, n:]), c(G2[:, :, :n, :n]), c(G2[:, :, :n, n:]), c(G2[:, :, n:, n:]))
 
 
 def expand(
@@ -103,9 +108,8 @@ def expand(
     G1[:, :nv] = dt * JW
     G1[:, :nv, :nv] += A
     G1[:, nv:] = F1
-    e = Expansion(Phi=np.ascontiguousarray(G1[:, :, :n]), B=np.ascontiguousarray(G1[:, :, n:]))
     if F2 is None:
-        return e
+        return Expansion.from_blocks(n, G1)
     # dJr and the bracket vanish on commutative factors and across factors, so both terms are
     # assembled per non-commutative factor s (rows p, a, b in s), on all H nodes at once.
     G2 = np.zeros((H, n, nz, nz))
@@ -127,10 +131,7 @@ def expand(
         # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
         G2[:, :nv] += dt * (Jr @ F2.reshape(H, nv, nz * nz)).reshape(H, nv, nz, nz)
     G2[:, nv:] = F2
-    e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
-    e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
-    e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
-    return e
+    return Expansion.from_blocks(n, G1, G2)
 
 
 def paper_eta_rows(e: Expansion, dt: float, w_bar: np.ndarray) -> None:

@@ -495,19 +495,3 @@ def time_grid(tf: Any, dt: Any, *, tf_name: str = "horizon.tf", dt_name: str = "
         )
     return H
 
-
-class SourceReader:
-    """Base of the scene-file readers: errors that name the file as well as the key."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def err(self, param: str, detail: str) -> InputError:
-        return InputError(param, detail, self.source)
-
-    def check(self, fn: Any, *args: Any, **kw: Any) -> Any:
-        """Run validator ``fn(*args, **kw)``; its error names the file too."""
-        try:
-            return fn(*args, **kw)
-        except InputError as e:
-            raise e.with_source(self.source) from None

@@ -389,9 +389,8 @@ class Multibody:
         data = model.createData()
         jac = lambda q, v, u: rkmk4.step_jacobian(model, data, self.groups, q, v, self.actuation @ u, self.actuation, dt)  # noqa: E731
         G = np.stack([jac(Q[k], V[k], U[k]) for k in range(H)])
-        e = integ.Expansion(Phi=np.ascontiguousarray(G[:, :, :n]), B=np.ascontiguousarray(G[:, :, n:]))
         if order < 2:
-            return e
+            return integ.Expansion.from_blocks(n, G)
         h = FD_STEP
         G2 = np.empty((H, n, nz, nz))
         for k in range(H):
@@ -402,10 +401,7 @@ class Multibody:
                 (qp, vp), (qm, vm) = self.retract(Q[k], V[k], z[:n]), self.retract(Q[k], V[k], -z[:n])
                 D[:, :, j] = (jac(qp, vp, U[k] + z[n:]) - jac(qm, vm, U[k] - z[n:])) / (2.0 * h)
             G2[k] = 0.5 * (D + np.swapaxes(D, 1, 2))
-        e.Theta = np.ascontiguousarray(G2[:, :, :n, :n])
-        e.Gamma = np.ascontiguousarray(G2[:, :, :n, n:])
-        e.Xi = np.ascontiguousarray(G2[:, :, n:, n:])
-        return e
+        return integ.Expansion.from_blocks(n, G, G2)
 
     def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.

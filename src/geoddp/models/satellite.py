@@ -26,20 +26,12 @@ from ..validate import actuation_matrix, choice, finite_array, inertia_matrix, p
 DEFAULT_URDF = data.urdf_path("satellite.urdf")
 
 
-def _build_pinocchio_model(inertia: np.ndarray, urdf: Path | None) -> pin.Model:
-    if urdf is not None:
-        model = pin.buildModelFromUrdf(str(urdf), pin.JointModelSpherical())
-        if model.nv != 3:
-            raise ValueError(f"urdf: expected a single rigid body (nv = 3 with a spherical root), got nv = {model.nv}")
-        mass = model.inertias[1].mass
-    else:
-        model = pin.Model()
-        jid = model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "root_joint")
-        model.appendBodyToJoint(jid, pin.Inertia.Zero(), pin.SE3.Identity())
-        mass = 1.0
-    # The scene's inertia about the centre of mass, which sits at the joint origin.
-    model.inertias[1] = pin.Inertia(mass, np.zeros(3), inertia)
-    model.gravity = pin.Motion.Zero()
+def _one_body(model: pin.Model, inertia: np.ndarray) -> pin.Model:
+    """``model`` (one rigid body on a spherical root) with the scene's inertia about the centre of
+    mass, which sits at the joint origin (the URDF's mass is kept)."""
+    if model.nv != 3:
+        raise ValueError(f"urdf: expected a single rigid body (nv = 3 with a spherical root), got nv = {model.nv}")
+    model.inertias[1] = pin.Inertia(model.inertias[1].mass, np.zeros(3), inertia)
     return model
 
 
@@ -74,13 +66,11 @@ class Satellite:
         self.second_order = choice(self.second_order, "second_order", integ.SECOND_ORDER_KINDS)
         if self.second_order == "paper" and self.integrator != "euler":
             raise ValueError("second_order: 'paper' is derived for integrator 'euler' only")
-        if self.urdf is None:
-            self.urdf = DEFAULT_URDF
-        if self.urdf is not None:
-            self.urdf = Path(self.urdf)
-            if not self.urdf.is_file():
-                raise FileNotFoundError(f"urdf: no such file {self.urdf}")
-        self.pin_model = _build_pinocchio_model(self.inertia, self.urdf)
+        self.urdf = DEFAULT_URDF if self.urdf is None else Path(self.urdf)
+        if not self.urdf.is_file():
+            raise FileNotFoundError(f"urdf: no such file {self.urdf}")
+        self.pin_model = _one_body(pin.buildModelFromUrdf(str(self.urdf), pin.JointModelSpherical()), self.inertia)
+        self.pin_model.gravity = pin.Motion.Zero()
         self.inertia_inv = np.linalg.inv(self.inertia)
 
     @property
@@ -107,7 +97,7 @@ class Satellite:
         (3, 3), actuation (3, m), and as a multibody describes itself: urdf (str), root
         ("spherical"), nq (4), nv (3)."""
         return {"kind": "satellite", "dt": self.dt, "integrator": self.integrator, "inertia": self.inertia.copy(),
-                "actuation": self.actuation.copy(), "urdf": None if self.urdf is None else str(self.urdf),
+                "actuation": self.actuation.copy(), "urdf": str(self.urdf),
                 "root": "spherical", "nq": 4, "nv": 3}
 
     # ------------------------------------------------------------------ dynamics
@@ -184,8 +174,5 @@ def satellite_model(*, inertia, actuation, dt: float, integrator: str = "euler",
     second_order = choice(second_order, "second_order", ("exact",))
     mb = Multibody(DEFAULT_URDF if urdf is None else urdf, root="spherical", actuation=actuation_matrix(actuation, "actuation"),
                    dt=dt, integrator=integrator, gravity=False, second_order=second_order)
-    if mb.nv != 3:
-        raise ValueError(f"urdf: expected a single rigid body (nv = 3 with a spherical root), got nv = {mb.nv}")
-    pm = mb.pin_model
-    pm.inertias[1] = pin.Inertia(pm.inertias[1].mass, np.zeros(3), inertia)
+    _one_body(mb.pin_model, inertia)
     return mb

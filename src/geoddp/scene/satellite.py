@@ -1,0 +1,244 @@
+"""The satellite schema: a TOML scene of one attitude-control problem on TSO(3) (paper Section
+VI), read with the one :class:`~geoddp.scene.reader.Reader` into a frozen :class:`SceneSpec`.
+
+The builder (:mod:`geoddp.scene.build`) translates it into the general problem: the one-body
+model of ``satellite.urdf`` (spherical root, no gravity, the scene's inertia), whose backend is
+chosen by structure (:func:`geoddp.models.satellite.satellite_model`).
+
+Schema (``?`` = optional, with its default)::
+
+    name? = file stem                   description? = ""
+    [model]    kind? = "satellite", inertia (3 numbers or 3x3, kg m^2), actuation? = I_3 (3 x m), urdf? (path)
+    [initial]  exactly one of quaternion (x,y,z,w) | rotation (3x3);
+               angular_velocity? = [0,0,0] (rad/s)
+    [target]   exactly one of rotation | quaternion | euler_intrinsic ([[axis, deg], ...]);
+               angular_velocity? = [0,0,0]
+    [horizon]  tf (s), dt (s), integrator? = "euler" (euler | semi_implicit)
+    [cost]     control (S_u), attitude (S_R or W_R), attitude_kind? = "chordal"
+               (chordal | geodesic), angular_velocity (S_Omega),
+               running_attitude? = 0, running_angular_velocity? = 0
+    [solver]?  expansion? = "switch" (first | second | switch), switch_ratio? = 0.1 in (0, 1),
+               tol? = 1e-8, grad_tol? = 1e-10, max_iter? = 200,
+               second_order? = "exact" (exact | paper), initial_controls? (H x m, default 0)
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import validate as v
+from ..validate import InputError
+from .common import TABLES, CommonSpec, read_common, readonly
+from .reader import Reader, Schema, check_urdf
+
+INTEGRATORS = ("euler", "semi_implicit")
+ATTITUDE_KINDS = ("chordal", "geodesic")
+SECOND_ORDER = ("exact", "paper")
+DEFAULT_INTEGRATOR = "euler"
+DEFAULT_ATTITUDE_KIND = "chordal"
+
+SCHEMA: Schema = {
+    "model": {"kind": False, "inertia": True, "actuation": False, "urdf": False},
+    "initial": {"quaternion": False, "rotation": False, "angular_velocity": False},
+    "target": {"rotation": False, "quaternion": False, "euler_intrinsic": False, "angular_velocity": False},
+    "horizon": {"tf": True, "dt": True, "integrator": False},
+    "cost": {"control": True, "attitude": True, "attitude_kind": False, "angular_velocity": True,
+             "running_attitude": False, "running_angular_velocity": False},
+    **TABLES,
+}
+REQUIRED = ("model", "initial", "target", "horizon", "cost")
+
+
+@dataclass(frozen=True, eq=False)
+class SceneSpec(CommonSpec):
+    """A validated attitude-control problem on TSO(3), as plain values.
+
+    Shapes use m = number of inputs and H = horizon (number of control steps).
+
+    Attributes:
+        name: scene name.
+        description: free text.
+        source: path of the scene file, or ``"<dict>"``.
+        inertia: (3, 3) body inertia in kg m^2, SPD, physically realisable.
+        actuation: (3, m) input-to-body-torque matrix, no zero column.
+        urdf: absolute path of an optional URDF model, or None (must exist; a relative path
+            given directly to the constructor resolves against the current directory).
+        R0: (3, 3) initial attitude (body to world).
+        Omega0: (3,) initial body angular velocity in rad/s.
+        Rd: (3, 3) target attitude.
+        Omegad: (3,) target body angular velocity in rad/s.
+        tf: final time in seconds.
+        dt: time step in seconds.
+        horizon: H = tf / dt (derived; an integer).
+        integrator: "euler" | "semi_implicit".
+        S_u: (m, m) SPD control weight.
+        S_R: (3, 3) PSD terminal attitude weight (S_R for chordal, W_R for geodesic).
+        attitude_kind: "chordal" | "geodesic".
+        S_Omega: (3, 3) PSD terminal angular-velocity weight.
+        running_S_R: (3, 3) PSD attitude weight applied at every running step.
+        running_S_Omega: (3, 3) PSD angular-velocity weight applied at every running step.
+        initial_controls: (H, m) initial control guess, or None for zeros.
+        expansion, switch_ratio, tol, grad_tol, max_iter, second_order: the ``[solver]`` table
+            (:class:`~geoddp.scene.common.CommonSpec`).
+
+    Constructing a SceneSpec (directly, via :meth:`with_overrides` or :func:`parse_scene`)
+    validates every field; array fields are stored as read-only float64 copies.
+    """
+
+    name: str
+    description: str
+    source: str
+    inertia: np.ndarray
+    actuation: np.ndarray
+    urdf: Path | None
+    R0: np.ndarray
+    Omega0: np.ndarray
+    Rd: np.ndarray
+    Omegad: np.ndarray
+    tf: float
+    dt: float
+    horizon: int
+    integrator: str
+    S_u: np.ndarray
+    S_R: np.ndarray
+    attitude_kind: str
+    S_Omega: np.ndarray
+    running_S_R: np.ndarray
+    running_S_Omega: np.ndarray
+    initial_controls: np.ndarray | None = None
+
+    kind = "satellite"
+
+    def __post_init__(self) -> None:
+        # Validate with field names as parameter names; the parser has already checked the
+        # same values under their TOML key paths, so these only fire for direct construction
+        # and for with_overrides().
+        put = lambda k, val: object.__setattr__(self, k, val)  # noqa: E731  (frozen dataclass)
+        for k in ("name", "description", "source"):
+            if not isinstance(getattr(self, k), str):
+                raise InputError(k, f"expected a string, got {getattr(self, k)!r}")
+        put("inertia", readonly(v.inertia_matrix(self.inertia, "inertia")))
+        put("actuation", readonly(v.actuation_matrix(self.actuation, "actuation")))
+        m = self.actuation.shape[1]
+        if self.urdf is not None:
+            put("urdf", check_urdf(self.urdf, "urdf", Path.cwd()))
+        put("R0", readonly(v.rotation_matrix(self.R0, "R0")))
+        put("Omega0", readonly(v.finite_array(self.Omega0, "Omega0", shape=(3,))))
+        put("Rd", readonly(v.rotation_matrix(self.Rd, "Rd")))
+        put("Omegad", readonly(v.finite_array(self.Omegad, "Omegad", shape=(3,))))
+        H = v.time_grid(self.tf, self.dt, tf_name="tf", dt_name="dt")
+        put("tf", float(self.tf))
+        put("dt", float(self.dt))
+        h = v.positive_int(self.horizon, "horizon")
+        if h != H:
+            raise InputError("horizon", f"expected tf / dt = {H} (it is derived from tf and dt), got {h}")
+        put("integrator", v.choice(self.integrator, "integrator", INTEGRATORS))
+        put("S_u", readonly(v.spd_matrix(self.S_u, "S_u", m)))
+        for k in ("S_R", "S_Omega", "running_S_R", "running_S_Omega"):
+            put(k, readonly(v.spd_matrix(getattr(self, k), k, 3, semidefinite=True)))
+        put("attitude_kind", v.choice(self.attitude_kind, "attitude_kind", ATTITUDE_KINDS))
+        self._check_common(SECOND_ORDER, m)
+        if self.initial_controls is not None:
+            put("initial_controls", readonly(v.finite_array(self.initial_controls, "initial_controls", shape=(H, m))))
+
+    @property
+    def num_inputs(self) -> int:
+        """m, the number of control inputs (columns of the actuation matrix)."""
+        return int(self.actuation.shape[1])
+
+    def initial_control_sequence(self) -> np.ndarray | None:
+        """(H, m) initial guess for the solver, or None for zeros."""
+        return None if self.initial_controls is None else np.array(self.initial_controls)
+
+    def with_overrides(self, **overrides: Any) -> "SceneSpec":
+        """A copy with some fields replaced and the result re-validated.
+
+        ``horizon`` is derived: override ``tf`` and/or ``dt`` instead and it is recomputed.
+        Errors name the field (e.g. ``expansion: expected one of first | second | switch``).
+
+        Example: ``spec.with_overrides(expansion="second", max_iter=50)``.
+        """
+        fields = [f.name for f in dataclasses.fields(self)]
+        for k in overrides:
+            if k not in fields:
+                guess = v.closest(k, fields)
+                hint = f"; did you mean {guess!r}?" if guess else ""
+                raise InputError(k, f"unknown SceneSpec field{hint}")
+        if "horizon" in overrides:
+            raise InputError("horizon", "is derived from tf / dt; override tf or dt instead")
+        if "tf" in overrides or "dt" in overrides:
+            tf = overrides.get("tf", self.tf)
+            dt = overrides.get("dt", self.dt)
+            overrides["horizon"] = v.time_grid(tf, dt, tf_name="tf", dt_name="dt")
+        return dataclasses.replace(self, **overrides)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, SceneSpec):
+            return NotImplemented
+        for f in dataclasses.fields(self):
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+                if not (isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and np.array_equal(a, b)):
+                    return False
+            elif a != b:
+                return False
+        return True
+
+    __hash__ = None  # type: ignore[assignment]  # holds arrays; equality is by value
+
+
+def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: str) -> SceneSpec:
+    """Validate a parsed satellite scene into a :class:`SceneSpec`; errors name the key path."""
+    r = Reader(data, source, SCHEMA, required=REQUIRED)
+    r.top()
+    name = r.string(data.get("name", default_name), "name")
+    description = r.string(data.get("description", ""), "description")
+
+    model = r.table("model")
+    inertia = r.check(v.inertia_matrix, model["inertia"], "[model].inertia")
+    act = r.check(v.actuation_matrix, model["actuation"], "[model].actuation") if "actuation" in model else np.eye(3)
+    m = act.shape[1]
+    urdf = r.check(check_urdf, model["urdf"], "[model].urdf", base_dir) if "urdf" in model else None
+
+    zero3 = [0.0, 0.0, 0.0]
+    initial = r.table("initial")
+    R0 = r.rotation(initial, "[initial]", ("quaternion", "rotation"))
+    Omega0 = r.check(v.finite_array, initial.get("angular_velocity", zero3), "[initial].angular_velocity", shape=(3,))
+    target = r.table("target")
+    Rd = r.rotation(target, "[target]", ("rotation", "quaternion", "euler_intrinsic"))
+    Omegad = r.check(v.finite_array, target.get("angular_velocity", zero3), "[target].angular_velocity", shape=(3,))
+
+    horizon = r.table("horizon")
+    H = r.check(v.time_grid, horizon["tf"], horizon["dt"], tf_name="[horizon].tf", dt_name="[horizon].dt")
+    integrator = r.check(v.choice, horizon.get("integrator", DEFAULT_INTEGRATOR), "[horizon].integrator", INTEGRATORS)
+
+    cost = r.table("cost")
+
+    def weight(key: str, n: int, semidefinite: bool = True, default: Any = None) -> np.ndarray:
+        return r.weight(cost.get(key, default), f"[cost].{key}", n, semidefinite=semidefinite)
+
+    S_u = weight("control", m, semidefinite=False)
+    S_R = weight("attitude", 3)
+    attitude_kind = r.check(v.choice, cost.get("attitude_kind", DEFAULT_ATTITUDE_KIND), "[cost].attitude_kind",
+                            ATTITUDE_KINDS)
+    S_Omega = weight("angular_velocity", 3)
+    running_S_R = weight("running_attitude", 3, default=0.0)
+    running_S_Omega = weight("running_angular_velocity", 3, default=0.0)
+
+    common = read_common(r, SECOND_ORDER, m)
+    solver = r.table("solver")
+    U0 = None
+    if "initial_controls" in solver:
+        U0 = r.check(v.finite_array, solver["initial_controls"], "[solver].initial_controls", shape=(H, m))
+
+    return SceneSpec(
+        name=name, description=description, source=source, inertia=inertia, actuation=act, urdf=urdf,
+        R0=R0, Omega0=Omega0, Rd=Rd, Omegad=Omegad, tf=float(horizon["tf"]), dt=float(horizon["dt"]), horizon=H,
+        integrator=integrator, S_u=S_u, S_R=S_R, attitude_kind=attitude_kind, S_Omega=S_Omega,
+        running_S_R=running_S_R, running_S_Omega=running_S_Omega, initial_controls=U0, **common,
+    )
