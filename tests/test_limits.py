@@ -368,3 +368,32 @@ def test_effort_limits_from_the_urdf():
     with pytest.raises(InputError) as e:
         effort_limits(q.model.pin_model.effortLimit, q.model.actuation)
     assert e.value.parameter == "[limits].effort_limits" and "input 0" in str(e.value)
+
+
+def test_inactive_limits_bit_for_bit_on_a_multibody_model(monkeypatch):
+    """The same on the quadrotor (compiled multibody rollout with its clamp, C++ passes): thrust
+    bounds of +-1e5 N that no iterate or full step reaches (the first full Newton step from hover
+    asks for more than 1000 N; the line search cuts it)."""
+    import geoddp.solver.backward as bw
+
+    q = scenes.quadrotor(integrator="semi_implicit")
+    U0 = scenes.hover_controls(q)
+    r0 = solve(q, opts(), initial_controls=U0)
+    calls = []
+    box = bw._core.backward_pass_box
+
+    class Core:
+        backward_pass = bw._core.backward_pass
+
+        @staticmethod
+        def backward_pass_box(*a):
+            calls.append(1)
+            return box(*a)
+
+    monkeypatch.setattr(bw, "_core", Core)
+    r1 = solve(q.with_limits((-1e5, 1e5)), opts(), initial_controls=U0)
+    assert not calls
+    assert r1.cost == r0.cost and r1.iterations == r0.iterations
+    np.testing.assert_array_equal(r1.control_history, r0.control_history)
+    for key in ("cost_history", "grad_norm_history", "reg_history", "step_history"):
+        np.testing.assert_array_equal(getattr(r1, key), getattr(r0, key))

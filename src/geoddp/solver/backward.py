@@ -55,10 +55,11 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
     """One backward pass with Q_uu + reg I; gains into ws.k, ws.K.
 
     With control limits (ws.bounds; ``u_bar`` (H, m) the nominal controls) the unconstrained pass
-    runs first: when it factorises and every full-step control u_bar_k - k_k lies in the box, each
-    node's box QP has that unconstrained minimiser as its solution (a strictly convex QP whose
-    unconstrained minimiser is feasible) and the value functions coincide, so its gains are the
-    box pass's, bit for bit the unconstrained solver's (inactive limits change nothing). The
+    runs first: when every full-step control u_bar_k - k_k of the nodes it solved lies in the box,
+    each of those nodes' box QP has that unconstrained minimiser as its solution (a strictly convex
+    QP whose unconstrained minimiser is feasible) and the value functions coincide, so its gains
+    (or its failure at a node where Q_uu + reg I is not positive definite) are the box pass's, bit
+    for bit the unconstrained solver's (inactive limits change nothing). The
     unconstrained attempt is skipped while the last box pass had inputs on a bound. Otherwise
     the compiled box pass (geoddp._core.backward_pass_box, cpp/riccati.cpp, for every model)
     recomputes the gains: box QP per node by projected Newton, warm-started from its previous
@@ -79,12 +80,16 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
         )
         if ws.bounds is None:
             return out
-        if out[0] < 0:
-            u_full = u_bar - ws.k
-            lower, upper = ws.bounds
-            if np.all((u_full >= lower) & (u_full <= upper)):  # NaN fails the test: the box pass decides
+        # nodes failed+1 .. H-1 were solved (all of them on success): if every full-step control
+        # there is inside the box, the box pass would compute exactly these nodes and stop at the
+        # same node (the same whole-Q_uu rule), so this outcome is the box pass's
+        done = slice(out[0] + 1, None)
+        u_full = u_bar[done] - ws.k[done]
+        lower, upper = ws.bounds
+        if np.all((u_full >= lower[done]) & (u_full <= upper[done])):  # NaN fails: the box pass decides
+            if out[0] < 0:
                 ws.k_box[:] = ws.k
-                return out
+            return out
     lower, upper = ws.bounds
     ws.k[:] = ws.k_box  # warm start of every node's box QP
     out = _core.backward_pass_box(
