@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "lie.hpp"
+#include "pool.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -53,38 +54,29 @@ int default_threads() {
   return hc == 0 ? 1 : (int)std::min(hc, 2u);
 }
 
-// The default for a pass: a first-order node costs 1.5-5 us, about the price of starting a
-// thread, so first-order passes run on one worker (measured: 0.34 ms with one, 0.41 ms with two
-// on the quadrotor's 150 nodes); second-order passes use default_threads().
-static int pass_threads(int threads, int order) {
-  if (threads > 0) return threads;
-  return order >= 2 ? default_threads() : 1;
-}
+// The default for a pass: default_threads() workers of the persistent pool (cpp/pool.hpp), but at
+// least MIN_NODES_PER_WORKER nodes each (a first-order node costs 1.5-5 us; waking a pooled worker
+// costs about as much as one node, starting a std::thread ~10 nodes, which is why first-order
+// passes ran on one thread before the pool).
+static const int MIN_NODES_PER_WORKER = 16;
 
-// Runs fn(begin, end, worker) on contiguous chunks of [0, N) with up to `threads` workers.
+// Runs fn(begin, end, worker) on contiguous chunks of [0, N) with `threads` workers (<= 0: the
+// default above). The
+// chunks depend only on N and the worker count, and each node's arithmetic is the same on any
+// worker, so results do not depend on the number of threads (tested).
 template <typename Fn>
 static void parallel_for(int N, int threads, Fn fn) {
-  int T = threads <= 0 ? default_threads() : threads;
+  int T = threads > 0 ? threads : std::min(default_threads(), std::max(1, N / MIN_NODES_PER_WORKER));
   T = std::max(1, std::min(T, N));
   if (T == 1) {
     fn(0, N, 0);
     return;
   }
-  std::vector<std::thread> pool;
-  std::vector<std::exception_ptr> errors(T);
-  for (int t = 0; t < T; ++t) {
+  const std::function<void(int)> task = [&](int t) {
     const int b = (int)((long)N * t / T), e = (int)((long)N * (t + 1) / T);
-    pool.emplace_back([&, b, e, t]() {
-      try {
-        fn(b, e, t);
-      } catch (...) {
-        errors[t] = std::current_exception();
-      }
-    });
-  }
-  for (auto& th : pool) th.join();
-  for (auto& err : errors)
-    if (err) std::rethrow_exception(err);
+    fn(b, e, t);
+  };
+  WorkerPool::get().run(T, task);
 }
 
 static inline bool all_finite(const Eigen::VectorXd& x) { return x.allFinite(); }
@@ -330,7 +322,7 @@ void velocity_derivatives(const Setup& s, const double* Q, const double* V, cons
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, nz = 2 * nv + m;
   CMatMap Hm(s.H, nv, m);
-  parallel_for(N, pass_threads(threads, order), [&](int b, int e, int) {
+  parallel_for(N, threads, [&](int b, int e, int) {
     NodeWork w(model, m);
     for (int k = b; k < e; ++k) {
       w.q = CVecMap(Q + (size_t)k * nq, nq);
@@ -389,7 +381,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   lie::so3_structure(C3);
   lie::se3_structure(C6);
   CMatMap Hm(s.H, nv, m);
-  parallel_for(N, pass_threads(threads, order), [&](int b0, int e0, int) {
+  parallel_for(N, threads, [&](int b0, int e0, int) {
     NodeWork w(model, m);
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
     RowMat A(nv, nv), Jr(nv, nv), G2(order >= 2 ? n : 0, (Eigen::Index)nz * nz);
@@ -488,6 +480,121 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
         }
         for (int a = 0; a < m; ++a)
           for (int c = 0; c < m; ++c) X[((size_t)i * m + a) * m + c] = g2[(size_t)(n + a) * nz + n + c];
+      }
+    }
+  });
+}
+
+}  // namespace dyn
+}  // namespace geoddp
+
+namespace geoddp {
+namespace dyn {
+
+// ------------------------------------------------------------------ factored second order
+void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bool semi_) {
+  N = N_;
+  nv = model.nv;
+  m = m_;
+  dt = dt_;
+  semi = semi_;
+  groups.clear();
+  for (const JointGroup& g : joint_groups(model))
+    if (g.kind == SO3 || g.kind == SE3) groups.push_back(g);
+  const int nz = 2 * nv + m;
+  gJ = gD = gM = 0;
+  for (const JointGroup& g : groups) {
+    gJ += g.nv * g.nv;
+    gD += g.nv * g.nv * g.nv;
+    gM += g.nv * g.nv * nz;
+  }
+  const size_t n3 = (size_t)N * nv * nv * nv;
+  for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
+  Minv.resize((size_t)N * nv * nv);
+  az.resize((size_t)N * nv * nz);
+  F1.resize((size_t)N * nv * nz);
+  Jr.resize((size_t)N * gJ);
+  Dsym.resize((size_t)N * gD);
+  Mrec.resize((size_t)N * gM);
+}
+
+// Per node: the first-order part exactly as expansion() computes it (same expressions, so Phi and
+// B are bitwise those of order 1), then RNEA's second-order tensors and the reconstruction's group
+// blocks copied into `t` instead of being assembled into Theta, Gamma, Xi.
+void expansion_contracted(const Setup& s, const double* Q, const double* V, const double* U, int N, int threads,
+                          double* Phi, double* B, SecondOrderTerms& t) {
+  const Model& model = *s.model;
+  const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv, nz = n + m;
+  const double dt = s.dt;
+  const bool semi = s.integrator == SEMI_IMPLICIT;
+  t.resize(model, m, N, dt, semi);
+  const std::vector<JointGroup> groups = joint_groups(model);
+  lie::Mat3 C3[3];
+  lie::Mat6 C6[6];
+  lie::so3_structure(C3);
+  lie::se3_structure(C6);
+  CMatMap Hm(s.H, nv, m);
+  const size_t n3 = (size_t)nv * nv * nv;
+  parallel_for(N, threads, [&](int b0, int e0, int) {
+    NodeWork w(model, m);
+    RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
+    RowMat A(nv, nv), Jr(nv, nv), Ds, Cp, Mz;
+    std::vector<double> Dt((size_t)nv * nv * nv);
+    Eigen::VectorXd omega(nv);
+    for (int k = b0; k < e0; ++k) {
+      w.q = CVecMap(Q + (size_t)k * nq, nq);
+      w.v = CVecMap(V + (size_t)k * nv, nv);
+      w.tau = Hm * CVecMap(U + (size_t)k * m, m);
+      node_derivatives(s, w, F1.data(), false);
+      omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
+      block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
+      if (semi) {
+        W1 = F1;
+      } else {
+        W1.setZero();
+        W1.middleCols(nv, nv).setIdentity();
+      }
+      JW.noalias() = Jr * W1;
+      G1.topRows(nv) = dt * JW;
+      G1.topLeftCorner(nv, nv) += A;
+      G1.bottomRows(nv) = F1;
+      MatMap(Phi + (size_t)k * n * n, n, n) = G1.leftCols(n);
+      MatMap(B + (size_t)k * n * m, n, m) = G1.rightCols(m);
+      // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses them
+      pinocchio::ComputeRNEASecondOrderDerivatives(model, w.data, w.q, w.v, w.a);
+      std::copy(w.data.d2tau_dqdq.data(), w.data.d2tau_dqdq.data() + n3, t.Iqq.data() + k * n3);
+      std::copy(w.data.d2tau_dvdv.data(), w.data.d2tau_dvdv.data() + n3, t.Ivv.data() + k * n3);
+      std::copy(w.data.d2tau_dqdv.data(), w.data.d2tau_dqdv.data() + n3, t.Iqv.data() + k * n3);
+      std::copy(w.data.d2tau_dadq.data(), w.data.d2tau_dadq.data() + n3, t.dM.data() + k * n3);
+      MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
+      MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);
+      azk.leftCols(nv) = w.aq;
+      azk.middleCols(nv, nv) = w.av;
+      azk.rightCols(m) = w.au;
+      MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
+      // the reconstruction's group blocks
+      double* jr = t.Jr.data() + (size_t)k * t.gJ;
+      double* dsym = t.Dsym.data() + (size_t)k * t.gD;
+      double* mrec = t.Mrec.data() + (size_t)k * t.gM;
+      for (const JointGroup& g : groups) {
+        if (g.kind != SO3 && g.kind != SE3) continue;
+        const int o = g.idx_v, d = g.nv;
+        MatMap(jr, d, d) = Jr.block(o, o, d, d);
+        jr += d * d;
+        const auto JWs = JW.middleRows(o, d);
+        const auto As = A.block(o, o, d, d);
+        for (int p = 0; p < d; ++p) {
+          for (int a = 0; a < d; ++a)
+            for (int c = 0; c < d; ++c)
+              dsym[(size_t)(p * d + a) * d + c] = 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] +
+                                                         Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
+          if (g.kind == SO3) Cp = C3[p]; else Cp = C6[p];
+          Ds.noalias() = As.transpose().lazyProduct(Cp);
+          Mz.noalias() = (0.5 * dt) * Ds.lazyProduct(JWs);
+          MatMap(mrec + (size_t)p * d * nz, d, nz) = Mz;
+        }
+        dsym += d * d * d;
+        mrec += d * d * nz;
       }
     }
   });

@@ -13,6 +13,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Core>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -70,14 +71,54 @@ void velocity_derivatives(const Setup& s, const double* Q, const double* V, cons
 void expansion(const Setup& s, const double* Q, const double* V, const double* U, int N, int order,
                int threads, double* Phi, double* B, double* Theta, double* Gamma, double* Xi);
 
+// The second-order terms of the expansion kept in factored form, for contraction with V_x' in the
+// backward pass (cpp/contracted.hpp) instead of forming Theta, Gamma, Xi (n^3 + n^2 m + n m^2 per
+// node). Per node k (blocks of N nodes, each array node-major):
+//   Iqq, Ivv, Iqv, dM (nv^3 each): Pinocchio's d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq at
+//     (q_k, v_k, a_k), column-major as Pinocchio stores them (see node_derivatives in dynamics.cpp);
+//   Minv (nv, nv) full, az (nv, nz) = [ddq_dq ddq_dv Minv H], F1 (nv, nz) the velocity Jacobian,
+//   all row-major;
+//   per SO(3)/SE(3) joint group g (offset o, dimension d), in the order of `groups`:
+//     Jr (d, d): the reconstruction's right Jacobian block at dt w_bar;
+//     Dsym (d, d, d): [p][a][c] = sym_(a,c) dJr[p, a] / d omega_c (the 1/2 dJr[rho] rho term);
+//     Mrec (d, d, nz): [p] = dt/2 A_s^T C_p Jr_s W_s (the 1/2 [A eta, Jr rho] term; C_p the
+//     structure constants, W_s the group's rows of the velocity increment's Jacobian).
+// An uninitialised float64 buffer: every entry is written before it is read, and zeroing
+// megabytes per linearisation (4 nv^3 per node) cost as much as filling them.
+struct Buffer {
+  std::unique_ptr<double[]> p;
+  size_t n = 0;
+  void resize(size_t k) {
+    if (k != n) p.reset(k ? new double[k] : nullptr), n = k;
+  }
+  double* data() { return p.get(); }
+  const double* data() const { return p.get(); }
+  size_t size() const { return n; }
+};
+
+struct SecondOrderTerms {
+  int N = 0, nv = 0, m = 0;
+  double dt = 0.0;
+  bool semi = false;
+  std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
+  int gJ = 0, gD = 0, gM = 0;      // per-node sizes of the group blocks
+  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, Mrec;
+  int nz() const { return 2 * nv + m; }
+  void resize(const Model& model, int m_, int N_, double dt_, bool semi_);
+};
+
+// Phi (N, n, n), B (N, n, m) exactly as expansion(order=1), and the factored second-order terms.
+void expansion_contracted(const Setup& s, const double* Q, const double* V, const double* U, int N, int threads,
+                          double* Phi, double* B, SecondOrderTerms& terms);
+
 // Reconstruction blocks at omega (nv): Ad_exp(-omega) and Jr(omega), each (nv, nv) row-major
 // (geoddp.configuration.block_Ad_Jr), and D (nv, nv, nv) with D[i, j, l] = d Jr[i, j] / d omega_l
 // (geoddp.configuration.second_order_tensors' D, exact).
 void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* omega, double* A, double* Jr,
                  double* D);
 
-// Worker threads of a second-order pass when threads <= 0 ("default"); first-order passes then
-// run on one (per-node work is below a thread's start-up cost).
+// Worker threads of a pass when threads <= 0 ("default"): min(cores, 2), and at least 16 nodes
+// per worker (workers come from a persistent pool, cpp/pool.hpp).
 int default_threads();
 
 }  // namespace dyn

@@ -10,12 +10,14 @@
 
 #include <string>
 
+#include "contracted.hpp"
 #include "dynamics.hpp"
 #include "pin_model.hpp"
 #include "riccati.hpp"
 
 namespace geoddp {
 void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
+void bind_contracted(pybind11::module_& m);  // contracted_bindings.cpp
 }
 
 namespace py = pybind11;
@@ -292,6 +294,67 @@ PYBIND11_MODULE(_core, m) {
       "node 0); returns (failed node or -1, d1, d2).");
 
   m.def(
+      "backward_pass_box_contracted",
+      [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
+         const Arr& Vx_final, const Arr& Vxx_final, const geoddp::dyn::SecondOrderTerms& terms, double reg,
+         const Arr& u_bar, const Arr& lower, const Arr& upper, py::array_t<double> k_ff, py::array_t<double> K_fb,
+         py::array_t<double> quu_eig, py::array_t<signed char> active, py::array_t<double> Vx0,
+         py::array_t<double> Vxx0) -> py::tuple {
+        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
+        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
+        if (terms.N != H || 2 * terms.nv != n || terms.m != mm) throw py::value_error("terms: wrong sizes");
+        check_shape(Phi, {H, n, n}, "Phi");
+        check_shape(B, {H, n, mm}, "B");
+        check_shape(lx, {H, n}, "lx");
+        check_shape(lu, {H, mm}, "lu");
+        check_shape(lxx, {H, n, n}, "lxx");
+        check_shape(lux, {H, mm, n}, "lux");
+        check_shape(luu, {H, mm, mm}, "luu");
+        check_shape(Vx_final, {n}, "Vx_final");
+        check_shape(Vxx_final, {n, n}, "Vxx_final");
+        check_shape(u_bar, {H, mm}, "u_bar");
+        check_shape(lower, {H, mm}, "lower");
+        check_shape(upper, {H, mm}, "upper");
+        for (auto* o : {&k_ff, &K_fb, &quu_eig, &Vx0, &Vxx0})
+          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
+        if (!(active.flags() & py::array::c_style) || !active.writeable()) throw py::value_error("active: expected a writeable C-contiguous int8 array");
+        if (k_ff.ndim() != 2 || k_ff.shape(0) != H || k_ff.shape(1) != mm) throw py::value_error("k_ff: wrong shape");
+        if (K_fb.ndim() != 3 || K_fb.shape(0) != H || K_fb.shape(1) != mm || K_fb.shape(2) != n) throw py::value_error("K_fb: wrong shape");
+        if (quu_eig.ndim() != 1 || quu_eig.shape(0) != H) throw py::value_error("quu_eig: wrong shape");
+        if (active.ndim() != 2 || active.shape(0) != H || active.shape(1) != mm) throw py::value_error("active: wrong shape");
+        if (Vx0.ndim() != 1 || Vx0.shape(0) != n) throw py::value_error("Vx0: wrong shape");
+        if (Vxx0.ndim() != 2 || Vxx0.shape(0) != n || Vxx0.shape(1) != n) throw py::value_error("Vxx0: wrong shape");
+        double d1 = 0.0, d2 = 0.0;
+        int failed;
+        {
+          py::gil_scoped_release nogil;
+          const int nn = (int)n, m_ = (int)mm;
+          geoddp::ctr::RowMat S;
+          // S = sum_i V_x'_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] from the factors (ctr::contract)
+          const geoddp::ric::SecondOrderHook hook = [&](int k, const Eigen::VectorXd& Vx, geoddp::ric::BoxRowMat& Qxx,
+                                                        geoddp::ric::BoxRowMat& Qux, geoddp::ric::BoxRowMat& Quu) {
+            geoddp::ctr::contract(terms, k, Vx.data(), S);
+            Qxx += S.topLeftCorner(nn, nn);
+            Qux += S.bottomLeftCorner(m_, nn);
+            Quu += S.bottomRightCorner(m_, m_);
+          };
+          failed = geoddp::ric::backward_pass_box_hook(
+              (int)H, nn, m_, Phi.data(), B.data(), lx.data(), lu.data(), lxx.data(), lux.data(), luu.data(),
+              Vx_final.data(), Vxx_final.data(), &hook, reg, u_bar.data(), lower.data(), upper.data(),
+              k_ff.mutable_data(), K_fb.mutable_data(), quu_eig.mutable_data(), active.mutable_data(),
+              Vx0.mutable_data(), Vxx0.mutable_data(), &d1, &d2);
+        }
+        return py::make_tuple(failed, d1, d2);
+      },
+      py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lxx"), py::arg("lux"), py::arg("luu"),
+      py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("terms"), py::arg("reg"), py::arg("u_bar"),
+      py::arg("lower"), py::arg("upper"), py::arg("k_ff").noconvert(), py::arg("K_fb").noconvert(),
+      py::arg("quu_eig").noconvert(), py::arg("active").noconvert(), py::arg("Vx0").noconvert(),
+      py::arg("Vxx0").noconvert(),
+      "backward_pass_box with the second order factored (SecondOrderTerms, contracted with V_x' at each node, "
+      "as backward_pass_contracted does); same outputs.");
+
+  m.def(
       "box_qp",
       [](const Arr& Hq, const Arr& q, const Arr& lo, const Arr& hi, const Arr& x0) -> py::tuple {
         if (q.ndim() != 1) throw py::value_error("q: expected (m,)");
@@ -312,4 +375,5 @@ PYBIND11_MODULE(_core, m) {
       "int8: -1 lower, +1 upper, 0 free, iterations or -1 if H is not positive definite on a free set).");
 
   geoddp::bind_costs(m);  // cost terms: cost_frame_term, cost_state_regularisation, ...
+  geoddp::bind_contracted(m);  // SecondOrderTerms, expansion_contracted, backward_pass_contracted
 }

@@ -62,7 +62,13 @@ def test_builtin_scene_problem_satisfies_the_contract(path, rng):
         assert isinstance(lin, Linearisation) and lin.order == order
         shapes = dict(Phi=(H, nx, nx), B=(H, nx, m), l_x=(H, nx), l_u=(H, m), l_xx=(H, nx, nx),
                       l_ux=(H, m, nx), l_uu=(H, m, m), lf_x=(nx,), lf_xx=(nx, nx))
-        if order == 2:
+        if order == 2 and lin.second_order is not None:
+            # factored second order (compiled multibody): no tensors; the contraction has the
+            # Q-function's shape (its values: tests/test_core_contracted.py)
+            assert lin.Theta is None and lin.Gamma is None and lin.Xi is None
+            S = lin.second_order.contract(H - 1, np.ones(nx))
+            assert S.shape == (nx + m, nx + m) and np.all(np.isfinite(S))
+        elif order == 2:
             shapes.update(Theta=(H, nx, nx, nx), Gamma=(H, nx, nx, m), Xi=(H, nx, m, m))
         else:
             assert lin.Theta is None and lin.Gamma is None and lin.Xi is None

@@ -212,25 +212,34 @@ def test_lbfgsb_on_the_single_shooting_cost_agrees(table1, lim):
     assert res.fun >= J_ddp * (1 - 1e-12)  # ours is not worse
 
 
+def _count_box_passes(monkeypatch) -> list:
+    """Replace the solver's compiled module by one that counts its box passes (dense and
+    contracted); returns the list that grows by one per call."""
+    import geoddp.solver.backward as bw
+
+    real, calls = bw._core, []
+
+    class Core:
+        def __getattr__(self, name):
+            fn = getattr(real, name)
+            if not name.startswith("backward_pass_box"):
+                return fn
+
+            def counted(*a):
+                calls.append(name)
+                return fn(*a)
+            return counted
+
+    monkeypatch.setattr(bw, "_core", Core())
+    return calls
+
+
 def test_inactive_limits_give_the_unconstrained_solution_bit_for_bit(monkeypatch):
     """Limits that neither an iterate nor a full Newton step of the unconstrained solve reaches
     (its first full step overshoots to ~50 N m, so the bounds sit at -100 / +100.5, with unbounded
     holes): the box pass never runs (counted) and every number is the unconstrained one."""
-    import geoddp.solver.backward as bw
-
     r0 = solve(paper_problem(), opts())
-    calls = []
-    box = bw._core.backward_pass_box
-
-    class Core:  # the compiled module with the box pass counted
-        backward_pass = bw._core.backward_pass
-
-        @staticmethod
-        def backward_pass_box(*a):
-            calls.append(1)
-            return box(*a)
-
-    monkeypatch.setattr(bw, "_core", Core)
+    calls = _count_box_passes(monkeypatch)
     H = 300
     lo = np.full((H, 3), -100.0)
     lo[::7, 1] = -np.inf
@@ -374,23 +383,10 @@ def test_inactive_limits_bit_for_bit_on_a_multibody_model(monkeypatch):
     """The same on the quadrotor (compiled multibody rollout with its clamp, C++ passes): thrust
     bounds of +-1e5 N that no iterate or full step reaches (the first full Newton step from hover
     asks for more than 1000 N; the line search cuts it)."""
-    import geoddp.solver.backward as bw
-
     q = scenes.quadrotor(integrator="semi_implicit")
     U0 = scenes.hover_controls(q)
     r0 = solve(q, opts(), initial_controls=U0)
-    calls = []
-    box = bw._core.backward_pass_box
-
-    class Core:
-        backward_pass = bw._core.backward_pass
-
-        @staticmethod
-        def backward_pass_box(*a):
-            calls.append(1)
-            return box(*a)
-
-    monkeypatch.setattr(bw, "_core", Core)
+    calls = _count_box_passes(monkeypatch)
     r1 = solve(q.with_limits((-1e5, 1e5)), opts(), initial_controls=U0)
     assert not calls
     assert r1.cost == r0.cost and r1.iterations == r0.iterations

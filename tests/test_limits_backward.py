@@ -225,3 +225,55 @@ def test_box_pass_equals_unconstrained_pass_with_infinite_bounds():
         np.testing.assert_allclose(k2, k1, rtol=1e-9, atol=1e-11)
         np.testing.assert_allclose(K2, K1, rtol=1e-9, atol=1e-11)
         np.testing.assert_allclose(f2[1:], f1[1:], rtol=1e-10)
+
+
+def test_contracted_box_pass_equals_the_dense_one():
+    """A compiled multibody model keeps its second order factored (contracted with V_x' in the
+    pass): the box pass over the factors equals the box pass over the formed tensors
+    (Linearisation.tensors()) on the quadrotor with thrust limits, at a point where bounds bind."""
+    from geoddp import multibody_scenes as scenes
+
+    q = scenes.quadrotor(integrator="semi_implicit")
+    p = q.with_limits((0.0, 4.0))
+    from geoddp.solver import SolverOptions, solve
+
+    # an iterate of the constrained solve (second order), where T_max binds
+    U = solve(p, SolverOptions(verbose=False, max_iter=6, expansion="second"),
+              initial_controls=np.clip(scenes.hover_controls(q), 0.0, 4.0)).controls
+    traj = p.trajectory(U)
+    lin = p.linearise(traj, 2)
+    assert lin.second_order is not None and lin.Theta is None  # factored
+    Theta, Gamma, Xi = lin.tensors()
+    H, m, n = q.horizon, 4, q.nx
+    lo, hi = p.control_bounds()
+    def run(dense, reg):
+        k, K, e, act = np.zeros((H, m)), np.zeros((H, m, n)), np.zeros(H), np.zeros((H, m), np.int8)
+        Vx0, Vxx0 = np.zeros(n), np.zeros((n, n))
+        args = (lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx)
+        if dense:
+            f = _core.backward_pass_box(*args, Theta, Gamma, Xi, True, reg, U, lo, hi, k, K, e, act, Vx0, Vxx0)
+        else:
+            f = _core.backward_pass_box_contracted(*args, lin.second_order, reg, U, lo, hi, k, K, e, act, Vx0, Vxx0)
+        return f, k, K, act, Vx0
+
+    # the same failed node at small lambda (Q_uu indefinite there), the same gains where both factorise
+    assert run(False, 0.0)[0][0] == run(True, 0.0)[0][0]
+    reg = next(r for r in 10.0 ** np.arange(0, 9) if run(True, r)[0][0] < 0)
+    outs = [run(False, reg), run(True, reg)]
+    for dense in ():
+        k, K, e, act = np.zeros((H, m)), np.zeros((H, m, n)), np.zeros(H), np.zeros((H, m), np.int8)
+        Vx0, Vxx0 = np.zeros(n), np.zeros((n, n))
+        args = (lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx)
+        if dense:
+            f = _core.backward_pass_box(*args, Theta, Gamma, Xi, True, 1.0, U, lo, hi, k, K, e, act, Vx0, Vxx0)
+        else:
+            f = _core.backward_pass_box_contracted(*args, lin.second_order, 1.0, U, lo, hi, k, K, e, act, Vx0, Vxx0)
+        outs.append((f, k, K, act, Vx0))
+    (f1, k1, K1, a1, v1), (f2, k2, K2, a2, v2) = outs
+    assert f1[0] == f2[0] == -1
+    assert a1.any()  # bounds bind
+    np.testing.assert_array_equal(a1, a2)
+    np.testing.assert_allclose(k1, k2, rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(K1, K2, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(v1, v2, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(f1[1:], f2[1:], rtol=1e-9)

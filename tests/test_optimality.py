@@ -78,7 +78,7 @@ def test_panda_tells_a_stall_from_a_badly_scaled_optimum(tmp_path):
     # Issue 13, item 1, on a Panda pose reach (explicit Euler): the two stops the issue describes.
     # First order with tol = 1e-4 passes |dJ| <= tol at an undamped step while still creeping
     # linearly: its Newton decrement (1.5e-4 measured) predicts the rest of its descent, so the
-    # status is "stalled". Switch ends at a strict local minimum whose raw gradient norm is ~6e-2
+    # status is "stalled". Switch ends at a strict local minimum whose raw gradient norm is 6e-3..2e-1
     # (weights 1e-4 .. 1e3), yet the scale-free decrement is at round-off: "converged".
     pytest.importorskip("example_robot_data")
     from tests_panda import panda_scene
@@ -93,7 +93,10 @@ def test_panda_tells_a_stall_from_a_badly_scaled_optimum(tmp_path):
     assert abs(_opt(early)["newton_decrease"] - gap) < 0.2 * gap, (_opt(early), gap)  # ... and the decrement says so
     assert switch.converged and switch.status == STATUS_CONVERGED_COST
     o = _opt(switch)
-    assert switch.grad_norm > 1e-2 and o["newton_decrease"] < 1e-10 and o["hessian_positive_definite"]
+    # The stopping iterate of this 200+ iteration non-convex solve is set by round-off: scaling Theta
+    # by 1 +- 2^-52 moved it from 219 to 237 / 230 iterations and ||dJ/dU|| from 6.4e-2 to 0.20 /
+    # 0.014 (measured); the contracted second order stops at 238 with 5.8e-3. Hence 1e-3, not 1e-2.
+    assert switch.grad_norm > 1e-3 and o["newton_decrease"] < 1e-10 and o["hessian_positive_definite"]
     assert switch.cost < limit.cost  # non-convex: switch reaches a lower minimum
 
 

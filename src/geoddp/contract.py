@@ -54,6 +54,11 @@ class Linearisation:
         l_x: (H, nx), l_u: (H, m), l_xx: (H, nx, nx), l_ux: (H, m, nx), l_uu: (H, m, m): running
             cost derivatives (the backward pass reads only the upper triangle of symmetric blocks).
         lf_x: (nx,), lf_xx: (nx, nx): terminal cost derivatives at k = H.
+        second_order: at order 2, the second-order terms in factored form instead of Theta,
+            Gamma, Xi (which are then None): an object with ``contract(k, Vx)`` returning the
+            (nx + m, nx + m) matrix sum_i Vx_i [[Theta_i[k], Gamma_i[k]], [Gamma_i[k]^T, Xi_i[k]]]
+            for Vx (nx,) (geoddp._core.SecondOrderTerms: the backward pass contracts with V_x'
+            without forming the tensors). None otherwise.
     """
 
     order: int
@@ -69,18 +74,40 @@ class Linearisation:
     l_uu: np.ndarray
     lf_x: np.ndarray
     lf_xx: np.ndarray
+    second_order: Any = None
+
+    def tensors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Theta, Gamma, Xi) of an order-2 linearisation as dense arrays (shapes above), formed
+        from ``second_order`` by contracting with each unit vector when the tensors are factored
+        (H nx contractions: for consumers that need them whole; the backward pass does not)."""
+        if self.order != 2:
+            raise ValueError("tensors(): an order-1 linearisation has no second-order terms")
+        if self.second_order is None:
+            return self.Theta, self.Gamma, self.Xi
+        H, n, m = self.B.shape
+        Theta, Gamma, Xi = np.empty((H, n, n, n)), np.empty((H, n, n, m)), np.empty((H, n, m, m))
+        e = np.zeros(n)
+        for k in range(H):
+            for i in range(n):
+                e[i] = 1.0
+                S = self.second_order.contract(k, e)
+                e[i] = 0.0
+                Theta[k, i], Gamma[k, i], Xi[k, i] = S[:n, :n], S[:n, n:], S[n:, n:]
+        return Theta, Gamma, Xi
 
     @classmethod
     def from_parts(cls, order: int, dynamics: Any, running: Any, terminal: Any) -> "Linearisation":
         """Bundle a dynamics expansion (attributes Phi, B, Theta, Gamma, Xi) and running / terminal
         cost derivatives (attributes lx, lu, lxx, lux, luu over N nodes; terminal N = 1) without
-        copying. Second-order arrays are dropped at order 1."""
+        copying. Second-order arrays are dropped at order 1; a dynamics expansion whose second
+        order is factored (attribute ``terms``) hands it on as ``second_order``."""
         second = order == 2
         return cls(
             order=order, Phi=dynamics.Phi, B=dynamics.B,
             Theta=dynamics.Theta if second else None,
             Gamma=dynamics.Gamma if second else None,
             Xi=dynamics.Xi if second else None,
+            second_order=getattr(dynamics, "terms", None) if second else None,
             l_x=running.lx, l_u=running.lu, l_xx=running.lxx, l_ux=running.lux, l_uu=running.luu,
             lf_x=terminal.lx[0], lf_xx=terminal.lxx[0],
         )

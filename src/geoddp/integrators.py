@@ -30,7 +30,7 @@ zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -52,6 +52,9 @@ class Expansion:
     Theta: np.ndarray | None = None
     Gamma: np.ndarray | None = None
     Xi: np.ndarray | None = None
+    # Compiled multibody models may keep the second-order terms factored instead (Theta, Gamma, Xi
+    # then None): a geoddp._core.SecondOrderTerms, contracted with V_x' by the backward pass.
+    terms: Any = None
 
     @classmethod
     def from_blocks(cls, n: int, G1: np.ndarray, G2: np.ndarray | None = None) -> "Expansion":

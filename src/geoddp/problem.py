@@ -126,7 +126,11 @@ class Problem:
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         """Dynamics expansion (by the model's backend) and cost derivatives along ``traj``."""
-        exp = self.model.expansion(traj.q, traj.v, traj.u, order=order)
+        if order == 2 and getattr(self.model, "contracts_second_order", False):
+            # factored second order, contracted with V_x' in the backward pass (compiled multibody)
+            exp = self.model.expansion(traj.q, traj.v, traj.u, order=2, contracted=True)
+        else:
+            exp = self.model.expansion(traj.q, traj.v, traj.u, order=order)
         run, term = self.cost_derivatives(traj.q, traj.v, traj.u)
         return Linearisation.from_parts(order, exp, run, term)
 

@@ -84,8 +84,12 @@ class Multibody:
             geoddp._core imports, else "python"), "compiled" or "python" (the oracle). Holds the
             resolved choice after construction.
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
-            core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) for second-order
-            passes, one for first-order passes (their nodes cost about a thread's start-up).
+            core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) workers of a
+            persistent pool, at least 16 nodes each, for first- and second-order passes alike.
+        contract: with the compiled backend, keep the second-order terms of a solve's expansion
+            factored and contract them with V_x' inside the backward pass (True, the default:
+            :meth:`expansion` with ``contracted=True``) instead of forming Theta, Gamma, Xi;
+            both give the same Q-function blocks to round-off (tests/test_core_contracted.py).
     """
 
     urdf: str | Path
@@ -97,6 +101,7 @@ class Multibody:
     second_order: str = "exact"
     backend: str = "auto"
     threads: int = 0
+    contract: bool = True
     pin_model: pin.Model = field(init=False, repr=False)
     groups: list = field(init=False, repr=False)
     _variational: variational.VariationalEuler | None = field(init=False, repr=False, default=None)
@@ -109,6 +114,8 @@ class Multibody:
         self.second_order = choice(self.second_order, "second_order", SECOND_ORDER_KINDS)
         self.backend = choice(self.backend, "backend", BACKENDS)
         self.threads = nonnegative_int(self.threads, "threads")
+        if not isinstance(self.contract, (bool, np.bool_)):
+            raise InputError("contract", f"expected True or False, got {self.contract!r}")
         supported = self.integrator in compiled.INTEGRATORS
         if self.backend == "auto":
             # GEODDP_MULTIBODY_BACKEND=python forces the oracle everywhere (scene files, CLI).
@@ -176,6 +183,11 @@ class Multibody:
     def nu(self) -> int:
         """Number of inputs m."""
         return int(self.actuation.shape[1])
+
+    @property
+    def contracts_second_order(self) -> bool:
+        """True if :meth:`expansion` can return factored second-order terms (``contracted=True``)."""
+        return self.backend == "compiled" and bool(self.contract)
 
     @property
     def semi_implicit(self) -> bool:
@@ -403,13 +415,19 @@ class Multibody:
             G2[k] = 0.5 * (D + np.swapaxes(D, 1, 2))
         return integ.Expansion.from_blocks(n, G, G2)
 
-    def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1) -> integ.Expansion:
+    def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1,
+                  contracted: bool = False) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
 
         Q (H+1, nq), V (H+1, nv), controls (H, m), with (Q, V) the rollout of controls (the
         semi-implicit reconstruction takes V[k+1] as the nominal v+). Shapes: Phi (H, nx, nx), B (H, nx, m),
         Theta (H, nx, nx, nx), Gamma (H, nx, nx, m), Xi (H, nx, m, m), nx = 2 nv, with
         zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du^T Xi_i du.
+
+        ``contracted=True`` (order 2, compiled backend only: :attr:`contracts_second_order`)
+        returns the second order factored instead: ``terms`` (geoddp._core.SecondOrderTerms,
+        ``terms.contract(k, Vx)`` = sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] at node k)
+        with Theta, Gamma, Xi None; Phi and B are bitwise those of order 1.
         """
         U = self.check_controls(controls)
         H = U.shape[0]
@@ -417,6 +435,12 @@ class Multibody:
         V = finite_array(V, "V", (H + 1, self.nv))
         if order not in (1, 2):
             raise InputError("order", f"expected 1 or 2, got {order!r}")
+        if contracted and order == 2:
+            if self.backend != "compiled":
+                raise InputError("contracted", "expected False: factored second-order terms need the compiled backend")
+            Phi, B, terms = compiled._core.expansion_contracted(
+                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, self.threads)
+            return integ.Expansion(Phi=Phi, B=B, terms=terms)
         if self.backend == "compiled":
             Phi, B, Theta, Gamma, Xi = compiled._core.expansion(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, order, self.threads)

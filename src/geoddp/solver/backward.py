@@ -18,7 +18,9 @@ except ImportError:  # not built, or built against another pin: numba runs every
 # Which backward pass runs: the C++ one (geoddp._core.backward_pass, the same recursion with Eigen
 # products; tests/test_core_riccati.py checks it against numba's to 1e-12) for nx > 6 when the
 # extension imports, numba's otherwise. At nx = 6 (the satellite on TSO(3)) numba's kernel has the
-# dimensions inlined as literals and is the faster one.
+# dimensions inlined as literals and is the faster one. A second-order Linearisation whose terms
+# are factored (lin.second_order, compiled multibody models) runs _core.backward_pass_contracted,
+# which contracts them with V_x' node by node instead of reading Theta, Gamma, Xi.
 COMPILED_MIN_NX = 7
 
 
@@ -49,6 +51,21 @@ class Workspace:
         self.empty_theta = np.zeros((0, nx, nx, nx))
         self.empty_gamma = np.zeros((0, nx, nx, m))
         self.empty_xi = np.zeros((0, nx, m, m))
+        self._spare: Workspace | None = None
+
+    def spare(self) -> "Workspace":
+        """A second set of buffers of the same shapes (for a speculative pass), made once."""
+        if self._spare is None:
+            self._spare = Workspace(self.k.shape[0], self.k.shape[1], self.K.shape[2])
+        return self._spare
+
+    def take(self, other: "Workspace", failed: int) -> None:
+        """Copy what a pass into ``other`` that stopped at node ``failed`` (-1: none) wrote: the
+        gains and quu_eig of nodes failed+1 .. H-1, exactly as if that pass had run here."""
+        lo = failed + 1
+        self.k[lo:] = other.k[lo:]
+        self.K[lo:] = other.K[lo:]
+        self.quu_eig[lo:] = other.quu_eig[lo:]
 
 
 def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | None = None) -> tuple[int, float, float]:
@@ -74,10 +91,7 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
     xi = lin.Xi if second else ws.empty_xi
     # the unconstrained pass, unless the last box pass had inputs on a bound (then it is wasted work)
     if ws.bounds is None or not ws.active.any():
-        out = _pass(lin.Phi.shape[1])(
-            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
-            theta, gamma, xi, second, reg, ws.k, ws.K, ws.quu_eig,
-        )
+        out = _unconstrained(lin, ws, reg)
         if ws.bounds is None:
             return out
         # nodes failed+1 .. H-1 were solved (all of them on success): if every full-step control
@@ -92,19 +106,61 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
             return out
     lower, upper = ws.bounds
     ws.k[:] = ws.k_box  # warm start of every node's box QP
-    out = _core.backward_pass_box(
-        lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
-        theta, gamma, xi, second, reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0,
-    )
+    if second and lin.second_order is not None:  # factored second order: contracted with V_x' in the box pass
+        out = _core.backward_pass_box_contracted(
+            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx, lin.second_order,
+            reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0)
+    else:
+        out = _core.backward_pass_box(
+            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+            theta, gamma, xi, second, reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0,
+        )
     if out[0] < 0:
         ws.k_box[:] = ws.k
     return out
+
+
+def _unconstrained(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float, float]:
+    """The unconstrained pass: contracted (factored second order), C++ (nx > 6) or numba."""
+    second = lin.order == 2
+    if second and lin.second_order is not None:  # factored terms: contracted with V_x' in the pass
+        return _core.backward_pass_contracted(
+            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+            lin.second_order, reg, ws.k, ws.K, ws.quu_eig)
+    return _pass(lin.Phi.shape[1])(
+        lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+        lin.Theta if second else ws.empty_theta,
+        lin.Gamma if second else ws.empty_gamma,
+        lin.Xi if second else ws.empty_xi,
+        second, reg, ws.k, ws.K, ws.quu_eig,
+    )
 
 
 def gradient(lin: Linearisation, ws: Workspace) -> np.ndarray:
     """dJ/dU (H, m) by the psi recursion of Lemma lemm:psi, into ws.grad (first-order terms only)."""
     kernels.gradient(lin.Phi, lin.B, lin.l_x, lin.l_u, lin.lf_x, ws.grad)
     return ws.grad
+
+
+_SPECULATION: dict = {"pid": None, "pool": None}
+
+
+def _speculation_pool(lin: Linearisation):
+    """A one-worker thread pool for speculative passes, or None where they cannot run side by side:
+    only the compiled passes release the GIL (numba's do not), and only with two or more cores.
+    Made per process (a forked child gets its own: the parent's worker thread does not exist there)."""
+    if _core is None or _core.default_threads() < 2:
+        return None
+    if lin.second_order is None and lin.Phi.shape[1] < COMPILED_MIN_NX:
+        return None
+    import os
+
+    if _SPECULATION["pid"] != os.getpid():
+        from concurrent.futures import ThreadPoolExecutor
+
+        _SPECULATION["pool"] = ThreadPoolExecutor(max_workers=1, thread_name_prefix="geoddp-backward")
+        _SPECULATION["pid"] = os.getpid()
+    return _SPECULATION["pool"]
 
 
 def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions,
@@ -116,16 +172,36 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
     Q_uu + lambda I is not positive definite, so every box QP it solves is strictly convex.
 
     Returns (lambda, d1, d2, restarts); lambda > opt.reg_max means it gave up.
+
+    Once a pass has failed (the first iterations restart 30-50 times on the real robots), the
+    passes at the next two lambdas of that same sequence run side by side (the compiled pass
+    releases the GIL; the second into ``ws.spare()``): the first of them that factorises is taken.
+    Each pass is deterministic and independent of the other, so lambda, the gains, (d1, d2) and
+    the restart count are exactly those of running the sequence one pass at a time (tested).
     """
     restarts = 0
-    while True:
-        failed, d1, d2 = backward(lin, ws, lam, u_bar)
-        if failed < 0:
-            break
+    failed, d1, d2 = backward(lin, ws, lam, u_bar)
+    # speculative restarts only without limits (the box pass keeps its warm start in ws)
+    pool = _speculation_pool(lin) if failed >= 0 and ws.bounds is None else None
+    while failed >= 0:
         restarts += 1
         lam = max(lam * opt.reg_increase, opt.reg_min)
         if lam > opt.reg_max:
             break
+        nxt = max(lam * opt.reg_increase, opt.reg_min)
+        if pool is None or nxt > opt.reg_max:
+            failed, d1, d2 = backward(lin, ws, lam, u_bar)
+            continue
+        spare = ws.spare()
+        ahead = pool.submit(backward, lin, spare, nxt)
+        failed, d1, d2 = backward(lin, ws, lam)
+        f2, e1, e2 = ahead.result()
+        if failed < 0:
+            break
+        # the pass at lam failed: the one at nxt is the next of the sequence
+        restarts += 1
+        lam, failed, d1, d2 = nxt, f2, e1, e2
+        ws.take(spare, f2)
     return lam, d1, d2, restarts
 
 
@@ -157,7 +233,11 @@ def node_quu(lin: Linearisation, node: int) -> np.ndarray:
         Qxx = lin.l_xx[k] + P.T @ Vxx @ P
         Qux = lin.l_ux[k] + Bk.T @ Vxx @ P
         Quu = lin.l_uu[k] + Bk.T @ Vxx @ Bk
-        if second:
+        if second and lin.second_order is not None:
+            S = lin.second_order.contract(k, Vx)
+            n = Vx.shape[0]
+            Qxx, Qux, Quu = Qxx + S[:n, :n], Qux + S[n:, :n], Quu + S[n:, n:]
+        elif second:
             Qxx = Qxx + np.einsum("i,iab->ab", Vx, lin.Theta[k])
             Qux = Qux + np.einsum("i,iac->ca", Vx, lin.Gamma[k])
             Quu = Quu + np.einsum("i,iab->ab", Vx, lin.Xi[k])

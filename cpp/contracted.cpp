@@ -1,0 +1,192 @@
+// Contraction of the factored second-order terms with V_x' and the backward pass using it (see
+// contracted.hpp). Eigen only: no Pinocchio algorithm is instantiated here.
+#include "contracted.hpp"
+
+#include <cmath>
+
+namespace geoddp {
+namespace ctr {
+
+typedef Eigen::Map<const RowMat> CMat;
+typedef Eigen::Map<const Eigen::MatrixXd> CColMat;
+typedef Eigen::Map<const Eigen::VectorXd> CVec;
+
+// S = sum_i Vx_i G2_i. With lq = Vx[:nv], lv = Vx[nv:]:
+// * velocity rows (v+ = v + dt a): G2 = dt a_zz with a_zz = -Minv T, T_i = ID_zz,i + P_i + P_i^T,
+//   P_i(j, b) = sum_l dM(i, l, j) a_z(l, b) on the q rows j (dynamics.cpp, node_derivatives). The
+//   semi-implicit reconstruction adds dt Jr F2 to the q rows, so both contract with
+//   c = lv + [semi] dt Jr^T lq, and sum_p c_p F2_p = sum_i mu_i T_i with mu = -dt Minv c;
+//   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) are matrix-vector products over Pinocchio's
+//   column-major tensors;
+// * reconstruction rows of each SO(3)/SE(3) group s: dt^2 W_s^T (sum_p lq_p Dsym_p) W_s and
+//   (sum_p lq_p Mrec_p) on the group's q rows plus its transpose (dynamics.cpp, expansion).
+void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
+  const int nv = t.nv, m = t.m, nz = t.nz();
+  const double dt = t.dt;
+  const size_t n3 = (size_t)nv * nv * nv;
+  CVec lq(Vx, nv), lv(Vx + nv, nv);
+  S.setZero(nz, nz);
+  Eigen::VectorXd c = lv;
+  if (t.semi) {
+    c.noalias() += dt * lq;
+    const double* jr = t.Jr.data() + (size_t)k * t.gJ;
+    for (const dyn::JointGroup& g : t.groups) {
+      const int o = g.idx_v, d = g.nv;
+      c.segment(o, d) = lv.segment(o, d);
+      c.segment(o, d).noalias() += dt * (CMat(jr, d, d).transpose() * lq.segment(o, d));
+      jr += d * d;
+    }
+  }
+  const Eigen::VectorXd mu = (-dt) * (CMat(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * c);
+  // r[j + nv l] = sum_i mu_i X(i, j, l) for a column-major tensor X (nv, nv, nv)
+  Eigen::VectorXd r(nv * nv);
+  r.noalias() = CColMat(t.Iqq.data() + k * n3, nv, nv * nv).transpose() * mu;
+  for (int j = 0; j < nv; ++j)
+    for (int l = 0; l < nv; ++l) S(j, l) = 0.5 * (r[j + nv * l] + r[l + nv * j]);
+  r.noalias() = CColMat(t.Ivv.data() + k * n3, nv, nv * nv).transpose() * mu;
+  for (int j = 0; j < nv; ++j)
+    for (int l = 0; l < nv; ++l) S(nv + j, nv + l) = 0.5 * (r[j + nv * l] + r[l + nv * j]);
+  r.noalias() = CColMat(t.Iqv.data() + k * n3, nv, nv * nv).transpose() * mu;
+  for (int j = 0; j < nv; ++j)
+    for (int l = 0; l < nv; ++l) {
+      S(j, nv + l) = r[j + nv * l];
+      S(nv + l, j) = r[j + nv * l];
+    }
+  // Y(l, j) = sum_i mu_i dM(i, l, j); R = Y^T a_z on the q rows, and its transpose
+  r.noalias() = CColMat(t.dM.data() + k * n3, nv, nv * nv).transpose() * mu;
+  const CColMat Y(r.data(), nv, nv);
+  const RowMat R = Y.transpose() * CMat(t.az.data() + (size_t)k * nv * nz, nv, nz);
+  S.topRows(nv) += R;
+  S.leftCols(nv) += R.transpose();
+  // reconstruction rows of the SO(3)/SE(3) groups
+  const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
+  const double* mrec = t.Mrec.data() + (size_t)k * t.gM;
+  const CMat F1(t.F1.data() + (size_t)k * nv * nz, nv, nz);
+  RowMat Dl, Ml, Ws, DW;
+  for (const dyn::JointGroup& g : t.groups) {
+    const int o = g.idx_v, d = g.nv;
+    Dl.setZero(d, d);
+    Ml.setZero(d, nz);
+    for (int p = 0; p < d; ++p) {
+      const double l = lq[o + p];
+      Dl += l * CMat(dsym + (size_t)p * d * d, d, d);
+      Ml += l * CMat(mrec + (size_t)p * d * nz, d, nz);
+    }
+    if (t.semi) {
+      Ws = F1.middleRows(o, d);
+      DW.noalias() = Dl * Ws;
+      S.noalias() += (dt * dt) * (Ws.transpose() * DW);
+    } else {  // W_s selects the group's v directions
+      S.block(nv + o, nv + o, d, d) += (dt * dt) * Dl;
+    }
+    S.middleRows(o, d) += Ml;
+    S.middleCols(o, d) += Ml.transpose();
+    dsym += d * d * d;
+    mrec += d * d * nz;
+  }
+  (void)m;
+}
+
+// The same factorisation and solves as riccati.cpp (numba's arithmetic).
+static bool cholesky_inplace(RowMat& A) {
+  const int n = (int)A.rows();
+  for (int j = 0; j < n; ++j) {
+    double s = A(j, j);
+    for (int p = 0; p < j; ++p) s -= A(j, p) * A(j, p);
+    if (!(s > 0.0)) return false;
+    const double d = std::sqrt(s);
+    A(j, j) = d;
+    for (int i = j + 1; i < n; ++i) {
+      double t = A(i, j);
+      for (int p = 0; p < j; ++p) t -= A(i, p) * A(j, p);
+      A(i, j) = t / d;
+    }
+    for (int i = 0; i < j; ++i) A(i, j) = 0.0;
+  }
+  return true;
+}
+
+template <typename M>
+static void cholesky_solve(const RowMat& L, M& b) {
+  const int n = (int)L.rows();
+  for (int c = 0; c < b.cols(); ++c) {
+    for (int i = 0; i < n; ++i) {
+      double s = b(i, c);
+      for (int p = 0; p < i; ++p) s -= L(i, p) * b(p, c);
+      b(i, c) = s / L(i, i);
+    }
+    for (int i = n - 1; i >= 0; --i) {
+      double s = b(i, c);
+      for (int p = i + 1; p < n; ++p) s -= L(p, i) * b(p, c);
+      b(i, c) = s / L(i, i);
+    }
+  }
+}
+
+static void upper_to_full(RowMat& A) {
+  for (int i = 0; i < A.rows(); ++i)
+    for (int j = 0; j < i; ++j) A(i, j) = A(j, i);
+}
+
+int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                             const double* lu, const double* lxx, const double* lux, const double* luu,
+                             const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
+                             double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2) {
+  Eigen::VectorXd Vx = CVec(Vx_final, n), Qx(n), Qu(m), kk(m);
+  RowMat Vxx = CMat(Vxx_final, n, n);
+  RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n), S;
+  double s1 = 0.0, s2 = 0.0;
+  *d1 = 0.0;
+  *d2 = 0.0;
+  for (int k = H - 1; k >= 0; --k) {
+    CMat P(Phi + (size_t)k * n * n, n, n), Bk(B + (size_t)k * n * m, n, m);
+    VxxPhi.noalias() = Vxx * P;
+    VxxB.noalias() = Vxx * Bk;
+    Qx = CVec(lx + (size_t)k * n, n);
+    Qx.noalias() += P.transpose() * Vx;
+    Qu = CVec(lu + (size_t)k * m, m);
+    Qu.noalias() += Bk.transpose() * Vx;
+    Qxx = CMat(lxx + (size_t)k * n * n, n, n);
+    Qxx.noalias() += P.transpose() * VxxPhi;
+    Qux = CMat(lux + (size_t)k * m * n, m, n);
+    Qux.noalias() += Bk.transpose() * VxxPhi;
+    Quu = CMat(luu + (size_t)k * m * m, m, m);
+    Quu.noalias() += Bk.transpose() * VxxB;
+    // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted
+    contract(t, k, Vx.data(), S);
+    Qxx += S.topLeftCorner(n, n);
+    Qux += S.bottomLeftCorner(m, n);
+    Quu += S.bottomRightCorner(m, m);
+    upper_to_full(Qxx);
+    upper_to_full(Quu);
+    L = Quu;
+    L.diagonal().array() += reg;
+    if (!cholesky_inplace(L)) {
+      *d1 = s1;
+      *d2 = s2;
+      return k;
+    }
+    double mn = L(0, 0) * L(0, 0);
+    for (int a = 1; a < m; ++a) mn = std::min(mn, L(a, a) * L(a, a));
+    quu_eig[k] = mn;
+    kk = Qu;
+    KK = Qux;
+    cholesky_solve(L, kk);
+    cholesky_solve(L, KK);
+    Eigen::Map<Eigen::VectorXd>(k_ff + (size_t)k * m, m) = kk;
+    Eigen::Map<RowMat>(K_fb + (size_t)k * m * n, m, n) = KK;
+    s1 += Qu.dot(kk);
+    s2 += kk.dot(Quu * kk);
+    Vx = Qx;
+    Vx.noalias() -= Qux.transpose() * kk;
+    Vxx = Qxx;
+    Vxx.noalias() -= Qux.transpose() * KK;
+    upper_to_full(Vxx);
+  }
+  *d1 = s1;
+  *d2 = s2;
+  return -1;
+}
+
+}  // namespace ctr
+}  // namespace geoddp

@@ -1,0 +1,29 @@
+// Second-order DDP terms contracted with V_x' (the vector-tensor product idea of Nganga & Wensing
+// 2021, arXiv 2103.03293, applied to the factored terms Pinocchio's RNEA second-order derivatives
+// give): the backward pass needs Theta, Gamma, Xi only through
+//     S = sum_i V_x'_i G2_i   (nz, nz),  G2_i = [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]]
+// (paper eqs. Qfunctions), so S is assembled directly from dyn::SecondOrderTerms at the cost of a
+// few nv^3 dot products per node instead of forming n^3 + n^2 m + n m^2 numbers per node.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "dynamics.hpp"
+
+namespace geoddp {
+namespace ctr {
+
+typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
+
+// S (nz, nz), symmetric, = sum_i Vx_i G2_i at node k; Vx (2 nv). S is resized and overwritten.
+void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S);
+
+// The backward Riccati pass of ric::backward_pass (same inputs, outputs and arithmetic for the
+// first-order part) with the second-order terms contracted from `t` (H = t.N nodes).
+int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                             const double* lu, const double* lxx, const double* lux, const double* luu,
+                             const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
+                             double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2);
+
+}  // namespace ctr
+}  // namespace geoddp

@@ -1,0 +1,248 @@
+"""The factored second-order terms of the compiled core (geoddp._core.SecondOrderTerms) and the
+backward pass that contracts them with V_x' (cpp/contracted.*), against the formed tensors.
+
+* Phi, B of the contracted expansion are bitwise those of the order-1 expansion;
+* S = terms.contract(k, Vx) equals sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] built from
+  the compiled Theta, Gamma, Xi (themselves checked against the Python oracle and differences in
+  tests/test_core_dynamics.py) to round-off, on a free flyer (gravity on / off), a fixed base, a
+  spherical root (gravity on / off) and every supported joint type, both integrators;
+* the contracted backward pass gives the gains, (d1, d2), quu_eig and failed node of the tensor
+  pass to round-off;
+* a whole solve (second order and switch) has the same history with either form.
+"""
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geoddp.contract import Linearisation
+from geoddp.models import compiled
+from geoddp.models.multibody import Multibody
+from geoddp.solver import SolverOptions, solve
+from geoddp.solver.backward import Workspace, backward, node_quu
+from geoddp.validate import InputError
+from urdfs import urdf as urdf_file
+
+if not compiled.available():  # pragma: no cover - the build is part of the install
+    pytest.fail(f"geoddp._core does not import: {compiled.IMPORT_ERROR}", pytrace=False)
+
+core = compiled._core
+CASES = [
+    ("quadrotor.urdf", "free_flyer", True),
+    ("spacecraft.urdf", "free_flyer", False),
+    ("space_manipulator.urdf", "fixed", True),
+    ("space_manipulator.urdf", "free_flyer", True),
+    ("satellite.urdf", "spherical", False),
+    ("satellite.urdf", "spherical", True),
+    ("test_all_joints.urdf", "fixed", True),
+]
+IDS = [f"{u.split('.')[0]}-{r}-{'g' if g else 'nog'}" for u, r, g in CASES]
+
+
+def _setup(case, integrator, H=6, seed=3):
+    urdf, root, gravity = case
+    mb = Multibody(urdf_file(urdf), root=root, dt=0.01, integrator=integrator, gravity=gravity)
+    rng = np.random.default_rng(seed)
+    q0 = pin.integrate(mb.pin_model, mb.neutral(), 0.7 * rng.normal(size=mb.nv))
+    v0 = rng.normal(size=mb.nv)
+    U = rng.normal(size=(H, mb.nu))
+    Q, V = mb.rollout(q0, v0, U)
+    return mb, Q, V, U, rng
+
+
+def _dense(e, k, Vx):
+    n, m = e.B.shape[1], e.B.shape[2]
+    S = np.zeros((n + m, n + m))
+    S[:n, :n] = np.einsum("i,iab->ab", Vx, e.Theta[k])
+    S[n:, :n] = np.einsum("i,iac->ca", Vx, e.Gamma[k])
+    S[:n, n:] = S[n:, :n].T
+    S[n:, n:] = np.einsum("i,iab->ab", Vx, e.Xi[k])
+    return S
+
+
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+@pytest.mark.parametrize("case", CASES, ids=IDS)
+def test_contraction_equals_tensors(case, integrator):
+    mb, Q, V, U, rng = _setup(case, integrator)
+    e = mb.expansion(Q, V, U, order=2)
+    ec = mb.expansion(Q, V, U, order=2, contracted=True)
+    e1 = mb.expansion(Q, V, U, order=1)
+    assert ec.Theta is None and ec.Gamma is None and ec.Xi is None and ec.terms is not None
+    assert np.array_equal(ec.Phi, e1.Phi) and np.array_equal(ec.B, e1.B)
+    t = ec.terms
+    assert (t.N, t.nv, t.m) == (U.shape[0], mb.nv, mb.nu)
+    for k in range(U.shape[0]):
+        Vx = rng.normal(size=mb.nx) * 10.0 ** rng.uniform(-2, 2)
+        S, ref = t.contract(k, Vx), _dense(e, k, Vx)
+        assert S.shape == ref.shape
+        assert np.abs(S - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max())
+        assert np.abs(S - S.T).max() <= 1e-14 * max(1.0, np.abs(ref).max())
+        # linear in Vx: each unit vector picks one output row of the tensors
+        i = int(rng.integers(mb.nx))
+        ei = np.zeros(mb.nx)
+        ei[i] = 1.0
+        assert np.abs(t.contract(k, ei) - _dense(e, k, ei)).max() <= 1e-13 * max(1.0, np.abs(_dense(e, k, ei)).max())
+
+
+def _linearisations(mb, Q, V, U, rng):
+    H, n, m = U.shape[0], mb.nx, mb.nu
+    A = rng.normal(size=(H, n + m, n + m))
+    L = np.einsum("kab,kcb->kac", A, A) + 1e-2 * np.eye(n + m)  # SPD cost Hessians
+    costs = dict(l_x=rng.normal(size=(H, n)), l_u=rng.normal(size=(H, m)), l_xx=L[:, :n, :n].copy(),
+                 l_ux=L[:, n:, :n].copy(), l_uu=L[:, n:, n:].copy(), lf_x=rng.normal(size=n),
+                 lf_xx=np.eye(n) * 3.0)
+    e = mb.expansion(Q, V, U, order=2)
+    ec = mb.expansion(Q, V, U, order=2, contracted=True)
+    lt = Linearisation(order=2, Phi=e.Phi, B=e.B, Theta=e.Theta, Gamma=e.Gamma, Xi=e.Xi, **costs)
+    lc = Linearisation(order=2, Phi=ec.Phi, B=ec.B, Theta=None, Gamma=None, Xi=None, second_order=ec.terms, **costs)
+    return lt, lc
+
+
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+@pytest.mark.parametrize("case", CASES, ids=IDS)
+def test_contracted_backward_pass_equals_tensor_pass(case, integrator):
+    mb, Q, V, U, rng = _setup(case, integrator)
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    H, m, n = U.shape[0], mb.nu, mb.nx
+    for reg in (0.0, 1e-3, 1e2):
+        wt, wc = Workspace(H, m, n), Workspace(H, m, n)
+        ft, d1t, d2t = backward(lt, wt, reg)
+        fc, d1c, d2c = backward(lc, wc, reg)
+        assert fc == ft
+        assert abs(d1c - d1t) <= 1e-11 * max(1.0, abs(d1t)) and abs(d2c - d2t) <= 1e-11 * max(1.0, abs(d2t))
+        lo = ft + 1
+        for a, b in ((wc.k, wt.k), (wc.K, wt.K), (wc.quu_eig, wt.quu_eig)):
+            assert np.abs(a[lo:] - b[lo:]).max() <= 1e-10 * max(1.0, np.abs(b[lo:]).max())
+        # the numpy mirror used on the saddle path reads the factored terms too
+        for k in (H - 1, max(lo, 0)):
+            assert np.abs(node_quu(lc, k) - node_quu(lt, k)).max() <= 1e-10 * max(1.0, np.abs(node_quu(lt, k)).max())
+
+
+def test_contracted_pass_rejects_wrong_shapes():
+    mb, Q, V, U, rng = _setup(CASES[0], "euler", H=4)
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    ws = Workspace(4, mb.nu, mb.nx)
+    other = mb.expansion(Q[:-1], V[:-1], U[:-1], order=2, contracted=True).terms  # 3 nodes
+    with pytest.raises(ValueError, match="terms"):
+        core.backward_pass_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, lc.l_uu, lc.lf_x, lc.lf_xx,
+                                      other, 0.0, ws.k, ws.K, ws.quu_eig)
+    with pytest.raises(ValueError, match="k_ff"):
+        core.backward_pass_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, lc.l_uu, lc.lf_x, lc.lf_xx,
+                                      lc.second_order, 0.0, ws.k[1:], ws.K, ws.quu_eig)
+    with pytest.raises(IndexError):
+        lc.second_order.contract(4, np.zeros(mb.nx))
+    with pytest.raises(ValueError, match="Vx"):
+        lc.second_order.contract(0, np.zeros(mb.nx + 1))
+    with pytest.raises(InputError, match="contract"):
+        Multibody(urdf_file("quadrotor.urdf"), dt=0.01, contract="yes")
+    py = Multibody(urdf_file("quadrotor.urdf"), dt=0.01, backend="python")
+    assert not py.contracts_second_order
+    with pytest.raises(InputError, match="contracted"):
+        py.expansion(Q, V, U, order=2, contracted=True)
+
+
+@pytest.mark.parametrize("expansion", ["second", "switch"])
+def test_solve_history_equals_tensor_form(expansion):
+    from geoddp import multibody_scenes as scenes
+
+    res = {}
+    for contract in (True, False):
+        p = scenes.space_manipulator(integrator="semi_implicit")
+        p.model.contract = contract
+        assert p.model.contracts_second_order == contract
+        res[contract] = solve(p, SolverOptions(expansion=expansion, verbose=False))
+    a, b = res[True], res[False]
+    assert a.iterations == b.iterations and a.status == b.status
+    assert a.expansion_history == b.expansion_history
+    for name in ("cost_history", "reg_history", "step_history"):
+        x, y = np.asarray(getattr(a, name), float), np.asarray(getattr(b, name), float)
+        assert x.shape == y.shape
+        assert np.all(np.abs(x - y) <= 1e-10 * np.abs(y)), name
+    # ||dJ/dU|| falls by 1e11 over the solve: near the optimum it is the round-off of the iterate,
+    # so it agrees to 1e-10 of the first gradient (measured: 2.3e-11 absolute at 237), not relatively
+    x, y = a.grad_norm_history, b.grad_norm_history
+    assert x.shape == y.shape and np.abs(x - y).max() <= 1e-10 * y.max()
+
+
+def test_threads_give_identical_terms():
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=9)
+    args = (mb.pin_model, mb.actuation, mb.dt, compiled.INTEGRATORS["semi_implicit"], Q, V, U)
+    Phi1, B1, t1 = core.expansion_contracted(*args, 1)
+    Phi2, B2, t2 = core.expansion_contracted(*args, 2)
+    assert np.array_equal(Phi1, Phi2) and np.array_equal(B1, B2)
+    for k in range(U.shape[0]):
+        Vx = rng.normal(size=mb.nx)
+        assert np.array_equal(t1.contract(k, Vx), t2.contract(k, Vx))
+
+
+def _child_expansion(conn, case):
+    mb, Q, V, U, _ = _setup(case, "euler", H=40)
+    conn.send(mb.expansion(Q, V, U, order=1).Phi)  # default threads: 2 workers on >= 2 cores
+    conn.close()
+
+
+def test_worker_pool_survives_fork():
+    """The core's persistent worker pool (cpp/pool.hpp) after a fork: the child builds its own."""
+    import multiprocessing as mp
+
+    mb, Q, V, U, _ = _setup(CASES[0], "euler", H=40)
+    ref = mb.expansion(Q, V, U, order=1).Phi  # the parent's pool is running now
+    ctx = mp.get_context("fork")
+    parent, child = ctx.Pipe()
+    proc = ctx.Process(target=_child_expansion, args=(child, CASES[0]))
+    proc.start()
+    assert parent.poll(60), "the forked child did not answer (pool deadlock?)"
+    got = parent.recv()
+    proc.join(10)
+    assert proc.exitcode == 0 and np.array_equal(got, ref)
+    assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)  # the parent's pool still works
+
+
+@pytest.mark.parametrize("contract", [True, False])
+def test_speculative_restarts_equal_one_pass_at_a_time(contract, monkeypatch):
+    """regularised_backward runs two lambdas of its sequence side by side after a failure; lambda,
+    (d1, d2), the restart count and every written gain equal the sequential loop's exactly."""
+    from geoddp.solver import backward as bw
+
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=30)
+    mb.contract = contract
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    lin = lc if contract else lt
+    # make the pass fail for small lambda: an indefinite control Hessian at a few nodes
+    lin.l_uu = lin.l_uu.copy()
+    lin.l_uu[[3, 17, 29]] -= 40.0 * np.eye(mb.nu)
+    H, m, n = U.shape[0], mb.nu, mb.nx
+    opt = SolverOptions()
+
+    def sequential(lin, ws, lam, opt):  # the loop as it was: one pass at a time
+        restarts = 0
+        while True:
+            failed, d1, d2 = backward(lin, ws, lam)
+            if failed < 0:
+                break
+            restarts += 1
+            lam = max(lam * opt.reg_increase, opt.reg_min)
+            if lam > opt.reg_max:
+                break
+        return lam, d1, d2, restarts
+
+    for lam0, reg_max in ((0.0, opt.reg_max), (1e-3, opt.reg_max), (0.0, 1e-2), (0.0, 1e-2 * opt.reg_increase)):
+        o = SolverOptions(reg_max=reg_max)
+        wa, wb = Workspace(H, m, n), Workspace(H, m, n)
+        for w in (wa, wb):  # same stale contents before the call
+            w.k[:], w.K[:], w.quu_eig[:] = 7.0, -3.0, 5.0
+        a = bw.regularised_backward(lin, wa, lam0, o)
+        b = sequential(lin, wb, lam0, o)
+        assert a == b and a[3] >= 2, (a, b)
+        assert np.array_equal(wa.k, wb.k) and np.array_equal(wa.K, wb.K) and np.array_equal(wa.quu_eig, wb.quu_eig)
+    assert bw._speculation_pool(lin) is not None or core.default_threads() < 2
+
+
+def test_linearisation_tensors_materialise_the_factored_terms():
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=5)
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    for a, b in zip(lc.tensors(), lt.tensors()):
+        assert a.shape == b.shape and np.abs(a - b).max() <= 1e-13 * max(1.0, np.abs(b).max())
+    assert lt.tensors()[0] is lt.Theta
+    with pytest.raises(ValueError):
+        Linearisation(order=1, Phi=lt.Phi, B=lt.B, Theta=None, Gamma=None, Xi=None, l_x=lt.l_x, l_u=lt.l_u,
+                      l_xx=lt.l_xx, l_ux=lt.l_ux, l_uu=lt.l_uu, lf_x=lt.lf_x, lf_xx=lt.lf_xx).tensors()
