@@ -124,7 +124,8 @@ static void difference(const Model& model, const std::vector<JointGroup>& groups
 
 bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, const double* Qbar,
                          const double* Vbar, const double* Ubar, const double* kff, const double* K,
-                         double gamma, int N, double* Qout, double* Vout, double* Uout) {
+                         double gamma, int N, double* Qout, double* Vout, double* Uout,
+                         const double* lower, const double* upper) {
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv;
   const std::vector<JointGroup> groups = joint_groups(model);
@@ -144,6 +145,13 @@ bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, con
     zeta.tail(nv) = v - Vb.row(k).transpose();
     CMatMap Kk(K + (size_t)k * m * n, m, n);
     u = Ub.row(k).transpose() - gamma * kf.row(k).transpose() - Kk * zeta;
+    if (lower != nullptr) {
+      for (int a = 0; a < m; ++a) {  // explicit comparisons: a NaN input stays NaN
+        const double lo = lower[(size_t)k * m + a], hi = upper[(size_t)k * m + a];
+        if (u[a] < lo) u[a] = lo;
+        else if (u[a] > hi) u[a] = hi;
+      }
+    }
     Uo.row(k) = u.transpose();
     tau = Hm * u;
     step(s, data, q, v, tau, q1, v1);

@@ -51,9 +51,12 @@ void rollout(const Setup& s, const double* q0, const double* v0, const double* U
 // (difference(q_bar_k, q_k) with exact SO(2) entries, v_k - v_bar_k). Qbar (N+1, nq), Vbar
 // (N+1, nv), Ubar (N, m), kff (N, m), K (N, m, 2 nv); writes Qout, Vout (N+1, .), Uout (N, m).
 // Returns false (and stops) as soon as a state is non-finite, as the Python path does.
+// With control limits lower, upper (N, m) (issue 15; both or neither), u_k is clamped into
+// [lower_k, upper_k] after the feedback law, before it is applied and stored (NaN stays NaN).
 bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, const double* Qbar,
                          const double* Vbar, const double* Ubar, const double* kff, const double* K,
-                         double gamma, int N, double* Qout, double* Vout, double* Uout);
+                         double gamma, int N, double* Qout, double* Vout, double* Uout,
+                         const double* lower = nullptr, const double* upper = nullptr);
 
 // Derivatives of v+ = v + dt aba(q, v, H u) w.r.t. z at N nodes: Q (N, nq), V (N, nv), U (N, m)
 // -> F1 (N, nv, nz), and for order 2 F2 (N, nv, nz, nz), the symmetric (0)-Hessian (exact: from

@@ -10,6 +10,7 @@
 
 #include <string>
 
+#include "contracted.hpp"
 #include "dynamics.hpp"
 #include "pin_model.hpp"
 #include "riccati.hpp"
@@ -82,7 +83,7 @@ PYBIND11_MODULE(_core, m) {
       "rollout_closed_loop",
       [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0, const Arr& Qbar,
          const Arr& Vbar, const Arr& Ubar, const Arr& kff, const Arr& K, double gamma, py::array_t<double> Qout,
-         py::array_t<double> Vout, py::array_t<double> Uout) {
+         py::array_t<double> Vout, py::array_t<double> Uout, py::object lower, py::object upper) {
         const pinocchio::Model& model = geoddp::model_from_python(pm);
         Setup s = make_setup(model, H, dt, integrator);
         const int N = (int)Ubar.shape(0), nq = model.nq, nv = model.nv;
@@ -98,19 +99,31 @@ PYBIND11_MODULE(_core, m) {
         if (Qout.ndim() != 2 || Qout.shape(0) != N + 1 || Qout.shape(1) != nq) throw py::value_error("Q_out: wrong shape");
         if (Vout.ndim() != 2 || Vout.shape(0) != N + 1 || Vout.shape(1) != nv) throw py::value_error("V_out: wrong shape");
         if (Uout.ndim() != 2 || Uout.shape(0) != N || Uout.shape(1) != s.m) throw py::value_error("u_out: wrong shape");
+        if (lower.is_none() != upper.is_none()) throw py::value_error("lower, upper: give both or neither");
+        Arr lo, hi;
+        if (!lower.is_none()) {
+          lo = lower.cast<Arr>();
+          hi = upper.cast<Arr>();
+          check_shape(lo, {N, s.m}, "lower");
+          check_shape(hi, {N, s.m}, "upper");
+        }
+        const double* lop = lower.is_none() ? nullptr : lo.data();
+        const double* hip = lower.is_none() ? nullptr : hi.data();
         bool ok;
         {
           py::gil_scoped_release nogil;
           ok = geoddp::dyn::rollout_closed_loop(s, q0.data(), v0.data(), Qbar.data(), Vbar.data(), Ubar.data(),
                                                 kff.data(), K.data(), gamma, N, Qout.mutable_data(),
-                                                Vout.mutable_data(), Uout.mutable_data());
+                                                Vout.mutable_data(), Uout.mutable_data(), lop, hip);
         }
         return ok;
       },
       py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("q0"), py::arg("v0"),
       py::arg("Q_bar"), py::arg("V_bar"), py::arg("u_bar"), py::arg("k"), py::arg("K"), py::arg("gamma"),
       py::arg("Q_out").noconvert(), py::arg("V_out").noconvert(), py::arg("u_out").noconvert(),
+      py::arg("lower") = py::none(), py::arg("upper") = py::none(),
       "Forward pass u = u_bar - gamma k - K zeta into Q_out (N+1, nq), V_out (N+1, nv), u_out (N, m); "
+      "with lower, upper (N, m) u is clamped into the box after the feedback law. "
       "False if a state became non-finite.");
 
   m.def(
@@ -221,6 +234,145 @@ PYBIND11_MODULE(_core, m) {
       py::arg("quu_eig").noconvert(),
       "Backward Riccati pass (twin of geoddp.kernels.backward_pass): gains into k_ff (H, m), K_fb (H, m, n), "
       "quu_eig (H,); returns (failed node or -1, d1, d2).");
+
+  m.def(
+      "backward_pass_box",
+      [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
+         const Arr& Vx_final, const Arr& Vxx_final, const Arr& Theta, const Arr& Gamma, const Arr& Xi,
+         bool second_order, double reg, const Arr& u_bar, const Arr& lower, const Arr& upper,
+         py::array_t<double> k_ff, py::array_t<double> K_fb, py::array_t<double> quu_eig,
+         py::array_t<signed char> active, py::array_t<double> Vx0, py::array_t<double> Vxx0) -> py::tuple {
+        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
+        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
+        check_shape(Phi, {H, n, n}, "Phi");
+        check_shape(B, {H, n, mm}, "B");
+        check_shape(lx, {H, n}, "lx");
+        check_shape(lu, {H, mm}, "lu");
+        check_shape(lxx, {H, n, n}, "lxx");
+        check_shape(lux, {H, mm, n}, "lux");
+        check_shape(luu, {H, mm, mm}, "luu");
+        check_shape(Vx_final, {n}, "Vx_final");
+        check_shape(Vxx_final, {n, n}, "Vxx_final");
+        check_shape(u_bar, {H, mm}, "u_bar");
+        check_shape(lower, {H, mm}, "lower");
+        check_shape(upper, {H, mm}, "upper");
+        if (second_order) {
+          check_shape(Theta, {H, n, n, n}, "Theta");
+          check_shape(Gamma, {H, n, n, mm}, "Gamma");
+          check_shape(Xi, {H, n, mm, mm}, "Xi");
+        }
+        for (auto* o : {&k_ff, &K_fb, &quu_eig, &Vx0, &Vxx0})
+          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
+        if (!(active.flags() & py::array::c_style) || !active.writeable()) throw py::value_error("active: expected a writeable C-contiguous int8 array");
+        if (k_ff.ndim() != 2 || k_ff.shape(0) != H || k_ff.shape(1) != mm) throw py::value_error("k_ff: wrong shape");
+        if (K_fb.ndim() != 3 || K_fb.shape(0) != H || K_fb.shape(1) != mm || K_fb.shape(2) != n) throw py::value_error("K_fb: wrong shape");
+        if (quu_eig.ndim() != 1 || quu_eig.shape(0) != H) throw py::value_error("quu_eig: wrong shape");
+        if (active.ndim() != 2 || active.shape(0) != H || active.shape(1) != mm) throw py::value_error("active: wrong shape");
+        if (Vx0.ndim() != 1 || Vx0.shape(0) != n) throw py::value_error("Vx0: wrong shape");
+        if (Vxx0.ndim() != 2 || Vxx0.shape(0) != n || Vxx0.shape(1) != n) throw py::value_error("Vxx0: wrong shape");
+        double d1 = 0.0, d2 = 0.0;
+        int failed;
+        {
+          py::gil_scoped_release nogil;
+          failed = geoddp::ric::backward_pass_box(
+              (int)H, (int)n, (int)mm, Phi.data(), B.data(), lx.data(), lu.data(), lxx.data(), lux.data(), luu.data(),
+              Vx_final.data(), Vxx_final.data(), second_order ? Theta.data() : nullptr,
+              second_order ? Gamma.data() : nullptr, second_order ? Xi.data() : nullptr, second_order, reg,
+              u_bar.data(), lower.data(), upper.data(), k_ff.mutable_data(), K_fb.mutable_data(),
+              quu_eig.mutable_data(), active.mutable_data(), Vx0.mutable_data(), Vxx0.mutable_data(), &d1, &d2);
+        }
+        return py::make_tuple(failed, d1, d2);
+      },
+      py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lxx"), py::arg("lux"), py::arg("luu"),
+      py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("Theta"), py::arg("Gamma"), py::arg("Xi"),
+      py::arg("second_order"), py::arg("reg"), py::arg("u_bar"), py::arg("lower"), py::arg("upper"),
+      py::arg("k_ff").noconvert(), py::arg("K_fb").noconvert(), py::arg("quu_eig").noconvert(),
+      py::arg("active").noconvert(), py::arg("Vx0").noconvert(), py::arg("Vxx0").noconvert(),
+      "Box-constrained backward pass (issue 15; see cpp/riccati.hpp): controls u = u_bar - k - K zeta kept in "
+      "[lower, upper] (H, m); k_ff (H, m) is read as the warm start and overwritten; writes K_fb (H, m, n), "
+      "quu_eig (H,), active (H, m) int8 (-1 lower, +1 upper, 0 free), Vx0 (n,), Vxx0 (n, n) (value function at "
+      "node 0); returns (failed node or -1, d1, d2).");
+
+  m.def(
+      "backward_pass_box_contracted",
+      [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
+         const Arr& Vx_final, const Arr& Vxx_final, const geoddp::dyn::SecondOrderTerms& terms, double reg,
+         const Arr& u_bar, const Arr& lower, const Arr& upper, py::array_t<double> k_ff, py::array_t<double> K_fb,
+         py::array_t<double> quu_eig, py::array_t<signed char> active, py::array_t<double> Vx0,
+         py::array_t<double> Vxx0) -> py::tuple {
+        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
+        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
+        if (terms.N != H || 2 * terms.nv != n || terms.m != mm) throw py::value_error("terms: wrong sizes");
+        check_shape(Phi, {H, n, n}, "Phi");
+        check_shape(B, {H, n, mm}, "B");
+        check_shape(lx, {H, n}, "lx");
+        check_shape(lu, {H, mm}, "lu");
+        check_shape(lxx, {H, n, n}, "lxx");
+        check_shape(lux, {H, mm, n}, "lux");
+        check_shape(luu, {H, mm, mm}, "luu");
+        check_shape(Vx_final, {n}, "Vx_final");
+        check_shape(Vxx_final, {n, n}, "Vxx_final");
+        check_shape(u_bar, {H, mm}, "u_bar");
+        check_shape(lower, {H, mm}, "lower");
+        check_shape(upper, {H, mm}, "upper");
+        for (auto* o : {&k_ff, &K_fb, &quu_eig, &Vx0, &Vxx0})
+          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
+        if (!(active.flags() & py::array::c_style) || !active.writeable()) throw py::value_error("active: expected a writeable C-contiguous int8 array");
+        if (k_ff.ndim() != 2 || k_ff.shape(0) != H || k_ff.shape(1) != mm) throw py::value_error("k_ff: wrong shape");
+        if (K_fb.ndim() != 3 || K_fb.shape(0) != H || K_fb.shape(1) != mm || K_fb.shape(2) != n) throw py::value_error("K_fb: wrong shape");
+        if (quu_eig.ndim() != 1 || quu_eig.shape(0) != H) throw py::value_error("quu_eig: wrong shape");
+        if (active.ndim() != 2 || active.shape(0) != H || active.shape(1) != mm) throw py::value_error("active: wrong shape");
+        if (Vx0.ndim() != 1 || Vx0.shape(0) != n) throw py::value_error("Vx0: wrong shape");
+        if (Vxx0.ndim() != 2 || Vxx0.shape(0) != n || Vxx0.shape(1) != n) throw py::value_error("Vxx0: wrong shape");
+        double d1 = 0.0, d2 = 0.0;
+        int failed;
+        {
+          py::gil_scoped_release nogil;
+          const int nn = (int)n, m_ = (int)mm;
+          geoddp::ctr::RowMat S;
+          // S = sum_i V_x'_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] from the factors (ctr::contract)
+          const geoddp::ric::SecondOrderHook hook = [&](int k, const Eigen::VectorXd& Vx, geoddp::ric::BoxRowMat& Qxx,
+                                                        geoddp::ric::BoxRowMat& Qux, geoddp::ric::BoxRowMat& Quu) {
+            geoddp::ctr::contract(terms, k, Vx.data(), S);
+            Qxx += S.topLeftCorner(nn, nn);
+            Qux += S.bottomLeftCorner(m_, nn);
+            Quu += S.bottomRightCorner(m_, m_);
+          };
+          failed = geoddp::ric::backward_pass_box_hook(
+              (int)H, nn, m_, Phi.data(), B.data(), lx.data(), lu.data(), lxx.data(), lux.data(), luu.data(),
+              Vx_final.data(), Vxx_final.data(), &hook, reg, u_bar.data(), lower.data(), upper.data(),
+              k_ff.mutable_data(), K_fb.mutable_data(), quu_eig.mutable_data(), active.mutable_data(),
+              Vx0.mutable_data(), Vxx0.mutable_data(), &d1, &d2);
+        }
+        return py::make_tuple(failed, d1, d2);
+      },
+      py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lxx"), py::arg("lux"), py::arg("luu"),
+      py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("terms"), py::arg("reg"), py::arg("u_bar"),
+      py::arg("lower"), py::arg("upper"), py::arg("k_ff").noconvert(), py::arg("K_fb").noconvert(),
+      py::arg("quu_eig").noconvert(), py::arg("active").noconvert(), py::arg("Vx0").noconvert(),
+      py::arg("Vxx0").noconvert(),
+      "backward_pass_box with the second order factored (SecondOrderTerms, contracted with V_x' at each node, "
+      "as backward_pass_contracted does); same outputs.");
+
+  m.def(
+      "box_qp",
+      [](const Arr& Hq, const Arr& q, const Arr& lo, const Arr& hi, const Arr& x0) -> py::tuple {
+        if (q.ndim() != 1) throw py::value_error("q: expected (m,)");
+        const long mm = q.shape(0);
+        check_shape(Hq, {mm, mm}, "H");
+        check_shape(lo, {mm}, "lower");
+        check_shape(hi, {mm}, "upper");
+        check_shape(x0, {mm}, "x0");
+        Arr x = empty({mm});
+        std::copy(x0.data(), x0.data() + mm, x.mutable_data());
+        py::array_t<signed char> cl(std::vector<py::ssize_t>{mm});
+        const int it = geoddp::ric::box_qp((int)mm, Hq.data(), q.data(), lo.data(), hi.data(), x.mutable_data(),
+                                           cl.mutable_data());
+        return py::make_tuple(x, cl, it);
+      },
+      py::arg("H"), py::arg("q"), py::arg("lower"), py::arg("upper"), py::arg("x0"),
+      "min 1/2 x^T H x - q^T x over lower <= x <= upper by projected Newton from x0: returns (x (m,), clamped (m,) "
+      "int8: -1 lower, +1 upper, 0 free, iterations or -1 if H is not positive definite on a free set).");
 
   geoddp::bind_costs(m);  // cost terms: cost_frame_term, cost_state_regularisation, ...
   geoddp::bind_contracted(m);  // SecondOrderTerms, expansion_contracted, backward_pass_contracted

@@ -3,7 +3,9 @@
 #include "riccati.hpp"
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace geoddp {
 namespace ric {
@@ -120,6 +122,269 @@ int backward_pass(int H, int n, int m, const double* Phi, const double* B, const
     Vxx.noalias() -= Qux.transpose() * KK;
     upper_to_full(Vxx);
   }
+  *d1 = s1;
+  *d2 = s2;
+  return -1;
+}
+
+// ------------------------------------------------------------------ box-constrained pass (issue 15)
+// Projected Newton on a box (Tassa, Mansard and Todorov, "Control-limited differential dynamic
+// programming", ICRA 2014, Algorithm 3; written from the paper): each iteration fixes the inputs
+// at a bound whose gradient pushes outward, takes the Newton step on the free face and an Armijo
+// line search along its projection onto the box.
+static const int BOX_MAX_ITER = 100;
+static const double BOX_ARMIJO = 0.1;      // sufficient decrease, fraction of the first-order model
+static const double BOX_STEP_FACTOR = 0.6;
+static const double BOX_MIN_STEP = 1e-12;  // below: the decrease is round-off, the face solve polishes
+
+namespace {
+
+struct BoxWork {
+  Eigen::VectorXd g, rhs, xt, dx, Hy;
+  std::vector<signed char> cl, prev;
+  std::vector<int> fidx;
+  RowMat Lf;
+};
+
+// -1 where x sits at lo and the gradient pushes below it, +1 at hi pushing above, else 0; an
+// input with lo == hi is always clamped (sign by its gradient). Returns the number of free inputs.
+int clamp_set(const Eigen::VectorXd& x, const Eigen::VectorXd& g, const double* lo, const double* hi,
+              std::vector<signed char>& cl) {
+  int nf = 0;
+  for (int i = 0; i < (int)x.size(); ++i) {
+    signed char c = 0;
+    if (lo[i] == hi[i]) c = g[i] >= 0.0 ? -1 : 1;
+    else if (x[i] <= lo[i] && g[i] > 0.0) c = -1;
+    else if (x[i] >= hi[i] && g[i] < 0.0) c = 1;
+    cl[i] = c;
+    if (!c) ++nf;
+  }
+  return nf;
+}
+
+// Cholesky factor of the free block of Hq into w.Lf (free indices into w.fidx).
+bool factor_free(const RowMat& Hq, BoxWork& w) {
+  w.fidx.clear();
+  for (int i = 0; i < (int)w.cl.size(); ++i)
+    if (!w.cl[i]) w.fidx.push_back(i);
+  const int nf = (int)w.fidx.size();
+  w.Lf.resize(nf, nf);
+  for (int a = 0; a < nf; ++a)
+    for (int b = 0; b < nf; ++b) w.Lf(a, b) = Hq(w.fidx[a], w.fidx[b]);
+  return cholesky_inplace(w.Lf);
+}
+
+// Minimiser of the QP on the current face: x_f = Hq_ff^-1 (q_f - Hq_fc x_c), into out.
+void face_newton(const RowMat& Hq, const Eigen::VectorXd& q, const Eigen::VectorXd& x, BoxWork& w,
+                 Eigen::VectorXd& out) {
+  const int nf = (int)w.fidx.size(), m = (int)x.size();
+  w.rhs.resize(nf);
+  for (int a = 0; a < nf; ++a) {
+    const int i = w.fidx[a];
+    double r = q[i];
+    for (int j = 0; j < m; ++j)
+      if (w.cl[j]) r -= Hq(i, j) * x[j];
+    w.rhs[a] = r;
+  }
+  cholesky_solve(w.Lf, w.rhs);
+  out = x;
+  for (int a = 0; a < nf; ++a) out[w.fidx[a]] = w.rhs[a];
+}
+
+double qp_value(const RowMat& Hq, const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::VectorXd& Hy) {
+  Hy.noalias() = Hq * y;
+  return 0.5 * y.dot(Hy) - q.dot(y);
+}
+
+// The projected Newton iteration (see box_qp in riccati.hpp); on return w.cl, w.fidx, w.Lf
+// describe the final face (Lf factorises Hq_ff) and x is the face minimiser clipped to the box.
+int box_qp_impl(const RowMat& Hq, const Eigen::VectorXd& q, const double* lo, const double* hi,
+                Eigen::VectorXd& x, BoxWork& w) {
+  const int m = (int)x.size();
+  w.cl.assign(m, 0);
+  w.prev.assign(m, 2);
+  for (int i = 0; i < m; ++i) {
+    if (!std::isfinite(x[i])) x[i] = 0.0;
+    x[i] = std::min(std::max(x[i], lo[i]), hi[i]);
+  }
+  bool prev_full = false, have_factor = false;
+  int it = 0;
+  for (; it < BOX_MAX_ITER; ++it) {
+    w.g.noalias() = Hq * x - q;
+    const int nf = clamp_set(x, w.g, lo, hi, w.cl);
+    if (nf == 0) break;
+    const bool changed = w.cl != w.prev;
+    if (!changed && prev_full) break;  // a full, unclipped face step and the same face: KKT holds
+    if (changed || !have_factor) {
+      if (!factor_free(Hq, w)) return -1;
+      have_factor = true;
+    }
+    face_newton(Hq, q, x, w, w.xt);
+    w.dx = w.xt - x;
+    const double sdotg = w.dx.dot(w.g);
+    w.prev = w.cl;
+    if (!(sdotg < 0.0)) {  // the face minimiser is x itself
+      prev_full = true;
+      continue;
+    }
+    const double f0 = qp_value(Hq, q, x, w.Hy);
+    double step = 1.0;
+    bool ok = false, clipped = false;
+    while (step >= BOX_MIN_STEP) {
+      clipped = false;
+      for (int i = 0; i < m; ++i) {
+        const double y = x[i] + step * w.dx[i];
+        const double c = std::min(std::max(y, lo[i]), hi[i]);
+        clipped |= c != y;
+        w.xt[i] = c;
+      }
+      if (qp_value(Hq, q, w.xt, w.Hy) - f0 <= BOX_ARMIJO * step * sdotg) {
+        ok = true;
+        break;
+      }
+      step *= BOX_STEP_FACTOR;
+    }
+    if (!ok) break;
+    x = w.xt;
+    prev_full = step == 1.0 && !clipped;
+  }
+  // Polish on the final face: the same factor then gives the feedback rows.
+  w.g.noalias() = Hq * x - q;
+  clamp_set(x, w.g, lo, hi, w.cl);
+  if (!factor_free(Hq, w)) return -1;
+  face_newton(Hq, q, x, w, w.xt);
+  for (int i = 0; i < m; ++i) x[i] = std::min(std::max(w.xt[i], lo[i]), hi[i]);
+  return it;
+}
+
+}  // namespace
+
+int box_qp(int m, const double* Hq, const double* q, const double* lo, const double* hi, double* x,
+           signed char* clamped) {
+  RowMat H = CMat(Hq, m, m);
+  Eigen::VectorXd qq = CVec(q, m), xx = Eigen::Map<Eigen::VectorXd>(x, m);
+  BoxWork w;
+  const int it = box_qp_impl(H, qq, lo, hi, xx, w);
+  if (it < 0) return -1;
+  Eigen::Map<Eigen::VectorXd>(x, m) = xx;
+  for (int i = 0; i < m; ++i) clamped[i] = w.cl[i];
+  return it;
+}
+
+int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
+                      const double* lxx, const double* lux, const double* luu, const double* Vx_final,
+                      const double* Vxx_final, const double* Theta, const double* Gamma, const double* Xi,
+                      bool second_order, double reg, const double* u_bar, const double* lower, const double* upper,
+                      double* k_ff, double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0,
+                      double* d1, double* d2) {
+  // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i from the dense tensors (Remark rem:theta)
+  const SecondOrderHook dense = [&](int k, const Eigen::VectorXd& Vx, BoxRowMat& Qxx, BoxRowMat& Qux,
+                                    BoxRowMat& Quu) {
+    const double* Th = Theta + (size_t)k * n * n * n;
+    const double* Ga = Gamma + (size_t)k * n * n * m;
+    const double* X = Xi + (size_t)k * n * m * m;
+    for (int i = 0; i < n; ++i) {
+      const double v = Vx[i];
+      if (v == 0.0) continue;
+      Qxx += v * CMat(Th + (size_t)i * n * n, n, n);
+      Qux += v * CMat(Ga + (size_t)i * n * m, n, m).transpose();
+      Quu += v * CMat(X + (size_t)i * m * m, m, m);
+    }
+  };
+  return backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final,
+                                second_order ? &dense : nullptr, reg, u_bar, lower, upper, k_ff, K_fb, quu_eig,
+                                active, Vx0, Vxx0, d1, d2);
+}
+
+int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                           const double* lu, const double* lxx, const double* lux, const double* luu,
+                           const double* Vx_final, const double* Vxx_final, const SecondOrderHook* second,
+                           double reg, const double* u_bar, const double* lower, const double* upper, double* k_ff,
+                           double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1,
+                           double* d2) {
+  // Q blocks as in backward_pass (kept separate so that the unconstrained pass stays untouched).
+  Eigen::VectorXd Vx = CVec(Vx_final, n), Qx(n), Qu(m), kk(m), QuuK(m), lo(m), hi(m);
+  RowMat Vxx = CMat(Vxx_final, n, n);
+  RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), Hq(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n), QuuKK(m, n),
+      KKf(m, n);
+  BoxWork w;
+  double s1 = 0.0, s2 = 0.0;
+  *d1 = 0.0;
+  *d2 = 0.0;
+  for (int k = H - 1; k >= 0; --k) {
+    CMat P(Phi + (size_t)k * n * n, n, n), Bk(B + (size_t)k * n * m, n, m);
+    VxxPhi.noalias() = Vxx * P;
+    VxxB.noalias() = Vxx * Bk;
+    Qx = CVec(lx + (size_t)k * n, n);
+    Qx.noalias() += P.transpose() * Vx;
+    Qu = CVec(lu + (size_t)k * m, m);
+    Qu.noalias() += Bk.transpose() * Vx;
+    Qxx = CMat(lxx + (size_t)k * n * n, n, n);
+    Qxx.noalias() += P.transpose() * VxxPhi;
+    Qux = CMat(lux + (size_t)k * m * n, m, n);
+    Qux.noalias() += Bk.transpose() * VxxPhi;
+    Quu = CMat(luu + (size_t)k * m * m, m, m);
+    Quu.noalias() += Bk.transpose() * VxxB;
+    if (second) (*second)(k, Vx, Qxx, Qux, Quu);
+    upper_to_full(Qxx);
+    upper_to_full(Quu);
+    // Regularisation rule: the whole Q_uu + reg I must be positive definite (the caller raises reg
+    // otherwise), so every box QP below is strictly convex and its minimiser unique.
+    L = Quu;
+    L.diagonal().array() += reg;
+    Hq = L;
+    if (!cholesky_inplace(L)) {
+      *d1 = s1;
+      *d2 = s2;
+      return k;
+    }
+    double mn = L(0, 0) * L(0, 0);
+    for (int a = 1; a < m; ++a) mn = std::min(mn, L(a, a) * L(a, a));
+    quu_eig[k] = mn;
+    // u = u_bar - k: lower <= u <= upper  <=>  u_bar - upper <= k <= u_bar - lower
+    for (int a = 0; a < m; ++a) {
+      const size_t i = (size_t)k * m + a;
+      lo[a] = u_bar[i] - upper[i];
+      hi[a] = u_bar[i] - lower[i];
+      kk[a] = k_ff[i];  // warm start: the previous feedforward
+    }
+    if (box_qp_impl(Hq, Qu, lo.data(), hi.data(), kk, w) < 0) {
+      *d1 = s1;
+      *d2 = s2;
+      return k;
+    }
+    KK.setZero();
+    if (!w.fidx.empty()) {  // free rows: (Q_uu + reg I)_ff^-1 Q_ux,f; clamped rows stay zero
+      const int nf = (int)w.fidx.size();
+      for (int a = 0; a < nf; ++a) KKf.row(a) = Qux.row(w.fidx[a]);
+      auto rhs = KKf.topRows(nf);
+      cholesky_solve(w.Lf, rhs);
+      for (int a = 0; a < nf; ++a) KK.row(w.fidx[a]) = KKf.row(a);
+    }
+    for (int a = 0; a < m; ++a) active[(size_t)k * m + a] = (signed char)(-w.cl[a]);  // k at its lower = u at upper
+    Eigen::Map<Eigen::VectorXd>(k_ff + (size_t)k * m, m) = kk;
+    Eigen::Map<RowMat>(K_fb + (size_t)k * m * n, m, n) = KK;
+    QuuK.noalias() = Quu * kk;
+    s1 += Qu.dot(kk);
+    s2 += kk.dot(QuuK);
+    // The full value update: V(zeta) = Q(zeta, -k - K zeta), exact for any k, K (clamped rows,
+    // reg > 0); the short form Qx - K^T Qu (Crocoddyl's box solvers) holds only for k = Quu^-1 Qu.
+    //   Vx  = Qx  - K^T Qu  - Qux^T k + K^T Quu k = Qx  - Qux^T k + K^T (Quu k - Qu)
+    //   Vxx = Qxx - K^T Qux - Qux^T K + K^T Quu K = Qxx - Qux^T K + K^T (Quu K - Qux)
+    QuuK -= Qu;
+    QuuKK.noalias() = Quu * KK;
+    QuuKK -= Qux;
+    Vx = Qx;
+    Vx.noalias() -= Qux.transpose() * kk;
+    Vx.noalias() += KK.transpose() * QuuK;
+    Vxx = Qxx;
+    Vxx.noalias() -= Qux.transpose() * KK;
+    Vxx.noalias() += KK.transpose() * QuuKK;
+    for (int i = 0; i < n; ++i)  // exactly symmetric (the two products round differently)
+      for (int j = i + 1; j < n; ++j) Vxx(i, j) = Vxx(j, i) = 0.5 * (Vxx(i, j) + Vxx(j, i));
+  }
+  if (Vx0) Eigen::Map<Eigen::VectorXd>(Vx0, n) = Vx;
+  if (Vxx0) Eigen::Map<RowMat>(Vxx0, n, n) = Vxx;
   *d1 = s1;
   *d2 = s2;
   return -1;

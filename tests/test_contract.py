@@ -27,12 +27,18 @@ def _short(path: Path):
     return spec.with_overrides(horizon=H_SHORT)
 
 
+def _clip(problem, U: np.ndarray) -> np.ndarray:
+    """U clipped into the problem's control limits (issue 15), if it has some."""
+    bounds = problem.control_bounds()
+    return U if bounds is None else np.clip(U, *bounds)
+
+
 def _controls(problem, rng) -> np.ndarray:
-    return 0.1 * rng.normal(size=(problem.horizon, problem.nu))
+    return _clip(problem, 0.1 * rng.normal(size=(problem.horizon, problem.nu)))
 
 
 def test_every_example_scene_is_covered():
-    assert len(SCENES) == 3 + 13 + 3  # satellite_paper, _semi_implicit, _authors_code (issue 16); hard; multibody
+    assert len(SCENES) == 3 + 13 + 5  # satellite_paper, _semi_implicit, _authors_code (issue 16), _wheel_limits (issue 15); hard; 4 multibody
 
 
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: f"{p.parent.name}/{p.stem}")
@@ -84,7 +90,7 @@ def test_builtin_scene_problem_satisfies_the_contract(path, rng):
     K = rng.normal(size=(H, m, nx))
     k = rng.normal(size=(H, m))
     fb = problem.rollout_policy(traj, k, K, 1.0)
-    assert np.allclose(fb.u[0], U[0] - k[0], rtol=0, atol=1e-15)
+    assert np.allclose(fb.u[0], _clip(problem, U - k)[0], rtol=0, atol=1e-15)  # clamped into the limits
     # ... and the same policy about the nominal itself with zero gains gives back the nominal
     same = problem.rollout_policy(traj, np.zeros((H, m)), K, 1.0)
     assert np.allclose(same.u, U, rtol=0, atol=1e-12) and np.allclose(same.v, traj.v, rtol=0, atol=1e-12)

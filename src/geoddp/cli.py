@@ -94,6 +94,18 @@ def _multibody(args) -> int:
     return _solve_and_report(scene_spec(args.scene, integrator=args.integrator), args)
 
 
+def _print_limits(result) -> None:
+    """With control limits ([limits]): how many (node, input) pairs sit on a bound, per input, and
+    the KKT residual (max |projected gradient|) at the returned controls."""
+    if getattr(result, "limits", None) is None:
+        return
+    act = result.active_set
+    per_input = ", ".join(f"u_{j + 1}: {int((act[:, j] != 0).sum())}" for j in range(act.shape[1]))
+    kkt = (result.extra.get("optimality") or {}).get("kkt_residual")
+    print(f"limits: {int((act != 0).sum())} of {act.size} (node, input) pairs on a bound ({per_input})"
+          + (f"  KKT residual = {kkt:.3e}" if kkt is not None else ""))
+
+
 def _summary_row(name: str, r) -> str:
     return (f"| {name:8s} | {r.iterations:5d} | {r.cost:.12f} | {r.grad_norm:9.2e} | "
             f"{r.attitude_error_deg:8.4f} | {r.solve_time_s * 1e3:9.1f} | {r.status} |")
@@ -130,6 +142,7 @@ def _solve_and_report(spec, args) -> int:
         print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
               f"attitude error = {result.attitude_error_deg:.4f} deg  |Omega_H - Omega_d| = "
               f"{result.angular_velocity_error:.3e} rad/s  solve time = {result.solve_time_s:.3f} s")
+    _print_limits(result)
     print(f"status: {result.status} ({result.message})")
     if args.json:
         _wrote(result.write_json(args.json))

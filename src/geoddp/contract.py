@@ -149,6 +149,11 @@ class OptimalControlProblem(Protocol):
         state; k (H, m), K (H, m, nx). Returns None when the state becomes non-finite."""
         ...
 
+    # Optional member (control limits, issue 15): ``control_bounds() -> (lower, upper) | None``,
+    # each (H, m), -inf / inf where unbounded. A problem with bounds must keep every control of
+    # ``rollout_policy`` inside them (clamping after the feedback law) and reject an initial guess
+    # outside them in ``check_controls``; the solver then solves the box-constrained problem.
+
     def describe(self) -> dict[str, Any]:
         """The model description a Result and the viewer need without the solver (a dict with at
         least ``kind``, ``integrator``, ``dt``, ``target_rotation`` (3, 3) and

@@ -14,12 +14,14 @@ rollout_closed_loop, expansion, description), so this one class serves both.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .contract import Linearisation, Trajectory
+from .limits import as_limits, check_inside
 from .costs import (
     AngularVelocityQuadratic,
     AttitudeChordal,
@@ -46,7 +48,10 @@ class Problem:
         v0: initial velocity part: Omega0 (3,) rad/s on TSO(3), (nv,) for a multibody.
         horizon: number of control steps H.
         running: running cost (applied at k = 0 .. H-1); terminal: terminal cost (at k = H).
-        limits: reserved for control limits ((H, m) lower/upper); None (unconstrained) for now.
+        limits: control limits lower <= u_k <= upper (issue 15): None (unconstrained), a
+            :class:`geoddp.limits.ControlLimits`, a (lower, upper) pair or {"lower", "upper"};
+            each bound a scalar, (m,) or (H, m), -inf / inf for an unbounded side. Stored as a
+            ControlLimits; :meth:`control_bounds` gives the (H, m) arrays.
     """
 
     model: Any
@@ -64,8 +69,17 @@ class Problem:
             nx = getattr(s, "nx", self.model.nx)
             if nx != self.model.nx:
                 raise InputError(name, f"expected costs on the model's tangent space (nx = {self.model.nx}), got nx = {nx}")
-        if self.limits is not None:
-            raise InputError("limits", "expected None (control limits are not supported yet)")
+        self.limits = as_limits(self.limits)
+        self._bounds = None if self.limits is None else self.limits.resolve(self.horizon, self.model.nu)
+
+    def with_limits(self, limits: Any) -> "Problem":
+        """The same problem (model, costs, horizon, initial state shared) with other control limits
+        (any form the ``limits`` attribute takes; None removes them)."""
+        return dataclasses.replace(self, limits=limits)
+
+    def control_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lower, upper), each (H, m) float64 (-inf / inf where unbounded), or None without limits."""
+        return self._bounds
 
     @property
     def nu(self) -> int:
@@ -96,8 +110,11 @@ class Problem:
     # ------------------------------------------------------------ the solver's contract
     # (geoddp.contract.OptimalControlProblem): thin adapters over the array methods below.
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
-        """Validated (H, m) float64 copy of a control sequence."""
-        return finite_array(controls, name, (self.horizon, self.nu))
+        """Validated (H, m) float64 copy of a control sequence (inside the limits, if any)."""
+        U = finite_array(controls, name, (self.horizon, self.nu))
+        if self._bounds is not None:
+            check_inside(U, *self._bounds, name)
+        return U
 
     def trajectory(self, controls: np.ndarray) -> Trajectory:
         """(H, m) controls -> Trajectory(q, v, u), the whole horizon in one call."""
@@ -164,9 +181,15 @@ class Problem:
     ) -> bool:
         """Forward pass of Algorithm 1: u_k = u_bar_k - gamma k_k - K_k zeta_k (eq. dustar) with
         zeta_k = difference(x_bar_k, x_k), from the initial state; gains k_ff (H, m), K_fb
-        (H, m, nx); results into q_out, v_out, u_out. Returns False if the state became non-finite."""
+        (H, m, nx); results into q_out, v_out, u_out. Returns False if the state became non-finite.
+
+        With limits, u_k is clamped into [lower_k, upper_k] after the feedback law (the feasible
+        forward pass of issue 15): every control applied and stored lies in the box."""
+        if self._bounds is None:
+            return self.model.rollout_closed_loop(self.q0, self.v0, q_bar, v_bar, u_bar, k_ff, K_fb, gamma,
+                                                  q_out, v_out, u_out)
         return self.model.rollout_closed_loop(self.q0, self.v0, q_bar, v_bar, u_bar, k_ff, K_fb, gamma,
-                                              q_out, v_out, u_out)
+                                              q_out, v_out, u_out, lower=self._bounds[0], upper=self._bounds[1])
 
     def expansion(self, q: np.ndarray, v: np.ndarray, controls: np.ndarray, order: int):
         """The model's expansion along a trajectory (Phi, B; Theta, Gamma, Xi at order 2)."""
@@ -213,11 +236,13 @@ def satellite_problem(
     integrator: str = "euler",
     second_order: str = "exact",
     urdf=None,
+    limits=None,
 ) -> Problem:
     """Build the paper's satellite problem (eqs. disceqs, optprobR, costR) from numbers.
 
     Weights accept a scalar, a vector (diagonal) or a matrix. Units: inertia kg m^2, dt s,
-    angles rad, rates rad/s. The model is the one-body satellite (built-in ``satellite.urdf`` or
+    angles rad, rates rad/s. ``limits``: control limits (see :class:`Problem`), e.g.
+    ``(-5.0, 5.0)`` for |u_i| <= 5 N m. The model is the one-body satellite (built-in ``satellite.urdf`` or
     ``urdf``, spherical root, no gravity, this inertia) with the compiled TSO(3) backend.
     """
     actuation = np.eye(3) if actuation is None else actuation
@@ -240,11 +265,11 @@ def satellite_problem(
     R0 = np.eye(3) if R0 is None else R0
     Omega0 = np.zeros(3) if Omega0 is None else Omega0
     if isinstance(model, Satellite):
-        return Problem(model, R0, Omega0, horizon, running, terminal)
-    return _on_general_model(model, R0, Omega0, horizon, running, terminal)
+        return Problem(model, R0, Omega0, horizon, running, terminal, limits)
+    return _on_general_model(model, R0, Omega0, horizon, running, terminal, limits)
 
 
-def _on_general_model(model, R0, Omega0, horizon: int, running: CostSum, terminal: CostSum) -> Problem:
+def _on_general_model(model, R0, Omega0, horizon: int, running: CostSum, terminal: CostSum, limits=None) -> Problem:
     """The satellite's costs on its general one-body model (states (q, v) with q the root
     quaternion): control and rate terms as regularisations, attitude terms on the body frame."""
     import pinocchio as pin
@@ -264,7 +289,7 @@ def _on_general_model(model, R0, Omega0, horizon: int, running: CostSum, termina
 
     q0 = pin.Quaternion(np.asarray(R0, dtype=float)).coeffs().copy()  # (x, y, z, w)
     return Problem(model, q0, Omega0, horizon, MultibodyCostSum([convert(t) for t in running.terms], model=pm),
-                   MultibodyCostSum([convert(t) for t in terminal.terms], model=pm, terminal=True))
+                   MultibodyCostSum([convert(t) for t in terminal.terms], model=pm, terminal=True), limits)
 
 
 def paper_problem(integrator: str = "euler", attitude_kind: str = "chordal", **overrides) -> Problem:

@@ -138,6 +138,15 @@ def _jsonable(x: Any) -> Any:
     return x
 
 
+def _limits_from_json(lim: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """(lower, upper) from the JSON's "limits" (null or NaN = unbounded side)."""
+    if lim is None:
+        return None
+    lo = np.asarray(_nan_for_none(lim["lower"]), dtype=float)
+    hi = np.asarray(_nan_for_none(lim["upper"]), dtype=float)
+    return np.where(np.isnan(lo), -np.inf, lo), np.where(np.isnan(hi), np.inf, hi)
+
+
 @dataclass(init=False)
 class Result:
     """Solution of a geometric DDP solve.
@@ -178,6 +187,11 @@ class Result:
         timings: breakdown in seconds (derivatives, backward, forward, ...).
         expansion: the expansion option used (first | second | switch).
         dt: time step in seconds.
+        limits: the control limits (lower, upper), each (H, m) (-inf / inf where unbounded), or
+            None for an unconstrained problem.
+        active_set: (H, m) int8 with limits: -1 where u_k sits on its lower bound, +1 on its upper
+            bound, 0 inside; None without limits. ``optimality`` (in extra) then also holds the
+            KKT residual (max |projected gradient|) and the complementarity numbers.
         extra: free-form additions; the solver puts ``"saddle_escapes"`` here (a list of dicts with
             iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle.
 
@@ -217,6 +231,8 @@ class Result:
     control_history: np.ndarray | None
     time_history: np.ndarray | None
     extra: dict[str, Any]
+    limits: tuple[np.ndarray, np.ndarray] | None
+    active_set: np.ndarray | None
 
     def __init__(
         self,
@@ -245,6 +261,8 @@ class Result:
         control_history: np.ndarray | None = None,
         time_history: np.ndarray | None = None,
         extra: dict[str, Any] | None = None,
+        limits: tuple[np.ndarray, np.ndarray] | None = None,
+        active_set: np.ndarray | None = None,
         # pre-generic keywords
         rotations: np.ndarray | None = None,
         angular_velocities: np.ndarray | None = None,
@@ -276,6 +294,8 @@ class Result:
         self.control_history = control_history
         self.time_history = time_history
         self.extra = {} if extra is None else extra
+        self.limits = limits
+        self.active_set = active_set
         model = {} if model is None else dict(model)
         if q is None:
             if configurations is not None:
@@ -491,6 +511,12 @@ class Result:
             "model": _jsonable({k: val for k, val in self.model.items() if mb is None or k not in mb}),
             # the certificate of the final check (solver.loop._Solve.final_check); None if not solved here
             "optimality": _jsonable(self.extra.get("optimality")),
+            # control limits: unbounded sides as null (strict JSON has no infinity; a NaN bound is
+            # invalid, so null is unambiguous)
+            "limits": None if self.limits is None else {
+                "lower": np.where(np.isfinite(self.limits[0]), self.limits[0], np.nan).tolist(),
+                "upper": np.where(np.isfinite(self.limits[1]), self.limits[1], np.nan).tolist()},
+            "active_set": None if self.active_set is None else np.asarray(self.active_set).tolist(),
         }
 
     def write_json(self, path: str | Path) -> Path:
@@ -545,6 +571,8 @@ class Result:
             multibody=None if model is not None or d.get("multibody") is None else dict(d["multibody"]),
             integrator=None if model is not None else str(d["integrator"]),
             extra={"optimality": dict(d["optimality"])} if d.get("optimality") is not None else None,
+            limits=_limits_from_json(d.get("limits")),
+            active_set=None if d.get("active_set") is None else np.asarray(d["active_set"], dtype=np.int8),
         )
 
     @classmethod

@@ -4,8 +4,8 @@ Layout (package data, installed with the wheel; found through :mod:`importlib.re
 same lookups work from a source checkout, an editable install and a plain ``pip install .``)::
 
     geoddp/data/urdf/NAME.urdf                 the built-in models (satellite, spacecraft, ...)
-    geoddp/data/scenes/NAME.toml               satellite scenes (satellite_paper, ...)
-    geoddp/data/scenes/multibody/NAME.toml     the three multibody scenes
+    geoddp/data/scenes/NAME.toml               satellite scenes (satellite_paper, satellite_wheel_limits, ...)
+    geoddp/data/scenes/multibody/NAME.toml     the multibody scenes (the three built-in ones and quadrotor_thrust_limits)
     geoddp/data/scenes/hard/NAME.toml          the 13 hard cases
     geoddp/data/scenes/robots/NAME.toml        real robots of example-robot-data by name
                                                (ur5_reach, solo12_reorient, hector_fly)

@@ -55,6 +55,10 @@ inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out) -> bool`` (Fals
     actuation (3,m), dt (float, s), semi_implicit (bool). The nominal arrays are read only when
     use_feedback. out: R_out (H+1,3,3), Om_out (H+1,3), u_out (H,m). R_out/Om_out may be the
     same arrays as R_bar/Om_bar when use_feedback is False.
+``satellite_rollout_box(R0, Om0, R_bar, Om_bar, u_bar, k_ff, K_fb, gamma, lower, upper, inertia,
+inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out) -> bool``
+    the same with feedback and control limits lower, upper (H,m): u_k is clamped into the box
+    after the feedback law (issue 15).
 ``satellite_linearise(Om, dt, inertia, inertia_inv, actuation, semi_implicit, second_order, Phi, B,
 Theta, Gamma, Xi) -> None``
     in: Om (H+1,3) nominal rates, dt, inertia (3,3), inertia_inv (3,3), actuation (3,m), flags.
@@ -76,11 +80,11 @@ import numpy as np
 from .costs import geodesic_attitude_derivatives
 from .lie import se3_right_jacobian, so3_exp, so3_log, so3_log_batch, so3_right_jacobian
 from .riccati import backward_pass, gradient
-from .rigid_body import satellite_linearise, satellite_rollout
+from .rigid_body import satellite_linearise, satellite_rollout, satellite_rollout_box
 
 __all__ = [
     "backward_pass", "gradient", "so3_exp", "so3_log", "so3_log_batch", "so3_right_jacobian",
-    "se3_right_jacobian", "satellite_rollout", "satellite_linearise", "geodesic_attitude_derivatives",
+    "se3_right_jacobian", "satellite_rollout", "satellite_rollout_box", "satellite_linearise", "geodesic_attitude_derivatives",
     "warm_up",
 ]
 
@@ -104,6 +108,8 @@ def warm_up() -> None:
     for semi in (False, True):
         satellite_rollout(I3, np.zeros(3), R, Om, U, U, np.zeros((H, m, 6)), 1.0, True, I3, I3, I3, 0.1, semi,
                           R.copy(), Om.copy(), U.copy())
+        satellite_rollout_box(I3, np.zeros(3), R, Om, U, U, np.zeros((H, m, 6)), 1.0, U - 1.0, U + 1.0, I3, I3, I3,
+                              0.1, semi, R.copy(), Om.copy(), U.copy())
         for second in (False, True):
             satellite_linearise(Om, 0.1, I3, I3, I3, semi, second, np.empty((H, 6, 6)), np.empty((H, 6, m)),
                                 np.empty((H, 6, 6, 6)), np.empty((H, 6, 6, m)), np.empty((H, 6, m, m)))

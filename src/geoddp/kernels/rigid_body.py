@@ -49,6 +49,41 @@ def satellite_rollout(
     Integrators: explicit Euler (R+ = R exp(dt Om), paper eq. disceqs) or semi-implicit Euler
     (Om+ first, then R+ = R exp(dt Om+), Crocoddyl's). Returns False if a state became non-finite.
     """
+    return _rollout(R0, Om0, R_bar, Om_bar, u_bar, k_ff, K_fb, gamma, use_feedback, False, u_bar, u_bar,
+                    inertia, inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out)
+
+
+@njit(cache=True)
+def satellite_rollout_box(
+    R0: np.ndarray,
+    Om0: np.ndarray,
+    R_bar: np.ndarray,
+    Om_bar: np.ndarray,
+    u_bar: np.ndarray,
+    k_ff: np.ndarray,
+    K_fb: np.ndarray,
+    gamma: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    inertia: np.ndarray,
+    inertia_inv: np.ndarray,
+    actuation: np.ndarray,
+    dt: float,
+    semi_implicit: bool,
+    R_out: np.ndarray,
+    Om_out: np.ndarray,
+    u_out: np.ndarray,
+) -> bool:
+    """:func:`satellite_rollout` with feedback and control limits (issue 15): u_k = clamp(u_bar_k
+    - gamma k_k - K_k zeta_k, lower_k, upper_k), lower/upper (H, m); the clamped u_k is applied and
+    stored (a NaN stays NaN and stops the rollout)."""
+    return _rollout(R0, Om0, R_bar, Om_bar, u_bar, k_ff, K_fb, gamma, True, True, lower, upper,
+                    inertia, inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out)
+
+
+@njit(cache=True)
+def _rollout(R0, Om0, R_bar, Om_bar, u_bar, k_ff, K_fb, gamma, use_feedback, clamp, lower, upper,
+             inertia, inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out):
     H = u_bar.shape[0]
     m = u_bar.shape[1]
     R_out[0] = R0
@@ -74,6 +109,11 @@ def satellite_rollout(
                 acc = u_bar[k, a] - gamma * k_ff[k, a]
                 for b in range(6):
                     acc -= K_fb[k, a, b] * zeta[b]
+                if clamp:  # explicit comparisons: a NaN stays NaN
+                    if acc < lower[k, a]:
+                        acc = lower[k, a]
+                    elif acc > upper[k, a]:
+                        acc = upper[k, a]
                 u_out[k, a] = acc
         else:
             for a in range(m):

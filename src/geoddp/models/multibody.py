@@ -407,12 +407,14 @@ class Multibody:
     def rollout_closed_loop(
         self, q0: np.ndarray, v0: np.ndarray, Q_bar: np.ndarray, V_bar: np.ndarray, u_bar: np.ndarray,
         k_ff: np.ndarray, K_fb: np.ndarray, gamma: float, Q_out: np.ndarray, V_out: np.ndarray, u_out: np.ndarray,
+        lower: np.ndarray | None = None, upper: np.ndarray | None = None,
     ) -> bool:
         """Forward pass of Algorithm 1 (eq. dustar) from (q0, v0): u_k = u_bar_k - gamma k_k - K_k
         zeta_k with zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite.
 
         Shapes: Q_bar, Q_out (H+1, nq); V_bar, V_out (H+1, nv); u_bar, k_ff, u_out (H, m);
-        K_fb (H, m, 2 nv). With the compiled backend the whole pass runs in C++."""
+        K_fb (H, m, 2 nv). With control limits lower, upper (H, m), u_k is clamped into the box
+        after the feedback law. With the compiled backend the whole pass runs in C++."""
         H = np.shape(u_out)[0]  # the outputs are the caller's, sized to its horizon
         if self.backend == "compiled":
             nq, nv, m = self.nq, self.nv, self.nu
@@ -421,12 +423,15 @@ class Multibody:
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
                 ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
                 ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
-                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)))
+                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)),
+                *(() if lower is None else (ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m)))))
         data = self._data
         Q_out[0], V_out[0] = q0, v0
         for k in range(H):
             zeta = self.local(Q_bar[k], V_bar[k], Q_out[k], V_out[k])
             u = u_bar[k] - gamma * k_ff[k] - K_fb[k] @ zeta
+            if lower is not None:  # np.minimum/maximum propagate NaN, as the compiled clamp does
+                u = np.minimum(np.maximum(u, lower[k]), upper[k])
             u_out[k] = u
             q1, v1 = self._step(data, Q_out[k], V_out[k], u)
             if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):

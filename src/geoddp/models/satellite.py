@@ -133,13 +133,20 @@ class Satellite:
     def rollout_closed_loop(
         self, R0: np.ndarray, Omega0: np.ndarray, R_bar: np.ndarray, Omega_bar: np.ndarray, u_bar: np.ndarray,
         k_ff: np.ndarray, K_fb: np.ndarray, gamma: float, R_out: np.ndarray, Omega_out: np.ndarray, u_out: np.ndarray,
+        lower: np.ndarray | None = None, upper: np.ndarray | None = None,
     ) -> bool:
         """Forward pass of Algorithm 1 from (R0, Omega0): u_k = u_bar_k - gamma k_k - K_k zeta_k
         (eq. dustar), zeta_k = (log(R_bar_k^T R_k), Omega_k - Omega_bar_k).
 
         Nominal R_bar (H+1,3,3), Omega_bar (H+1,3), u_bar (H,m); gains k_ff (H,m), K_fb (H,m,6);
         results into R_out, Omega_out, u_out. Returns False if the state became non-finite.
+        With control limits lower, upper (H, m), u_k is clamped into the box after the feedback law.
         """
+        if lower is not None:
+            return kernels.satellite_rollout_box(
+                R0, Omega0, R_bar, Omega_bar, u_bar, k_ff, K_fb, gamma, lower, upper,
+                self.inertia, self.inertia_inv, self.actuation, self.dt, self.semi_implicit, R_out, Omega_out, u_out,
+            )
         return kernels.satellite_rollout(
             R0, Omega0, R_bar, Omega_bar, u_bar, k_ff, K_fb, gamma, True,
             self.inertia, self.inertia_inv, self.actuation, self.dt, self.semi_implicit, R_out, Omega_out, u_out,

@@ -13,6 +13,7 @@ from typing import Any, Union
 import numpy as np
 import pinocchio as pin
 
+from ..validate import InputError
 from .multibody import MultibodySceneSpec
 from .satellite import SceneSpec
 
@@ -24,7 +25,36 @@ def build_problem(spec: AnySceneSpec):
     """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0); the
     model's backend is chosen when it is built (TSO(3) closed forms for the satellite). A fresh
     model each call. The shared tables (:mod:`.common`) act on the problem here, once for every kind."""
-    return _satellite(spec) if isinstance(spec, SceneSpec) else _multibody(spec)
+    problem = _satellite(spec) if isinstance(spec, SceneSpec) else _multibody(spec)
+    if spec.has_limits:
+        problem = problem.with_limits(control_limits(spec, problem.model))
+    return problem
+
+
+def control_limits(spec: AnySceneSpec, model: Any = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The scene's ``[limits]`` as (lower, upper), each (m,) (-inf / inf where unbounded), or None.
+
+    ``effort_limits = "urdf"`` reads the joint efforts of ``model`` (the built multibody model:
+    :func:`geoddp.limits.effort_limits`) and keeps the tighter of them and control_min /
+    control_max; InputError naming ``[limits].control_min`` if that leaves lower > upper."""
+    from ..limits import effort_limits
+
+    if not spec.has_limits:
+        return None
+    m = spec.num_inputs
+    lo = np.full(m, -np.inf) if spec.control_min is None else np.array(spec.control_min)
+    hi = np.full(m, np.inf) if spec.control_max is None else np.array(spec.control_max)
+    if spec.effort_limits == "urdf":
+        try:
+            e_lo, e_hi = effort_limits(model.pin_model.effortLimit, model.actuation)
+        except InputError as e:
+            raise e.with_source(spec.source) from None
+        lo, hi = np.maximum(lo, e_lo), np.minimum(hi, e_hi)
+        if np.any(lo > hi):
+            i = int(np.argmax(lo > hi))
+            raise InputError("[limits].control_min", f"input {i}: control_min = {lo[i]} is above the URDF effort "
+                             f"limit {hi[i]} (effort_limits = \"urdf\" keeps the tighter bound)", spec.source)
+    return lo, hi
 
 
 def _satellite(spec: SceneSpec):

@@ -1,6 +1,7 @@
 """The tables every scene kind shares, once: their keys, their fields on the spec and how they are
-read: ``[solver]`` and ``[simulation]`` (issue 16: :class:`~geoddp.simulation_spec.SimulationSpec`,
-flown by :func:`geoddp.simulate.simulate_scene` and ``geoddp simulate``); ``[limits]`` belongs here too.
+read: ``[solver]``, ``[limits]`` (control limits, issue 15) and ``[simulation]`` (issue 16:
+:class:`~geoddp.simulation_spec.SimulationSpec`, flown by :func:`geoddp.simulate.simulate_scene`
+and ``geoddp simulate``).
 
 :class:`CommonSpec` is the base of both specs (:class:`~geoddp.scene.satellite.SceneSpec`,
 :class:`~geoddp.scene.multibody.MultibodySceneSpec`): its fields are keyword-only with defaults,
@@ -17,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .. import validate as v
+from ..limits import ControlLimits, check_inside
 from ..simulation_spec import SimulationSpec
 from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
                               EXPANSIONS)
@@ -29,7 +31,9 @@ TABLES: Schema = {
     "solver": {"expansion": False, "switch_ratio": False, "tol": False, "grad_tol": False, "max_iter": False,
                "second_order": False, "initial_controls": False},
     "simulation": {f.name: False for f in dataclasses.fields(SimulationSpec)},
+    "limits": {"control_min": False, "control_max": False, "effort_limits": False},
 }
+EFFORT_LIMITS = ("urdf",)
 
 
 def readonly(a: Any) -> np.ndarray:
@@ -52,6 +56,11 @@ class CommonSpec:
         second_order: "exact" | "paper" (the paper's: satellite with explicit Euler only).
         simulation: the ``[simulation]`` table as a :class:`~geoddp.simulation_spec.SimulationSpec`
             (a dict of its fields is converted), or None when the scene has none.
+        control_min, control_max: ``[limits]``: (m,) per-input lower / upper control bounds
+            (-inf / inf: unbounded), or None (no bound on that side).
+        effort_limits: ``[limits].effort_limits``: "urdf" (multibody scenes: every input is a
+            joint motor bounded by its URDF effort, -effort <= u <= effort; combined with
+            control_min / control_max by taking the tighter bound) or None.
     """
 
     expansion: str = DEFAULT_EXPANSION
@@ -61,6 +70,9 @@ class CommonSpec:
     max_iter: int = DEFAULT_MAX_ITER
     second_order: str = DEFAULT_SECOND_ORDER
     simulation: SimulationSpec | None = None
+    control_min: np.ndarray | None = None
+    control_max: np.ndarray | None = None
+    effort_limits: str | None = None
 
     def _check_common(self, second_order_kinds: tuple[str, ...], nu: int) -> None:
         """Validate the shared fields under their field names (direct construction, with_overrides);
@@ -77,6 +89,40 @@ class CommonSpec:
         elif self.simulation is not None and not isinstance(self.simulation, SimulationSpec):
             raise v.InputError("simulation", f"expected a SimulationSpec, a dict of its fields or None, got "
                                f"{type(self.simulation).__name__}")
+        lo, hi = control_bounds(self.control_min, self.control_max, nu, ("control_min", "control_max"))
+        put("control_min", lo)
+        put("control_max", hi)
+        if self.effort_limits is not None:
+            put("effort_limits", v.choice(self.effort_limits, "effort_limits", EFFORT_LIMITS))
+
+    @property
+    def has_limits(self) -> bool:
+        """True if the scene bounds its controls (``[limits]``)."""
+        return self.control_min is not None or self.control_max is not None or self.effort_limits is not None
+
+    def _check_initial_in_limits(self, U: np.ndarray | None, name: str) -> None:
+        """InputError naming ``name`` if an initial guess U ((m,) or (H, m)) leaves the numeric limits."""
+        initial_in_limits(U, self.control_min, self.control_max, name)
+
+
+def initial_in_limits(U: np.ndarray | None, lower: np.ndarray | None, upper: np.ndarray | None, name: str) -> None:
+    """InputError naming ``name`` if an initial guess U ((m,) or (H, m)) leaves [lower, upper]
+    ((m,) each or None). URDF effort limits are checked when the problem is solved."""
+    if U is None or (lower is None and upper is None):
+        return
+    U2 = np.atleast_2d(U)
+    lo = np.broadcast_to(-np.inf if lower is None else lower, U2.shape)
+    hi = np.broadcast_to(np.inf if upper is None else upper, U2.shape)
+    check_inside(U2, lo, hi, name)
+
+
+def control_bounds(lower: Any, upper: Any, nu: int, names: tuple[str, str]) -> tuple[Any, Any]:
+    """Per-input bounds (a number or nu numbers each, or None) as read-only (nu,) arrays or None;
+    InputError naming ``names`` for NaN, a wrong length, +inf below, -inf above, lower > upper."""
+    if lower is None and upper is None:
+        return None, None
+    lo, hi = ControlLimits(lower, upper).resolve(1, nu, names)
+    return (None if lower is None else readonly(lo[0])), (None if upper is None else readonly(hi[0]))
 
 
 def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: Any = None) -> dict[str, Any]:
@@ -89,10 +135,22 @@ def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: 
         model: the kind's ``pin.Model`` if it has one at parse time (multibody), else None.
 
     ``[solver].initial_controls`` has forms that depend on the kind ("hover"): each kind reads it.
+    ``[limits]``: control_min / control_max (a number or nu numbers, -inf / inf allowed) and, for a
+    multibody scene (``model`` given), effort_limits = "urdf".
     """
     s = r.table("solver")
     get = s.get
+    lim = r.table("limits")
+    lo, hi = r.check(control_bounds, lim.get("control_min"), lim.get("control_max"), nu,
+                     ("[limits].control_min", "[limits].control_max"))
+    effort = lim.get("effort_limits")
+    if effort is not None:
+        effort = r.check(v.choice, effort, "[limits].effort_limits", EFFORT_LIMITS)
+        if model is None:
+            raise r.err("[limits].effort_limits", "only multibody scenes read joint efforts from their URDF; "
+                        "give control_min / control_max")
     return dict(
+        control_min=lo, control_max=hi, effort_limits=effort,
         simulation=r.check(_simulation, r.table("simulation")) if "simulation" in r.data else None,
         expansion=r.check(v.choice, get("expansion", DEFAULT_EXPANSION), "[solver].expansion", EXPANSIONS),
         switch_ratio=r.check(v.bounded_float, get("switch_ratio", DEFAULT_SWITCH_RATIO), "[solver].switch_ratio",

@@ -63,7 +63,7 @@ import pinocchio as pin
 
 from .. import validate as v
 from ..validate import InputError
-from .common import TABLES, CommonSpec, read_common, readonly
+from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
 from .reader import Reader, Schema, check_urdf
 
 COST_TYPES = ("frame_placement", "frame_rotation", "frame_translation", "state_regularisation", "control")
@@ -212,6 +212,7 @@ class MultibodySceneSpec(CommonSpec):
             if U.shape not in ((m,), (self.horizon, m)):
                 raise InputError("initial_controls", f"expected shape ({m},) or ({self.horizon}, {m}), got shape {U.shape}")
             put("initial_controls", readonly(U))
+        self._check_initial_in_limits(self.initial_controls, "initial_controls")
 
     @property
     def num_inputs(self) -> int:
@@ -338,6 +339,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
             if U0.shape not in ((m,), (H, m)):
                 raise r.err(p, f'expected "zero", "hover", a constant input of shape ({m},) or a sequence of shape '
                             f"({H}, {m}), got shape {U0.shape}")
+        r.check(initial_in_limits, U0, common["control_min"], common["control_max"], p)
     return MultibodySceneSpec(
         name=name, description=description, source=source, urdf=urdf, root=root, gravity=gravity,
         actuation=actuation, q0=q0, v0=v0, dt=dt, horizon=H, integrator=integrator,

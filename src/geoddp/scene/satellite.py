@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import validate as v
 from ..validate import InputError
-from .common import TABLES, CommonSpec, read_common, readonly
+from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
 from .reader import Reader, Schema, check_urdf
 
 INTEGRATORS = ("euler", "semi_implicit")
@@ -145,6 +145,7 @@ class SceneSpec(CommonSpec):
         self._check_common(SECOND_ORDER, m)
         if self.initial_controls is not None:
             put("initial_controls", readonly(v.finite_array(self.initial_controls, "initial_controls", shape=(H, m))))
+        self._check_initial_in_limits(self.initial_controls, "initial_controls")
 
     @property
     def num_inputs(self) -> int:
@@ -235,6 +236,7 @@ def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: st
     U0 = None
     if "initial_controls" in solver:
         U0 = r.check(v.finite_array, solver["initial_controls"], "[solver].initial_controls", shape=(H, m))
+        r.check(initial_in_limits, U0, common["control_min"], common["control_max"], "[solver].initial_controls")
 
     return SceneSpec(
         name=name, description=description, source=source, inertia=inertia, actuation=act, urdf=urdf,

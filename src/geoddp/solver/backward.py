@@ -32,11 +32,17 @@ class Workspace:
     """Per-solve buffers (Crocoddyl's 'data'): allocated once, reused every iteration.
 
     k (H, m) feedforward and K (H, m, nx) feedback gains of the last backward pass, grad (H, m)
-    the last gradient, quu_eig (H,) the smallest eigenvalue of each node's regularised Q_uu.
+    the last gradient, quu_eig (H,) the smallest eigenvalue of each node's regularised Q_uu. With
+    control limits also bounds, active (H, m), k_box (H, m) and the value function at node 0.
     """
 
-    def __init__(self, horizon: int, nu: int, nx: int) -> None:
+    def __init__(self, horizon: int, nu: int, nx: int, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         H, m = horizon, nu
+        # control limits (lower, upper), each (H, m), or None: then every pass is the unconstrained one
+        self.bounds = bounds
+        self.active = np.zeros((H, m), dtype=np.int8)  # the last box pass's active set (-1 lower, +1 upper)
+        self.k_box = np.zeros((H, m))  # the last box pass's feedforward: the next one's warm start
+        self.Vx0, self.Vxx0 = np.zeros(nx), np.zeros((nx, nx))
         self.k = np.zeros((H, m))
         self.K = np.zeros((H, m, nx))
         self.grad = np.zeros((H, m))
@@ -62,12 +68,60 @@ class Workspace:
         self.quu_eig[lo:] = other.quu_eig[lo:]
 
 
-def backward(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float, float]:
+def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | None = None) -> tuple[int, float, float]:
     """One backward pass with Q_uu + reg I; gains into ws.k, ws.K.
+
+    With control limits (ws.bounds; ``u_bar`` (H, m) the nominal controls) the unconstrained pass
+    runs first: when every full-step control u_bar_k - k_k of the nodes it solved lies in the box,
+    each of those nodes' box QP has that unconstrained minimiser as its solution (a strictly convex
+    QP whose unconstrained minimiser is feasible) and the value functions coincide, so its gains
+    (or its failure at a node where Q_uu + reg I is not positive definite) are the box pass's, bit
+    for bit the unconstrained solver's (inactive limits change nothing). The
+    unconstrained attempt is skipped while the last box pass had inputs on a bound. Otherwise
+    the compiled box pass (geoddp._core.backward_pass_box, cpp/riccati.cpp, for every model)
+    recomputes the gains: box QP per node by projected Newton, warm-started from its previous
+    feedforward; the active set goes to ws.active.
 
     Returns (failed node or -1, d1, d2): the model's decrease for a step gamma is
     -(gamma d1 - gamma^2 / 2 d2) (so d1 - d2 / 2 at gamma = 1).
     """
+    second = lin.order == 2
+    theta = lin.Theta if second else ws.empty_theta
+    gamma = lin.Gamma if second else ws.empty_gamma
+    xi = lin.Xi if second else ws.empty_xi
+    # the unconstrained pass, unless the last box pass had inputs on a bound (then it is wasted work)
+    if ws.bounds is None or not ws.active.any():
+        out = _unconstrained(lin, ws, reg)
+        if ws.bounds is None:
+            return out
+        # nodes failed+1 .. H-1 were solved (all of them on success): if every full-step control
+        # there is inside the box, the box pass would compute exactly these nodes and stop at the
+        # same node (the same whole-Q_uu rule), so this outcome is the box pass's
+        done = slice(out[0] + 1, None)
+        u_full = u_bar[done] - ws.k[done]
+        lower, upper = ws.bounds
+        if np.all((u_full >= lower[done]) & (u_full <= upper[done])):  # NaN fails: the box pass decides
+            if out[0] < 0:
+                ws.k_box[:] = ws.k
+            return out
+    lower, upper = ws.bounds
+    ws.k[:] = ws.k_box  # warm start of every node's box QP
+    if second and lin.second_order is not None:  # factored second order: contracted with V_x' in the box pass
+        out = _core.backward_pass_box_contracted(
+            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx, lin.second_order,
+            reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0)
+    else:
+        out = _core.backward_pass_box(
+            lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
+            theta, gamma, xi, second, reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0,
+        )
+    if out[0] < 0:
+        ws.k_box[:] = ws.k
+    return out
+
+
+def _unconstrained(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float, float]:
+    """The unconstrained pass: contracted (factored second order), C++ (nx > 6) or numba."""
     second = lin.order == 2
     if second and lin.second_order is not None:  # factored terms: contracted with V_x' in the pass
         return _core.backward_pass_contracted(
@@ -109,9 +163,13 @@ def _speculation_pool(lin: Linearisation):
     return _SPECULATION["pool"]
 
 
-def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions) -> tuple[float, float, float, int]:
+def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions,
+                         u_bar: np.ndarray | None = None) -> tuple[float, float, float, int]:
     """Backward pass restarted from k = H with a larger lambda while Q_uu + lambda I is not
     positive definite (Remark rem:theta): lambda <- max(reg_increase lambda, reg_min).
+
+    With control limits the same rule holds for the box pass: it fails at a node where the whole
+    Q_uu + lambda I is not positive definite, so every box QP it solves is strictly convex.
 
     Returns (lambda, d1, d2, restarts); lambda > opt.reg_max means it gave up.
 
@@ -122,8 +180,9 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
     the restart count are exactly those of running the sequence one pass at a time (tested).
     """
     restarts = 0
-    failed, d1, d2 = backward(lin, ws, lam)
-    pool = _speculation_pool(lin) if failed >= 0 else None
+    failed, d1, d2 = backward(lin, ws, lam, u_bar)
+    # speculative restarts only without limits (the box pass keeps its warm start in ws)
+    pool = _speculation_pool(lin) if failed >= 0 and ws.bounds is None else None
     while failed >= 0:
         restarts += 1
         lam = max(lam * opt.reg_increase, opt.reg_min)
@@ -131,7 +190,7 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
             break
         nxt = max(lam * opt.reg_increase, opt.reg_min)
         if pool is None or nxt > opt.reg_max:
-            failed, d1, d2 = backward(lin, ws, lam)
+            failed, d1, d2 = backward(lin, ws, lam, u_bar)
             continue
         spare = ws.spare()
         ahead = pool.submit(backward, lin, spare, nxt)
@@ -146,11 +205,11 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
     return lam, d1, d2, restarts
 
 
-def factorisable_gains(lin: Linearisation, ws: Workspace, opt: SolverOptions) -> None:
+def factorisable_gains(lin: Linearisation, ws: Workspace, opt: SolverOptions, u_bar: np.ndarray | None = None) -> None:
     """Gains for the user where the lambda = 0 pass failed: the smallest lambda >= reg_min (on the
     reg_increase grid, up to reg_max) whose Q_uu factorises."""
     lam = opt.reg_min
-    while backward(lin, ws, lam)[0] >= 0 and lam < opt.reg_max:
+    while backward(lin, ws, lam, u_bar)[0] >= 0 and lam < opt.reg_max:
         lam *= opt.reg_increase
 
 

@@ -21,6 +21,14 @@ Decisions the paper leaves open, and why:
   a positive definite Hessian of J(U). A stationary point that fails this test is reported as a
   saddle, never as converged, unless a step along negative curvature (:mod:`.saddle`) escapes it.
 
+* Control limits (issue 15; a problem whose ``control_bounds()`` is not None): the backward pass
+  minimises each node's Q model over the box (projected Newton, compiled for every model;
+  :func:`.backward.backward`), the forward pass clamps u_k into the box after the feedback law
+  (every iterate feasible; the line search and the tests above are unchanged, so J never
+  rises), and the gradient tests use the projected gradient (components pushing into an active
+  bound do not count). The final check reports the KKT residual and the active set. Indefinite
+  Q_uu: the same lambda rule, applied to the whole Q_uu + lambda I before each box QP.
+
 The solver talks to the problem only through :class:`geoddp.contract.OptimalControlProblem`.
 """
 from __future__ import annotations
@@ -35,7 +43,8 @@ from .. import kernels
 from ..contract import Linearisation, OptimalControlProblem, Trajectory
 from ..result import Result
 from ..validate import InputError
-from .backward import Workspace, backward, factorisable_gains, gradient, regularised_backward
+from ..limits import active_set, projected_gradient
+from .backward import _core, Workspace, backward, factorisable_gains, gradient, regularised_backward
 from .forward import line_search
 from .history import History
 from .options import SolverOptions
@@ -82,7 +91,9 @@ class _Solve:
         self.t_start = time.perf_counter()
         self.timings = {"derivatives": 0.0, "backward": 0.0, "forward": 0.0, "final_check": 0.0}
         self.traj: Trajectory = problem.trajectory(U)
-        self.ws = Workspace(problem.horizon, problem.nu, problem.nx)
+        # control limits (issue 15): an optional member of the contract
+        self.bounds = problem.control_bounds() if hasattr(problem, "control_bounds") else None
+        self.ws = Workspace(problem.horizon, problem.nu, problem.nx, self.bounds)
         self.J = problem.trajectory_cost(self.traj)
         if not np.isfinite(self.J):
             # bad input, not a solver failure: nothing finite to return (huge controls, a spin
@@ -113,11 +124,20 @@ class _Solve:
             self.use_second = True
         return 2 if self.use_second else 1
 
+    def grad_norm(self, lin: Linearisation) -> float:
+        """||dJ/dU||, or with control limits the norm of the projected gradient (the components
+        that push into an active bound do not count: the KKT residual of the box problem)."""
+        g = gradient(lin, self.ws)
+        if self.bounds is not None:
+            g = projected_gradient(self.traj.u, g, *self.bounds)
+        return float(np.linalg.norm(g))
+
     def direction(self, order: int) -> tuple[Linearisation, float]:
-        """Linearise at the iterate; returns it and ||dJ/dU|| (recorded once per iterate)."""
+        """Linearise at the iterate; returns it and ||dJ/dU|| (projected with limits; recorded
+        once per iterate)."""
         t0 = time.perf_counter()
         lin = self.problem.linearise(self.traj, order)
-        gnorm = float(np.linalg.norm(gradient(lin, self.ws)))
+        gnorm = self.grad_norm(lin)
         self.timings["derivatives"] += time.perf_counter() - t0
         self.hist.gradient(gnorm)
         return lin, gnorm
@@ -134,7 +154,7 @@ class _Solve:
         t0 = time.perf_counter()
         if lin2 is None:
             lin2 = self.problem.linearise(self.traj, 2)
-            failed, d1, d2 = backward(lin2, self.ws, 0.0)
+            failed, d1, d2 = backward(lin2, self.ws, 0.0, self.traj.u)
         else:
             failed, (d1, d2) = -1, d
         self.checked, self.checked_node, self.checked_d = lin2, failed, (d1, d2)
@@ -145,7 +165,7 @@ class _Solve:
         if step is None or self.it >= self.opt.max_iter:
             return False
         if self.hist.needs_gradient():  # the gradient of an iterate reached by a step
-            self.hist.gradient(float(np.linalg.norm(gradient(lin2, self.ws))))
+            self.hist.gradient(self.grad_norm(lin2))
         traj, J_new, info = step
         info.update(iteration=self.it, cost_before=float(self.J), cost_after=float(J_new))
         self.escapes.append(info)
@@ -176,7 +196,7 @@ class _Solve:
             return False
 
         t0 = time.perf_counter()
-        self.lam, d1, d2, restarts = regularised_backward(lin, ws, self.lam, opt)
+        self.lam, d1, d2, restarts = regularised_backward(lin, ws, self.lam, opt, self.traj.u)
         self.timings["backward"] += time.perf_counter() - t0
         lam_used, quu_min = self.lam, float(ws.quu_eig.min())
         if not (np.isfinite(d1) and np.isfinite(d2)):
@@ -252,24 +272,26 @@ class _Solve:
         """
         t0 = time.perf_counter()
         lin = self.checked if self.checked is not None else self.problem.linearise(self.traj, 2)
-        gnorm = float(np.linalg.norm(gradient(lin, self.ws)))
+        gnorm = self.grad_norm(lin)
         self.hist.gradient(gnorm)
         # the check already ran this exact lambda = 0 pass when a stopping test passed here
         if self.checked is not None:
             failed, (d1, d2) = self.checked_node, self.checked_d
         else:
-            failed, d1, d2 = backward(lin, self.ws, 0.0)
+            failed, d1, d2 = backward(lin, self.ws, 0.0, self.traj.u)
         quu_min = float(self.ws.quu_eig.min()) if failed < 0 else None
         decrease = float(d1 - 0.5 * d2) if failed < 0 else None
         threshold = max(self.opt.tol, 16.0 * _EPS * abs(self.J))
         if failed >= 0:
-            factorisable_gains(lin, self.ws, self.opt)  # gains for the user need a factorisable Q_uu
+            factorisable_gains(lin, self.ws, self.opt, self.traj.u)  # gains for the user need a factorisable Q_uu
         self.timings["final_check"] += time.perf_counter() - t0
         self.optimality = {
             "newton_decrease": decrease, "newton_threshold": threshold,
             "hessian_positive_definite": failed < 0, "min_quu_eigenvalue": quu_min,
             "indefinite_node": None if failed < 0 else int(failed), "grad_norm": gnorm,
         }
+        if self.bounds is not None:
+            self.optimality.update(self.kkt(lin))
         if self.converged and failed >= 0:
             self.stop(STATUS_SADDLE, f"stationary (||dJ/dU|| = {gnorm:.3e}) but Q_uu is not positive definite at node "
                       f"{failed} with the exact second-order expansion: the reduced Hessian is indefinite")
@@ -284,6 +306,24 @@ class _Solve:
             self.message += f"; escaped {len(self.escapes)} saddle point(s) along negative curvature"
         return gnorm
 
+    def kkt(self, lin: Linearisation) -> dict:
+        """KKT certificate of min J(U) over the box at the iterate: ``kkt_residual`` = max |projected
+        gradient| (0 at a KKT point); ``active_inputs`` = number of (node, input) pairs on a bound;
+        ``min_active_multiplier`` = the smallest |dJ/du| over them (the bound's multiplier: > 0
+        means strict complementarity; 0 is the degenerate case of an input at a bound it does not
+        need); ``wrong_sign_active`` = inputs on a bound whose gradient points into the box (they
+        count in the residual)."""
+        g = gradient(lin, self.ws)
+        U, (lo, hi) = self.traj.u, self.bounds
+        pg = projected_gradient(U, g, lo, hi)
+        act = active_set(U, lo, hi)
+        on = act != 0
+        outward = ((act < 0) & (g >= 0.0)) | ((act > 0) & (g <= 0.0)) | (lo == hi)
+        return {"kkt_residual": float(np.max(np.abs(pg))) if pg.size else 0.0,
+                "active_inputs": int(on.sum()),
+                "min_active_multiplier": float(np.min(np.abs(g[on]))) if on.any() else None,
+                "wrong_sign_active": int((on & ~outward).sum())}
+
     def result(self, gnorm: float) -> Result:
         """Assemble the Result from the trajectory, the recorder and the problem's description."""
         solve_time = time.perf_counter() - self.t_start
@@ -296,7 +336,8 @@ class _Solve:
             controls=self.traj.u, feedforward=self.ws.k.copy(), feedback=self.ws.K.copy(),
             cost=float(self.J), iterations=self.it, converged=self.converged, status=self.status,
             message=self.message, **self.hist.arrays(), solve_time_s=solve_time, timings=self.timings,
-            expansion=self.opt.expansion, dt=p.dt,
+            expansion=self.opt.expansion, dt=p.dt, limits=self.bounds,
+            active_set=None if self.bounds is None else active_set(self.traj.u, *self.bounds),
             extra={"optimality": self.optimality, **({"saddle_escapes": self.escapes} if self.escapes else {})},
         )
 
@@ -351,12 +392,18 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
         problem: anything satisfying :class:`geoddp.contract.OptimalControlProblem`
             (:class:`geoddp.problem.Problem`, satellite or multibody).
         options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
-        initial_controls: (H, m) initial guess; zeros by default (as in the paper).
+        initial_controls: (H, m) initial guess; zeros by default (as in the paper), clipped into
+            the problem's control limits if it has some (a given guess must lie inside them).
     """
     _check_problem(problem, options)
     opt = options or SolverOptions()
-    U = (np.zeros((problem.horizon, problem.nu)) if initial_controls is None
-         else problem.check_controls(initial_controls))
+    bounds = problem.control_bounds() if hasattr(problem, "control_bounds") else None
+    if bounds is not None and _core is None:
+        raise InputError("limits", "control limits need the compiled core geoddp._core (its box-constrained "
+                         "backward pass); it did not import: rebuild with pip install -e .")
+    # zeros by default (the paper's guess), projected into the limits
+    U = (np.zeros((problem.horizon, problem.nu)) if bounds is None else np.clip(0.0, *bounds)) \
+        if initial_controls is None else problem.check_controls(initial_controls)
     kernels.warm_up()  # before the clock starts: solve_time_s measures the solve, not numba's loading
     # Overflow and invalid operations are detected by the explicit finiteness checks of the loop
     # (cost, gradient, backward pass): numpy's warnings would only duplicate them on stderr.

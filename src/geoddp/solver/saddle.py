@@ -6,6 +6,10 @@ there, and a step along the eigenvector of the most negative eigenvalue of that 
 the lambda = 0 feedback of the later nodes) decreases J. The solver takes the best of a few step
 lengths as an iteration, at most MAX_ESCAPES times per solve. Not options: these only matter on
 degenerate problems (a target at exactly pi from the start, for instance).
+
+With control limits the node's Q_uu comes from the unconstrained recursion (:func:`node_quu`),
+not the box pass's, and the trial rollouts clamp into the box: a trial is still taken only if
+it lowers J, so an escape stays feasible and monotone, but its direction may be less apt there.
 """
 from __future__ import annotations
 

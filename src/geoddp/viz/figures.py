@@ -72,7 +72,8 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
       ``times (H+1,)`` in s, with the target quaternion drawn as circles at t_f (the
       paper's Figure 2, left). The target's sign is chosen to match q_H.
     - ``angular_velocity.png``: Omega (rad/s, body frame) against time, target at t_f.
-    - ``controls.png``: u_k (actuation units) held constant over [t_k, t_{k+1}).
+    - ``controls.png``: u_k (actuation units) held constant over [t_k, t_{k+1}); with control
+      limits (``result.limits``) the bounds dashed and the saturated intervals shaded.
 
     Args:
         result: the trajectory.
@@ -83,7 +84,8 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
         quaternion: ``t (H+1,)``, ``quaternions (H+1, 4)``, ``target_time ()``,
         ``target_quaternion (4,)``; angular_velocity: ``t``, ``angular_velocities (H+1, 3)``,
         ``target_time``, ``target_angular_velocity (3,)``; controls: ``edges (H+1,)``,
-        ``controls (H, m)``.
+        ``controls (H, m)``, and with limits ``lower``, ``upper`` (H, m) (NaN: unbounded) and
+        ``saturated`` (list of (input, t_start, t_end)).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -129,11 +131,48 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
     for j in range(u.shape[1]):
         # Zero-order hold: u_k acts on [t_k, t_{k+1}), which stairs() draws exactly.
         ax.stairs(u[:, j], t, color=COLORS[j % len(COLORS)], label=f"$u_{j + 1}$", baseline=None)
+    arrays = {"edges": t, "controls": u}
+    limits = getattr(result, "limits", None)
+    if limits is not None:
+        arrays.update(_draw_limits(ax, t, u, limits, getattr(result, "active_set", None)))
     ax.set(xlabel="time [s]", ylabel="control", title="Controls")
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize="small")
-    figs.add("controls", FigureData(_save(fig, out / "controls.png"), {"edges": t, "controls": u}))
+    figs.add("controls", FigureData(_save(fig, out / "controls.png"), arrays))
     return figs
+
+
+def _draw_limits(ax, t: np.ndarray, u: np.ndarray, limits: tuple[np.ndarray, np.ndarray],
+                 active: np.ndarray | None) -> dict:
+    """Control limits on the controls axes (issue 15): each input's finite bounds as dashed
+    stairs in its colour, and the intervals [t_k, t_{k+1}) where it sits on a bound shaded in
+    its colour. Returns the figure data: ``lower``, ``upper`` (H, m) (NaN where unbounded) and
+    ``saturated`` (list of (input, t_start, t_end) intervals)."""
+    lo, hi = (np.asarray(b, dtype=float) for b in limits)
+    if active is None:
+        active = np.where(u >= hi, 1, np.where(u <= lo, -1, 0))
+    active = np.asarray(active)
+    intervals = []
+    drawn: list[np.ndarray] = []
+    for j in range(u.shape[1]):
+        c = COLORS[j % len(COLORS)]
+        for bound in (lo[:, j], hi[:, j]):
+            if not np.isfinite(bound).any() or any(np.array_equal(bound, b) for b in drawn):
+                continue
+            drawn.append(bound)
+            # a bound several inputs share is drawn once, in grey; an input's own in its colour
+            shared = sum(np.array_equal(bound, lo[:, i]) or np.array_equal(bound, hi[:, i]) for i in range(u.shape[1]))
+            ax.stairs(np.where(np.isfinite(bound), bound, np.nan), t, color="0.35" if shared > 1 else c, ls="--",
+                      lw=0.9, alpha=0.8, baseline=None)
+        on = np.concatenate(([False], active[:, j] != 0, [False]))
+        starts, ends = np.flatnonzero(~on[:-1] & on[1:]), np.flatnonzero(on[:-1] & ~on[1:])
+        for a, b in zip(starts, ends):  # nodes a .. b-1 saturated: [t_a, t_b)
+            ax.axvspan(t[a], t[b], color=c, alpha=0.12, lw=0)
+            intervals.append((j, float(t[a]), float(t[b])))
+    ax.plot([], [], "k--", lw=0.9, label="limits")
+    ax.fill_between([], [], color="0.5", alpha=0.25, label="saturated")
+    return {"lower": np.where(np.isfinite(lo), lo, np.nan), "upper": np.where(np.isfinite(hi), hi, np.nan),
+            "saturated": intervals}
 
 
 def control_errors(result: Result) -> np.ndarray:
