@@ -183,3 +183,15 @@ def test_a_bad_simulation_table_names_its_key(tmp_path, capsys, line, param):
     assert code == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1 and f"{param}:" in lines[0] and str(path) in lines[0], err
+
+
+def test_simulate_without_noise_says_the_samples_are_identical(capsys):
+    # The issue's `geoddp simulate satellite_paper --samples 90`: without any noise the samples are
+    # one run repeated (std 0); the command says so instead of presenting it as a distribution.
+    code, out, err = _run(capsys, ["simulate", "satellite_paper", "--samples", "4"])
+    assert code == 0 and err == ""
+    assert "note: no noise" in out and "4 samples are identical" in out
+    assert float(out.split("| attitude_rad (rad) | std | ")[1].split(" |")[0]) < 1e-15
+    code, out, err = _run(capsys, ["simulate", "satellite_paper", "--samples", "4", "--noise", "0.001"])
+    assert code == 0 and "note: no noise" not in out
+    assert float(out.split("| attitude_rad (rad) | std | ")[1].split(" |")[0]) > 1e-4
