@@ -1,6 +1,7 @@
 // Contraction of the factored second-order terms with V_x' and the backward pass using it (see
 // contracted.hpp). Eigen only: no Pinocchio algorithm is instantiated here.
 #include "contracted.hpp"
+#include "small_cholesky.hpp"
 
 #include <cmath>
 
@@ -87,46 +88,10 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
   (void)m;
 }
 
-// The same factorisation and solves as riccati.cpp (numba's arithmetic).
-static bool cholesky_inplace(RowMat& A) {
-  const int n = (int)A.rows();
-  for (int j = 0; j < n; ++j) {
-    double s = A(j, j);
-    for (int p = 0; p < j; ++p) s -= A(j, p) * A(j, p);
-    if (!(s > 0.0)) return false;
-    const double d = std::sqrt(s);
-    A(j, j) = d;
-    for (int i = j + 1; i < n; ++i) {
-      double t = A(i, j);
-      for (int p = 0; p < j; ++p) t -= A(i, p) * A(j, p);
-      A(i, j) = t / d;
-    }
-    for (int i = 0; i < j; ++i) A(i, j) = 0.0;
-  }
-  return true;
-}
-
-template <typename M>
-static void cholesky_solve(const RowMat& L, M& b) {
-  const int n = (int)L.rows();
-  for (int c = 0; c < b.cols(); ++c) {
-    for (int i = 0; i < n; ++i) {
-      double s = b(i, c);
-      for (int p = 0; p < i; ++p) s -= L(i, p) * b(p, c);
-      b(i, c) = s / L(i, i);
-    }
-    for (int i = n - 1; i >= 0; --i) {
-      double s = b(i, c);
-      for (int p = i + 1; p < n; ++p) s -= L(p, i) * b(p, c);
-      b(i, c) = s / L(i, i);
-    }
-  }
-}
-
-static void upper_to_full(RowMat& A) {
-  for (int i = 0; i < A.rows(); ++i)
-    for (int j = 0; j < i; ++j) A(i, j) = A(j, i);
-}
+// The same factorisation and solves as riccati.cpp (numba's arithmetic): small_cholesky.hpp.
+using smallchol::cholesky_inplace;
+using smallchol::cholesky_solve;
+using smallchol::upper_to_full;
 
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,

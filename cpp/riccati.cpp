@@ -1,6 +1,7 @@
 // The backward Riccati recursion (see riccati.hpp): Eigen products on the node's blocks instead of
 // numba's scalar loops; the Cholesky factor and its solves follow the numba kernel's arithmetic.
 #include "riccati.hpp"
+#include "small_cholesky.hpp"
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -14,49 +15,9 @@ typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> R
 typedef Eigen::Map<const RowMat> CMat;
 typedef Eigen::Map<const Eigen::VectorXd> CVec;
 
-// Lower Cholesky factor of a small SPD matrix in place (numba's _cholesky_inplace). False if not
-// positive definite (also on NaN).
-static bool cholesky_inplace(RowMat& A) {
-  const int n = (int)A.rows();
-  for (int j = 0; j < n; ++j) {
-    double s = A(j, j);
-    for (int p = 0; p < j; ++p) s -= A(j, p) * A(j, p);
-    if (!(s > 0.0)) return false;
-    const double d = std::sqrt(s);
-    A(j, j) = d;
-    for (int i = j + 1; i < n; ++i) {
-      double t = A(i, j);
-      for (int p = 0; p < j; ++p) t -= A(i, p) * A(j, p);
-      A(i, j) = t / d;
-    }
-    for (int i = 0; i < j; ++i) A(i, j) = 0.0;
-  }
-  return true;
-}
-
-// Solve (L L^T) x = b in place for each column of b (n, k).
-template <typename M>
-static void cholesky_solve(const RowMat& L, M& b) {
-  const int n = (int)L.rows();
-  for (int c = 0; c < b.cols(); ++c) {
-    for (int i = 0; i < n; ++i) {
-      double s = b(i, c);
-      for (int p = 0; p < i; ++p) s -= L(i, p) * b(p, c);
-      b(i, c) = s / L(i, i);
-    }
-    for (int i = n - 1; i >= 0; --i) {
-      double s = b(i, c);
-      for (int p = i + 1; p < n; ++p) s -= L(p, i) * b(p, c);
-      b(i, c) = s / L(i, i);
-    }
-  }
-}
-
-// Mirror the upper triangle into the lower one.
-static void upper_to_full(RowMat& A) {
-  for (int i = 0; i < A.rows(); ++i)
-    for (int j = 0; j < i; ++j) A(i, j) = A(j, i);
-}
+using smallchol::cholesky_inplace;
+using smallchol::cholesky_solve;
+using smallchol::upper_to_full;
 
 int backward_pass(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
                   const double* lxx, const double* lux, const double* luu, const double* Vx_final,

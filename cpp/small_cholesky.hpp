@@ -1,0 +1,59 @@
+// Cholesky factorisation and triangular solves for the small dense blocks of the backward passes
+// (Q_uu, m x m; V_xx mirrored), written out in numba's arithmetic order so that the compiled passes
+// (riccati.cpp, contracted.cpp) reproduce the numba pass (kernels/riccati.py) bit for bit.
+#pragma once
+
+#include <Eigen/Core>
+#include <cmath>
+
+namespace geoddp {
+namespace smallchol {
+
+typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
+
+// Lower Cholesky factor of a small SPD matrix in place (numba's _cholesky_inplace). False if not
+// positive definite (also on NaN).
+inline bool cholesky_inplace(RowMat& A) {
+  const int n = (int)A.rows();
+  for (int j = 0; j < n; ++j) {
+    double s = A(j, j);
+    for (int p = 0; p < j; ++p) s -= A(j, p) * A(j, p);
+    if (!(s > 0.0)) return false;
+    const double d = std::sqrt(s);
+    A(j, j) = d;
+    for (int i = j + 1; i < n; ++i) {
+      double t = A(i, j);
+      for (int p = 0; p < j; ++p) t -= A(i, p) * A(j, p);
+      A(i, j) = t / d;
+    }
+    for (int i = 0; i < j; ++i) A(i, j) = 0.0;
+  }
+  return true;
+}
+
+// Solve (L L^T) x = b in place for each column of b (n, k).
+template <typename M>
+inline void cholesky_solve(const RowMat& L, M& b) {
+  const int n = (int)L.rows();
+  for (int c = 0; c < b.cols(); ++c) {
+    for (int i = 0; i < n; ++i) {
+      double s = b(i, c);
+      for (int p = 0; p < i; ++p) s -= L(i, p) * b(p, c);
+      b(i, c) = s / L(i, i);
+    }
+    for (int i = n - 1; i >= 0; --i) {
+      double s = b(i, c);
+      for (int p = i + 1; p < n; ++p) s -= L(p, i) * b(p, c);
+      b(i, c) = s / L(i, i);
+    }
+  }
+}
+
+// Mirror the upper triangle into the lower one.
+inline void upper_to_full(RowMat& A) {
+  for (int i = 0; i < A.rows(); ++i)
+    for (int j = 0; j < i; ++j) A(i, j) = A(j, i);
+}
+
+}  // namespace smallchol
+}  // namespace geoddp
