@@ -63,6 +63,7 @@ FLOORS: dict[str, int] = {
     "geoddp.api": 4,
     # 5: viewers and figures (read Results)
     "geoddp.viz": 5,
+    "geoddp.sweep": 5,  # sweep files, cases, the Dask runner, the results table (issue 17)
     # 6: the command line and the package's public facade
     "geoddp.cli": 6,
     "geoddp": 6,
