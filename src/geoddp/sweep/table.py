@@ -20,6 +20,7 @@ from __future__ import annotations
 import io
 import os
 import time
+import uuid
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -64,7 +65,8 @@ class PartWriter:
         self.total, self.flush_rows, self.flush_seconds = total, flush_rows, flush_seconds
         self.rows: list[dict[str, Any]] = []
         self.since = time.monotonic()
-        self.run = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}"
+        # unique per run, also for two runs of one process within a second: parts never overwrite
+        self.run = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         self.seq = 0
         self.written = 0
         self.failed = 0
