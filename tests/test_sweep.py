@@ -298,3 +298,33 @@ def test_summary_and_plots(tmp_path, capsys):
     assert f"case {int(slowest['case'])} (" in text.split("slowest")[1].splitlines()[1]
     figs = sorted(p.name for p in (tmp_path / "figs").glob("*.png"))
     assert "outcome_vs_target_euler_intrinsic_0__1.png" in figs and "iterations_hist.png" in figs
+
+
+def test_builtin_sweeps_validate_and_the_slew_sweep_sets_its_angle():
+    from geoddp.sweep.spec import sweep_names
+
+    assert "satellite_slew" in sweep_names()
+    for name in sweep_names():
+        assert len(expand(load_sweep(name))) >= 1
+    cases = expand(load_sweep("satellite_slew"))
+    assert len(cases) == 18 * 3
+    spec = parse_scene(cases[-1].scene, cases[-1].source)  # 180 degrees about x
+    assert np.allclose(spec.Rd, np.diag([1.0, -1.0, -1.0]), atol=1e-15) and spec.expansion == "switch"
+
+
+def test_integer_draws(tmp_path):
+    sweep = load_sweep(write(tmp_path, """
+        [sweep]
+        scene = "satellite_paper"
+        samples = 500
+        [[random]]
+        key = "solver.max_iter"
+        distribution = "integers"
+        low = 5
+        high = 9
+    """))
+    vals = [c.params["solver.max_iter"] for c in sweep.cases()]
+    assert all(isinstance(x, int) for x in vals) and set(vals) == {5, 6, 7, 8}
+    with pytest.raises(InputError, match=r"random\[0\]\.high"):
+        load_sweep(write(tmp_path, '[sweep]\nscene = "satellite_paper"\n[[random]]\nkey = "solver.max_iter"\n'
+                         'distribution = "integers"\nlow = 5\nhigh = 5\n', "bad.toml"))

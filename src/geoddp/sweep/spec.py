@@ -20,6 +20,7 @@ A sweep file (TOML)::
     key = "target.quaternion"
     distribution = "haar"        # haar (uniform on SO(3); key ends in .quaternion or .rotation)
                                  # | normal (mean, std) | uniform (low, high)
+                                 # | integers (low <= n < high: a per-case seed, for example)
                                  # | perturb (around = "base" | a posture name | numbers; std; indices?)
 
     [postures]                   # optional: named postures for perturb's `around`
@@ -69,6 +70,7 @@ DISTRIBUTIONS = {  # distribution -> (required keys, optional keys)
     "haar": ((), ()),
     "normal": (("mean", "std"), ()),
     "uniform": (("low", "high"), ()),
+    "integers": (("low", "high"), ()),
     "perturb": (("std",), ("around", "indices")),
 }
 # A table's rotation forms (the scene reader accepts exactly one per table): setting one drops the others.
@@ -192,6 +194,8 @@ class RandomSpec:
             return q.tolist()
         if self.distribution == "normal":
             return _plain(p["mean"] + p["std"] * rng.standard_normal(np.shape(p["mean"] + p["std"])))
+        if self.distribution == "integers":
+            return int(rng.integers(p["low"], p["high"]))
         if self.distribution == "uniform":
             shape = np.shape(p["low"] + p["high"])
             return _plain(p["low"] + (p["high"] - p["low"]) * rng.random(shape))
@@ -308,8 +312,22 @@ def _random_where(random: tuple[RandomSpec, ...], key: str) -> str:
     return next(f"{r.where}.key" for r in random if r.key == key)
 
 
+def sweep_dir() -> Path:
+    """Folder of the built-in sweep files (package data: geoddp/data/sweeps)."""
+    from importlib import resources
+
+    return Path(str(resources.files("geoddp.data") / "sweeps"))
+
+
+def sweep_names() -> tuple[str, ...]:
+    """Names (file stems) of the built-in sweeps."""
+    return tuple(sorted(p.stem for p in sweep_dir().glob("*.toml")))
+
+
 def load_sweep(path: str | Path) -> Sweep:
-    """Read a sweep file (see the module docstring) without validating the cases.
+    """Read a sweep file (see the module docstring), or a built-in sweep by name
+    (:func:`sweep_names`: ``"satellite_slew"``, ``"satellite_montecarlo"``), without validating
+    the cases.
 
     Raises:
         InputError: naming the key path (``[sweep].scene``, ``[grid].horizon.tf``,
@@ -317,6 +335,8 @@ def load_sweep(path: str | Path) -> Sweep:
             scene that does not exist.
     """
     p = Path(path)
+    if not p.exists() and p.name == str(path) and p.suffix != ".toml" and (sweep_dir() / f"{p}.toml").is_file():
+        p = sweep_dir() / f"{p}.toml"
     src = str(p)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
@@ -448,6 +468,12 @@ def _parse_random(i: int, item: Any, base: Mapping[str, Any], postures: Mapping[
         _broadcast(where, params["low"], params["high"], "low", "high")
         if np.any(params["low"] > params["high"]):
             raise InputError(f"{where}.high", f"expected high >= low, got low = {item['low']!r}, high = {item['high']!r}")
+    elif dist == "integers":
+        params["low"] = v.nonnegative_int(item["low"], f"{where}.low")
+        params["high"] = v.positive_int(item["high"], f"{where}.high")
+        if params["high"] <= params["low"]:
+            raise InputError(f"{where}.high", f"expected high > low (integers low <= n < high), got low = "
+                             f"{item['low']!r}, high = {item['high']!r}")
     else:
         std = v.finite_float(item["std"], f"{where}.std")
         if std < 0:

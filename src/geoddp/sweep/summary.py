@@ -71,7 +71,8 @@ def summary(df: Any, top: int = 5) -> str:
 
 def plots(df: Any, out: str | Path) -> list[Path]:
     """Figures of a results table as PNG files in ``out`` (atomic): iterations and J* over every
-    numeric parameter (converged cases dots, the others crosses), and histograms of iterations
+    numeric parameter (converged cases dots, the others crosses; one series per value of the
+    first text parameter with at most 8 values, e.g. solver.expansion), and histograms of iterations
     and of each closed-loop ``sim.*.mean`` statistic. Returns the paths."""
     import matplotlib
 
@@ -87,17 +88,27 @@ def plots(df: Any, out: str | Path) -> list[Path]:
         plt.close(fig)
         paths.append(write_atomic(out / name, buf.getvalue()))
 
+    from pandas.api.types import is_numeric_dtype
+
     solved = df[df["status"] != "error"]
-    ok = solved["converged"].astype(bool)
-    for p in parameter_columns(df):
-        x = solved[p]
-        if not np.issubdtype(x.dtype, np.number) or x.nunique() < 2:
+    params = parameter_columns(df)
+    # a text parameter with few values (solver.expansion) splits every figure into series
+    groups = [p for p in params if not is_numeric_dtype(df[p]) and 1 < df[p].nunique() <= 8]
+    by = groups[0] if groups else None
+    for p in params:
+        if not is_numeric_dtype(df[p]) or df[p].dtype == bool or solved[p].nunique() < 2:
             continue
         fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-        for ax, col, label in ((axes[0], "iterations", "iterations"), (axes[1], "J", "J*")):
-            ax.plot(x[ok], solved[col][ok], "o", ms=3, label="converged")
-            if (~ok).any():
-                ax.plot(x[~ok], solved[col][~ok], "x", ms=4, color="C3", label="not converged")
+        series = [(str(g), solved[solved[by] == g]) for g in solved[by].unique()] if by else [("", solved)]
+        for i, (label, part) in enumerate(series):
+            ok = part["converged"].astype(bool)
+            for ax, col in ((axes[0], "iterations"), (axes[1], "J")):
+                ax.plot(part[p][ok], part[col][ok], "o", ms=3, color=f"C{i}",
+                        label=f"{by} = {label}" if by else "converged")
+                if (~ok).any():
+                    ax.plot(part[p][~ok], part[col][~ok], "x", ms=5, color=f"C{i}",
+                            label=(f"{by} = {label}, " if by else "") + "not converged")
+        for ax, label in ((axes[0], "iterations"), (axes[1], "J*")):
             ax.set_xlabel(p)
             ax.set_ylabel(label)
             ax.grid(alpha=0.3)
