@@ -66,6 +66,7 @@ FLOORS: dict[str, int] = {
     # 5: viewers and figures (read Results)
     "geoddp.viz": 5,
     "geoddp.simulate": 5,  # plants, policies, disturbances, Monte Carlo (issue 16); reads Results, calls the API
+    "geoddp.sweep": 5,  # sweep files, cases, the Dask runner, the results table (issue 17)
     # 6: the command line and the package's public facade
     "geoddp.cli": 6,
     "geoddp": 6,

@@ -83,7 +83,29 @@ def _parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--plots", type=Path, help="write convergence figures into this directory")
     cmp_.add_argument("--quiet", action="store_true")
     _simulate_parser(sub, scene_help)
+    _sweep_parser(sub)
     return p
+
+
+def _sweep_parser(sub) -> None:
+    """``geoddp sweep SWEEP.toml --out DIR ...`` and ``geoddp sweep --summary DIR [--plots DIR]`` (issue 17)."""
+    sw = sub.add_parser("sweep", help="solve every case of a sweep file on all cores or a Dask cluster; "
+                        "or summarise a sweep's results (--summary DIR)")
+    sw.add_argument("sweep_file", nargs="?", type=Path, help="sweep file (TOML; see the README's Sweeps section)")
+    sw.add_argument("--out", type=Path, help="output folder: results.parquet, parts/, manifest.json")
+    sw.add_argument("--workers", type=int, help="local worker processes (default: every core)")
+    sw.add_argument("--scheduler", help="address of a running dask.distributed scheduler (tcp://host:8786)")
+    sw.add_argument("--resume", action="store_true", help="solve only the cases whose rows --out lacks")
+    sw.add_argument("--serial", action="store_true", help="solve in this process, one case after another (no Dask)")
+    sw.add_argument("--csv", action="store_true", help="also write results.csv")
+    sw.add_argument("--full", action="store_true", help="also write each case's full result as cases/<hash>.json")
+    sw.add_argument("--limit", type=int, help="solve at most this many cases now (the rest with --resume)")
+    sw.add_argument("--flush-rows", type=int, default=200, help="write a part file every N finished cases "
+                    "(and at least every 5 s)")
+    sw.add_argument("--dashboard", action="store_true", help="start the local cluster's dashboard on 127.0.0.1")
+    sw.add_argument("--quiet", action="store_true", help="no progress line")
+    sw.add_argument("--summary", type=Path, metavar="DIR", help="print the summary of the sweep results in DIR")
+    sw.add_argument("--plots", type=Path, help="with --summary: write parameter-vs-outcome figures into this folder")
 
 
 def _multibody(args) -> int:
@@ -305,6 +327,39 @@ def _simulate(args) -> int:
     return EXIT_CONVERGED if plan.converged else EXIT_NOT_CONVERGED
 
 
+def _sweep(args) -> int:
+    """``geoddp sweep``: run a sweep (exit 0 when every case is in the table, 1 when --limit left
+    some for --resume) or summarise one (--summary)."""
+    from .sweep import read_table, run_sweep
+    from .sweep.summary import plots, summary
+
+    if args.summary is not None:
+        if not args.summary.is_dir():
+            raise InputError("--summary", f"expected a sweep output folder, got {str(args.summary)!r}")
+        df = read_table(args.summary)
+        print(summary(df))
+        if args.plots is not None:
+            for path in plots(df, args.plots):
+                _wrote(path)
+        return EXIT_CONVERGED
+    if args.sweep_file is None or args.out is None:
+        raise InputError("sweep", "expected a sweep file and --out DIR (or --summary DIR)")
+    if args.plots is not None:
+        raise InputError("--plots", "expected together with --summary DIR")
+    if args.flush_rows < 1:
+        raise InputError("--flush-rows", f"expected a number of rows >= 1, got {args.flush_rows}")
+    run = run_sweep(args.sweep_file, args.out, workers=args.workers, scheduler=args.scheduler, serial=args.serial,
+                    resume=args.resume, csv=args.csv, full=args.full, limit=args.limit, flush_rows=args.flush_rows,
+                    progress=None if args.quiet else sys.stderr, dashboard=args.dashboard)
+    print(f"sweep: {run.total} cases: {run.skipped} already done, {run.solved} solved now ({run.failed} raised), "
+          f"{run.wall_time_s:.1f} s")
+    if run.table is not None:
+        _wrote(run.table)
+        return EXIT_CONVERGED
+    print(f"sweep: incomplete; rows so far in {args.out / 'parts'}; finish with --resume")
+    return EXIT_NOT_CONVERGED
+
+
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
@@ -323,7 +378,8 @@ def main(argv: list[str] | None = None) -> int:
         except (ValueError, OSError):  # not the main thread
             pass
     try:
-        handler = {"run": _run, "compare": _compare, "multibody": _multibody, "simulate": _simulate}[args.command]
+        handler = {"run": _run, "compare": _compare, "multibody": _multibody, "simulate": _simulate,
+                   "sweep": _sweep}[args.command]
         import numpy as np
 
         # Backstop: every numeric path checks finiteness itself (the solver's status, the

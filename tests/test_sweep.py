@@ -1,0 +1,330 @@
+"""Sweeps in one process (issue 17): sweep files, validation before anything runs, content
+hashes, the serial runner, resume (counting solves), recorded errors, the summary.
+
+The multi-process tests (LocalCluster, a scheduler and workers, a killed worker, SIGINT) are in
+tests/test_sweep_dask.py."""
+from __future__ import annotations
+
+import math
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from geoddp.api import solve_scene
+from geoddp.cli import main
+from geoddp.scene import parse_scene
+from geoddp.sweep import TIMING_COLUMNS, expand, load_sweep, read_table, run_sweep
+from geoddp.sweep import run as run_mod
+from geoddp.validate import InputError
+
+SMALL = """
+[sweep]
+scene = "satellite_paper"
+seed = 7
+samples = 3
+
+[scene]
+horizon.tf = 0.5
+horizon.dt = 0.05
+target.euler_intrinsic = [["x", 0.0]]
+
+[grid]
+"target.euler_intrinsic[0][1]" = [20.0, 90.0]
+cost.control = [0.1, 1.0]
+
+[[random]]
+key = "model.inertia"
+distribution = "normal"
+mean = [10.0, 11.1, 13.0]
+std = 0.5
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+def comparable(df: pd.DataFrame) -> pd.DataFrame:
+    return df.drop(columns=[c for c in TIMING_COLUMNS if c in df.columns])
+
+
+# ------------------------------------------------------------------ sweep files
+
+
+def test_cases_are_the_grid_times_the_draws_with_the_values_set(tmp_path):
+    sweep = load_sweep(write(tmp_path, SMALL))
+    cases = expand(sweep)
+    assert len(cases) == 2 * 2 * 3
+    # grid points outer (last key fastest), draws inner; common random numbers across grid points
+    assert [c.params["target.euler_intrinsic[0][1]"] for c in cases[:6]] == [20.0] * 6
+    assert [c.params["cost.control"] for c in cases[:6]] == [0.1] * 3 + [1.0] * 3
+    assert [c.draw for c in cases[:6]] == [0, 1, 2, 0, 1, 2]
+    assert cases[0].params["model.inertia"] == cases[3].params["model.inertia"] == cases[9].params["model.inertia"]
+    assert cases[0].params["model.inertia"] != cases[1].params["model.inertia"]
+    c = cases[4]
+    assert c.scene["target"]["euler_intrinsic"] == [["x", 20.0]]
+    assert c.scene["cost"]["control"] == 1.0 and c.scene["horizon"]["tf"] == 0.5
+    assert c.scene["model"]["inertia"] == c.params["model.inertia"]
+    # every case is a full scene: the reader takes it as it is
+    spec = parse_scene(c.scene, c.source)
+    assert spec.horizon == 10 and np.allclose(np.diag(spec.inertia), c.params["model.inertia"])
+    # the draw is reproducible and does not depend on the grid
+    again = expand(load_sweep(write(tmp_path, SMALL.replace("[20.0, 90.0]", "[45.0]"), "b.toml")))
+    assert [k.params["model.inertia"] for k in again[:3]] == [k.params["model.inertia"] for k in cases[:3]]
+
+
+def test_hashes_identify_the_full_spec(tmp_path):
+    cases = expand(load_sweep(write(tmp_path, SMALL)))
+    hashes = [c.hash for c in cases]
+    assert len(set(hashes)) == len(hashes)
+    assert all(len(h) == 64 for h in hashes)
+    # the same sweep read again hashes the same; changing a base value changes every hash
+    assert [c.hash for c in expand(load_sweep(write(tmp_path, SMALL, "c.toml")))] == hashes
+    other = expand(load_sweep(write(tmp_path, SMALL.replace("horizon.dt = 0.05", "horizon.dt = 0.025"), "d.toml")))
+    assert not set(c.hash for c in other) & set(hashes)
+
+
+def test_haar_rotations_are_uniform_on_so3(tmp_path):
+    sweep = load_sweep(write(tmp_path, """
+        [sweep]
+        scene = "satellite_paper"
+        samples = 4000
+        [[random]]
+        key = "target.quaternion"
+        distribution = "haar"
+    """))
+    qs = np.array([c.params["target.quaternion"] for c in sweep.cases()])
+    assert np.allclose(np.linalg.norm(qs, axis=1), 1.0, atol=1e-14) and (qs[:, 3] >= 0).all()
+    # Haar measure: E[R] = 0, and the rotation angle t has density (1 - cos t) / pi, so
+    # E[cos t] = -1/2 and P(t < pi/2) = 1/2 - 1/pi.
+    w = qs[:, 3]
+    t = 2.0 * np.arccos(np.clip(w, -1, 1))
+    n = len(qs)
+    assert abs(np.mean(np.cos(t)) + 0.5) < 4 * np.std(np.cos(t)) / math.sqrt(n)
+    p = 0.5 - 1.0 / math.pi
+    assert abs(np.mean(t < math.pi / 2) - p) < 4 * math.sqrt(p * (1 - p) / n)
+    x = np.mean(np.sign(qs[:, 0]))  # the axis has no preferred direction
+    assert abs(x) < 4 / math.sqrt(n)
+    # setting target.quaternion replaced the base scene's euler_intrinsic: the reader accepts it
+    c = next(iter(sweep.cases()))
+    assert "euler_intrinsic" not in c.scene["target"]
+    assert np.allclose(parse_scene(c.scene, c.source).Rd @ parse_scene(c.scene, c.source).Rd.T, np.eye(3))
+
+
+def test_uniform_normal_and_perturb_draws(tmp_path):
+    sweep = load_sweep(write(tmp_path, """
+        [sweep]
+        scene = "space_manipulator"
+        samples = 2000
+        seed = 3
+        [postures]
+        bent = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.6, -0.5, 0.8]
+        [[random]]
+        key = "horizon.dt"
+        distribution = "uniform"
+        low = 0.01
+        high = 0.03
+        [[random]]
+        key = "initial.q"
+        distribution = "perturb"
+        around = "bent"
+        std = 0.1
+        indices = [7, 8, 9]
+        [[random]]
+        key = "solver.switch_ratio"
+        distribution = "normal"
+        mean = 0.2
+        std = 0.01
+    """))
+    cases = list(sweep.cases())
+    dt = np.array([c.params["horizon.dt"] for c in cases])
+    q = np.array([c.params["initial.q"] for c in cases])
+    sr = np.array([c.params["solver.switch_ratio"] for c in cases])
+    n = len(cases)
+    assert dt.min() >= 0.01 and dt.max() <= 0.03
+    assert abs(dt.mean() - 0.02) < 4 * (0.02 / math.sqrt(12)) / math.sqrt(n)
+    assert (q[:, :7] == [0, 0, 0, 0, 0, 0, 1]).all()  # only the listed entries move
+    assert np.all(np.abs(q[:, 7:].mean(axis=0) - [0.6, -0.5, 0.8]) < 4 * 0.1 / math.sqrt(n))
+    assert np.all(np.abs(q[:, 7:].std(axis=0) / 0.1 - 1) < 0.1)
+    assert abs(sr.mean() - 0.2) < 4 * 0.01 / math.sqrt(n) and abs(sr.std() / 0.01 - 1) < 0.1
+
+
+BAD = [  # (sweep file body after [sweep] scene = ..., the key path the error must name, a phrase)
+    ('[grid]\n"target.bogus" = [1.0]', "[grid].target.bogus", "unknown key"),
+    ('[grid]\n"tagret.quaternion" = [[0.0, 0.0, 0.0, 1.0]]', "[grid].tagret.quaternion", "unknown section"),
+    ("[grid]\nhorizon.tf = []", "[grid].horizon.tf", "empty grid"),
+    ("[grid]\nhorizon.dt = [0.05, -0.01]", "[grid].horizon.dt", "case 1"),
+    ("[grid]\ncost.control = 3.0", "[grid].cost.control", "list of values"),
+    ('[[random]]\nkey = "cost.control"\ndistribution = "normal"\nmean = 1.0\nstd = -0.5', "random[0].std", ">= 0"),
+    ('[[random]]\nkey = "cost.control"\ndistribution = "uniform"\nlow = 2.0\nhigh = 1.0', "random[0].high",
+     "high >= low"),
+    ('[[random]]\nkey = "cost.control"\ndistribution = "haar"', "random[0].key", ".quaternion or .rotation"),
+    ('[[random]]\nkey = "cost.control"\ndistribution = "poisson"', "random[0].distribution", "poisson"),
+    ('[[random]]\nkey = "cost.control"\ndistribution = "normal"\nmean = 1.0', "random[0].std", "missing"),
+    ('[[random]]\nkey = "cost.control"\ndistribution = "perturb"\nstd = 0.1\naround = "crouch"', "random[0].around",
+     "crouch"),
+    ('[[random]]\nkey = "model.inertia"\ndistribution = "normal"\nmean = [10.0, 11.0]\nstd = 0.1',
+     "random[0]", "case 0"),
+    ("[scene]\nhorizon.tff = 1.0", "[horizon].tff", "did you mean"),
+    ("[sweep.extra]\nx = 1", "[sweep].extra", "unknown key"),
+    ("[grids]\nhorizon.tf = [1.0]", "[grids]", "did you mean [grid]"),
+]
+
+
+@pytest.mark.parametrize("body, where, phrase", BAD)
+def test_bad_sweep_files_are_refused_before_any_case_runs(tmp_path, monkeypatch, body, where, phrase):
+    calls = []
+    monkeypatch.setattr(run_mod, "run_case", lambda p: calls.append(p) or {})
+    text = '[sweep]\nscene = "satellite_paper"\n' + body + "\n"
+    if body.startswith("[sweep."):
+        text = '[sweep]\nscene = "satellite_paper"\nextra = 1\n'
+    path = write(tmp_path, text)
+    with pytest.raises(InputError) as err:
+        run_sweep(path, tmp_path / "out", serial=True)
+    assert err.value.parameter.startswith(where), str(err.value)
+    assert phrase in str(err.value)
+    assert calls == [] and not (tmp_path / "out").exists()
+    # the command line: exit 2, one line naming the key, nothing written
+    assert main(["sweep", str(path), "--out", str(tmp_path / "out2"), "--serial", "--quiet"]) == 2
+    assert not (tmp_path / "out2").exists()
+
+
+def test_missing_base_scene_and_samples_without_draws(tmp_path):
+    with pytest.raises(InputError, match=r"\[sweep\]\.scene"):
+        load_sweep(write(tmp_path, '[sweep]\nscene = "no_such_scene"\n'))
+    with pytest.raises(InputError, match=r"\[sweep\]\.samples"):
+        load_sweep(write(tmp_path, '[sweep]\nscene = "satellite_paper"\nsamples = 3\n'))
+
+
+# ------------------------------------------------------------------ running
+
+
+def test_serial_rows_equal_direct_solves(tmp_path):
+    out = tmp_path / "out"
+    run = run_sweep(write(tmp_path, SMALL), out, serial=True)
+    assert run.complete and run.solved == 12 and run.failed == 0
+    df = read_table(out)
+    assert list(df["case"]) == list(range(12))
+    for c in expand(load_sweep(tmp_path / "sweep.toml"))[::5]:
+        r = solve_scene(parse_scene(c.scene, c.source), verbose=False)
+        row = df[df["hash"] == c.hash].iloc[0]
+        assert row["J"] == r.cost and row["iterations"] == r.iterations and row["status"] == r.status
+        assert row["gradient_norm"] == r.grad_norm and row["converged"] == r.converged
+        assert row["attitude_error_deg"] == r.attitude_error_deg
+        assert row["model.inertia[1]"] == c.params["model.inertia"][1]
+        assert row["target.euler_intrinsic[0][1]"] == c.params["target.euler_intrinsic[0][1]"]
+
+
+def test_resume_after_interrupt_solves_each_case_once(tmp_path, monkeypatch):
+    path = write(tmp_path, SMALL)
+    whole = comparable(read_table(run_sweep(path, tmp_path / "whole", serial=True).table.parent))
+    solved: list[str] = []
+    real = run_mod.run_case
+
+    def counting(p):
+        if len(solved) == 7:
+            raise KeyboardInterrupt  # Ctrl-C during the 8th case
+        solved.append(p["hash"])
+        return real(p)
+
+    monkeypatch.setattr(run_mod, "run_case", counting)
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(path, out, serial=True, flush_rows=3)
+    assert len(solved) == 7
+    assert len(read_table(out)) == 7  # the finished rows were flushed on the way out
+    monkeypatch.setattr(run_mod, "run_case", lambda p: solved.append(p["hash"]) or real(p))
+    run = run_sweep(path, out, serial=True, resume=True)
+    assert run.skipped == 7 and run.solved == 5 and run.complete
+    assert sorted(solved) == sorted(whole["hash"])  # every case solved exactly once over both runs
+    pd.testing.assert_frame_equal(comparable(read_table(out)), whole, check_exact=True)
+    # resuming a finished sweep solves nothing and keeps the table
+    n = len(solved)
+    assert run_sweep(path, out, serial=True, resume=True).solved == 0 and len(solved) == n
+    # without --resume the folder is refused
+    with pytest.raises(InputError, match="--out"):
+        run_sweep(path, out, serial=True)
+
+
+def test_limit_then_resume_and_csv(tmp_path):
+    path = write(tmp_path, SMALL)
+    out = tmp_path / "out"
+    assert main(["sweep", str(path), "--out", str(out), "--serial", "--limit", "5", "--quiet"]) == 1
+    assert len(read_table(out)) == 5 and not (out / "results.parquet").exists()
+    assert main(["sweep", str(path), "--out", str(out), "--serial", "--resume", "--csv", "--full", "--quiet"]) == 0
+    df = read_table(out)
+    csv = pd.read_csv(out / "results.csv", keep_default_na=False)
+    assert list(csv["hash"]) == list(df["hash"]) and np.array_equal(csv["J"].to_numpy(), df["J"].to_numpy())
+    # full results on request: the 7 cases solved with --full
+    assert len(list((out / "cases").glob("*.json"))) == 7
+
+
+def test_a_raising_case_is_recorded_not_fatal(tmp_path, monkeypatch):
+    import geoddp.api
+
+    real = geoddp.api.solve_scene
+
+    def flaky(spec, **kw):
+        if float(spec.S_u[0, 0]) == 1.0:  # the cases with cost.control = 1
+            raise RuntimeError("solver blew up")
+        return real(spec, **kw)
+
+    monkeypatch.setattr(geoddp.api, "solve_scene", flaky)
+    run = run_sweep(write(tmp_path, SMALL), tmp_path / "out", serial=True)
+    df = read_table(tmp_path / "out")
+    assert run.complete and len(df) == 12 and run.failed == 6
+    bad = df[df["cost.control"] == 1.0]
+    assert (bad["status"] == "error").all() and (bad["error"] == "RuntimeError: solver blew up").all()
+    assert bad["J"].isna().all() and (bad["iterations"] == -1).all()
+    good = df[df["cost.control"] == 0.1]
+    assert (good["error"] == "").all() and good["converged"].all()
+
+
+def test_summary_and_plots(tmp_path, capsys):
+    out = tmp_path / "out"
+    run_sweep(write(tmp_path, SMALL), out, serial=True)
+    df = read_table(out)
+    capsys.readouterr()
+    assert main(["sweep", "--summary", str(out), "--plots", str(tmp_path / "figs")]) == 0
+    text = capsys.readouterr().out
+    assert f"converged: {int(df['converged'].sum())}/12" in text
+    assert f"max {df['iterations'].max()}" in text
+    slowest = df.sort_values("solve_time_s", ascending=False).iloc[0]
+    assert f"case {int(slowest['case'])} (" in text.split("slowest")[1].splitlines()[1]
+    figs = sorted(p.name for p in (tmp_path / "figs").glob("*.png"))
+    assert "outcome_vs_target_euler_intrinsic_0__1.png" in figs and "iterations_hist.png" in figs
+
+
+def test_builtin_sweeps_validate_and_the_slew_sweep_sets_its_angle():
+    from geoddp.sweep.spec import sweep_names
+
+    assert "satellite_slew" in sweep_names()
+    for name in sweep_names():
+        assert len(expand(load_sweep(name))) >= 1
+    cases = expand(load_sweep("satellite_slew"))
+    assert len(cases) == 18 * 3
+    spec = parse_scene(cases[-1].scene, cases[-1].source)  # 180 degrees about x
+    assert np.allclose(spec.Rd, np.diag([1.0, -1.0, -1.0]), atol=1e-15) and spec.expansion == "switch"
+
+
+def test_integer_draws(tmp_path):
+    sweep = load_sweep(write(tmp_path, """
+        [sweep]
+        scene = "satellite_paper"
+        samples = 500
+        [[random]]
+        key = "solver.max_iter"
+        distribution = "integers"
+        low = 5
+        high = 9
+    """))
+    vals = [c.params["solver.max_iter"] for c in sweep.cases()]
+    assert all(isinstance(x, int) for x in vals) and set(vals) == {5, 6, 7, 8}
+    with pytest.raises(InputError, match=r"random\[0\]\.high"):
+        load_sweep(write(tmp_path, '[sweep]\nscene = "satellite_paper"\n[[random]]\nkey = "solver.max_iter"\n'
+                         'distribution = "integers"\nlow = 5\nhigh = 5\n', "bad.toml"))

@@ -1,0 +1,212 @@
+"""Sweeps across processes (issue 17): a LocalCluster of 2 workers, a scheduler and workers
+started here with Dask's own CLI (``dask scheduler``, ``dask worker``) on 127.0.0.1, a worker
+killed mid-sweep, and a sweep interrupted with SIGINT then resumed.
+
+Every table is compared with the same cases solved serially in this process, column by column
+and exactly (timing columns aside). Every process started here listens on 127.0.0.1 only and is
+stopped by its PID."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from geoddp.sweep import TIMING_COLUMNS, read_table, run_sweep
+from geoddp.sweep.table import part_files
+
+distributed = pytest.importorskip("distributed")
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+DASK = Path(sys.executable).parent / "dask"
+
+SMALL = """
+[sweep]
+scene = "satellite_paper"
+seed = 11
+samples = 4
+[scene]
+horizon.tf = 0.5
+horizon.dt = 0.05
+[grid]
+cost.control = [0.1, 1.0]
+[[random]]
+key = "target.quaternion"
+distribution = "haar"
+"""
+
+# Slower cases (H = 1500 steps): a kill or a SIGINT lands while cases are running.
+SLOW = """
+[sweep]
+scene = "satellite_paper"
+seed = 5
+samples = 24
+[scene]
+horizon.tf = 1.5
+horizon.dt = 0.001
+solver.max_iter = 30
+[[random]]
+key = "target.quaternion"
+distribution = "haar"
+"""
+
+
+def env() -> dict[str, str]:
+    e = dict(os.environ)
+    e["PYTHONPATH"] = str(SRC) + os.pathsep + e.get("PYTHONPATH", "")
+    return e
+
+
+def comparable(df: pd.DataFrame) -> pd.DataFrame:
+    return df.drop(columns=[c for c in TIMING_COLUMNS if c in df.columns])
+
+
+def write(tmp_path: Path, text: str, name: str) -> Path:
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+def stop(proc: subprocess.Popen) -> None:
+    """Stop one process we started, by its PID: SIGTERM, then SIGKILL."""
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=15)
+
+
+def start_worker(scheduler_file: Path, name: str, log: Path) -> subprocess.Popen:
+    # --no-nanny: the worker is this very process, so killing its PID kills the worker
+    return subprocess.Popen([str(DASK), "worker", "--scheduler-file", str(scheduler_file), "--host", "127.0.0.1",
+                             "--no-dashboard", "--nthreads", "1", "--no-nanny", "--name", name],
+                            env=env(), stdout=subprocess.DEVNULL, stderr=open(log, "wb"))
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A scheduler and 2 workers, each a separate process started with Dask's CLI on 127.0.0.1."""
+    d = tmp_path_factory.mktemp("dask")
+    sfile = d / "scheduler.json"
+    procs = [subprocess.Popen([str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(sfile)], env=env(), stdout=subprocess.DEVNULL,
+                              stderr=open(d / "scheduler.log", "wb"))]
+    try:
+        deadline = time.monotonic() + 60
+        while not sfile.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert sfile.exists(), (d / "scheduler.log").read_text()
+        procs += [start_worker(sfile, f"w{i}", d / f"w{i}.log") for i in range(2)]
+        with distributed.Client(scheduler_file=str(sfile), timeout=60) as c:
+            c.wait_for_workers(2, timeout=120)
+            address = c.scheduler.address
+        assert address.startswith("tcp://127.0.0.1:")
+        yield {"address": address, "file": sfile, "dir": d}
+    finally:
+        for p in reversed(procs):
+            stop(p)
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    d = tmp_path_factory.mktemp("small")
+    path = write(d, SMALL, "small.toml")
+    run_sweep(path, d / "serial", serial=True)
+    return path, comparable(read_table(d / "serial"))
+
+
+def test_local_cluster_of_two_workers_equals_serial(small, tmp_path):
+    path, serial = small
+    run = run_sweep(path, tmp_path / "local", workers=2)
+    assert run.complete and run.solved == len(serial) == 8
+    pd.testing.assert_frame_equal(comparable(read_table(tmp_path / "local")), serial, check_exact=True)
+
+
+def test_scheduler_address_gives_the_same_table(small, cluster, tmp_path):
+    path, serial = small
+    out = tmp_path / "remote"
+    proc = subprocess.run([sys.executable, "-m", "geoddp.cli", "sweep", str(path), "--out", str(out),
+                           "--scheduler", cluster["address"], "--quiet"], env=env(), capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    pd.testing.assert_frame_equal(comparable(read_table(out)), serial, check_exact=True)
+    with distributed.Client(cluster["address"], timeout=30) as c:  # the cases ran on the workers
+        assert len(c.nthreads()) >= 2
+
+
+def hashes_on_disk(out: Path) -> list[str]:
+    return [h for p in part_files(out) for h in pd.read_parquet(p, columns=["hash"])["hash"]]
+
+
+@pytest.fixture(scope="module")
+def slow(tmp_path_factory):
+    d = tmp_path_factory.mktemp("slow")
+    path = write(d, SLOW, "slow.toml")
+    run_sweep(path, d / "serial", serial=True)
+    return path, comparable(read_table(d / "serial"))
+
+
+def test_a_worker_killed_mid_sweep_loses_no_case(slow, cluster, tmp_path):
+    path, serial = slow
+    victim = start_worker(cluster["file"], "victim", tmp_path / "victim.log")
+    out = tmp_path / "out"
+    sweep = None
+    try:
+        with distributed.Client(cluster["address"], timeout=30) as c:
+            c.wait_for_workers(3, timeout=120)
+            addr = next(a for a, w in c.scheduler_info()["workers"].items() if w["name"] == "victim")
+            sweep = subprocess.Popen([sys.executable, "-m", "geoddp.cli", "sweep", str(path), "--out", str(out),
+                                      "--scheduler", cluster["address"], "--quiet", "--flush-rows", "1"],
+                                     env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            deadline = time.monotonic() + 120
+            while not c.processing(workers=[addr]).get(addr) and time.monotonic() < deadline:
+                time.sleep(0.02)
+            assert c.processing(workers=[addr]).get(addr), "the victim never got a case"
+            os.kill(victim.pid, signal.SIGKILL)  # mid-case: it holds at least one task
+            victim.wait(timeout=30)
+        stdout, stderr = sweep.communicate(timeout=300)
+        assert sweep.returncode == 0, stderr
+    finally:
+        stop(victim)
+        if sweep is not None:
+            stop(sweep)
+    on_disk = hashes_on_disk(out)
+    assert sorted(on_disk) == sorted(serial["hash"])  # every case once: none lost, none twice
+    df = comparable(read_table(out))
+    assert (df["status"] != "error").all()
+    pd.testing.assert_frame_equal(df, serial, check_exact=True)
+
+
+def test_sigint_then_resume_equals_uninterrupted(slow, tmp_path):
+    path, serial = slow
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "geoddp.cli", "sweep", str(path), "--out", str(out), "--workers", "2", "--quiet",
+           "--flush-rows", "1"]
+    proc = subprocess.Popen(cmd, env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 180
+        while len(part_files(out)) < 3 and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert proc.poll() is None, "the sweep ended before it could be interrupted"
+        os.kill(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        stop(proc)
+    assert proc.returncode == 130, stderr
+    first = hashes_on_disk(out)
+    assert 3 <= len(first) < len(serial) and len(set(first)) == len(first)
+    assert not (out / "results.parquet").exists()
+    again = subprocess.run(cmd + ["--resume"], env=env(), capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert f"{len(first)} already done, {len(serial) - len(first)} solved now" in again.stdout
+    on_disk = hashes_on_disk(out)
+    assert sorted(on_disk) == sorted(serial["hash"])  # each case recorded once over both runs
+    pd.testing.assert_frame_equal(comparable(read_table(out)), serial, check_exact=True)
