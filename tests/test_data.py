@@ -113,7 +113,7 @@ def test_the_build_ships_every_data_file():
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     backend = cfg["build-system"]["build-backend"]
     files = _data_files()
-    assert len(files) == 4 + 21 + 3 + 1  # 4 URDFs; 21 scenes (2 with control limits, issue 15); 3 robot scenes; 1 sweep
+    assert len(files) == 4 + 21 + 3 + 2  # 4 URDFs; 21 scenes (2 with control limits, issue 15); 3 robot scenes; 2 sweeps
     if backend.startswith("setuptools"):
         globs = cfg["tool"]["setuptools"]["package-data"]["geoddp"]
         missing = [f for f in files if not any(f.match(g) and len(f.parts) == len(PurePosixPath(g).parts)

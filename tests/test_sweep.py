@@ -328,3 +328,17 @@ def test_integer_draws(tmp_path):
     with pytest.raises(InputError, match=r"random\[0\]\.high"):
         load_sweep(write(tmp_path, '[sweep]\nscene = "satellite_paper"\n[[random]]\nkey = "solver.max_iter"\n'
                          'distribution = "integers"\nlow = 5\nhigh = 5\n', "bad.toml"))
+
+
+def test_builtin_noise_monte_carlo_sweep(tmp_path):
+    # The authors' noise test as a sweep (data/sweeps/satellite_noise_mc.toml): each case solves the
+    # plan (J* = 6.0451953285) and flies it with its own simulation seed; 30 cases serially.
+    out = tmp_path / "mc"
+    run_sweep("satellite_noise_mc", out, serial=True, limit=30)
+    df = pd.concat([pd.read_parquet(p) for p in sorted((out / "parts").glob("*.parquet"))])
+    assert len(df) == 30 and df["converged"].all() and df["simulation.seed"].nunique() == 30
+    assert np.allclose(df["J"], 6.0451953285, rtol=0, atol=1e-9)
+    open_mean = df["sim.open.attitude_rad.max"].mean()
+    closed_mean = df["sim.feedback.attitude_rad.max"].mean()
+    # one sample per case, so each case's max is its terminal error; the gains cut it >= 20x
+    assert closed_mean < open_mean / 20 and 3e-4 < closed_mean < 1.2e-3, (open_mean, closed_mean)

@@ -1,0 +1,120 @@
+"""What a sweep costs on top of its solves, and how it scales (issue 17).
+
+Three measurements, side by side on the same cases (the paper's satellite with a Haar-random
+target, H = 1500 steps, ~20-60 ms per solve: the issue's ">= 20 ms" cases):
+
+1. overhead per case: ``geoddp.sweep.run_sweep`` (every case validated, its table row streamed
+   to Parquet parts, the final table written) against a direct loop of
+   ``geoddp.api.solve_scene(spec)`` over specs parsed beforehand (nothing written). Both serial
+   in this process, and the sweep also on a warm 1-worker LocalCluster. Target: <= 10 %.
+2. scaling: the same sweep on a warm LocalCluster of 1 and then 2 worker processes. Target on a
+   2-core machine: >= 1.8x.
+3. per-task scheduler overhead: ``client.map`` of a no-op over 2,000 tasks on the 2-worker
+   cluster (Dask documents ~1 ms or less per task), and our runner's own per-case overhead:
+   (wall x workers - sum of the cases' own times) / cases.
+
+Usage: python benchmarks/sweep.py [--cases 100] [--steps 1500] [--noop 2000]
+Timings on a shared machine are not valid: run on an idle one.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import shutil
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+from geoddp.api import solve_scene
+from geoddp.scene import parse_scene
+from geoddp.sweep import expand, load_sweep, read_table, run_sweep
+
+SWEEP = """
+[sweep]
+scene = "satellite_paper"
+seed = 2
+samples = {cases}
+[scene]
+horizon.tf = {tf}
+horizon.dt = 0.002
+solver.max_iter = 50
+[[random]]
+key = "target.quaternion"
+distribution = "haar"
+"""
+
+
+def noop(x: int) -> int:
+    return x
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cases", type=int, default=100)
+    ap.add_argument("--steps", type=int, default=1500, help="horizon H of each case (dt = 2 ms)")
+    ap.add_argument("--noop", type=int, default=2000, help="no-op tasks for the scheduler overhead")
+    args = ap.parse_args()
+    import dask
+    from distributed import Client, LocalCluster
+
+    tmp = Path(tempfile.mkdtemp(prefix="geoddp-sweep-bench-"))
+    try:
+        path = tmp / "bench.toml"
+        path.write_text(textwrap.dedent(SWEEP.format(cases=args.cases, tf=args.steps * 0.002)))
+        cases = expand(load_sweep(path))
+        specs = [parse_scene(c.scene, c.source) for c in cases]
+        solve_scene(specs[0], verbose=False)  # warm: numba caches
+        # warm: the sweep's one-off imports (pandas, pyarrow: ~0.3 s, paid once per run, not per case)
+        t0 = time.perf_counter()
+        run_sweep(path, tmp / "imports", serial=True, limit=1)
+        first = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        for s in specs:
+            solve_scene(s, verbose=False)
+        direct = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        run_sweep(path, tmp / "serial", serial=True)
+        serial = time.perf_counter() - t0
+        per_case = direct / len(cases)
+        rows = [("direct solve_scene loop", direct, "")]
+        rows.append(("sweep, serial (validate, parts, table)", serial, f"{100 * (serial / direct - 1):+.1f} %; "
+                     f"{1e3 * (serial - direct) / len(cases):.2f} ms/case"))
+
+        walls = {}
+        noop_per_task = None
+        for n in (1, 2):
+            # as run_sweep's own LocalCluster: no statistical profiler in the workers (it holds the GIL)
+            with dask.config.set({"distributed.worker.profile.enabled": False}), \
+                    LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                 dashboard_address=None, silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+                addr = cluster.scheduler_address
+                run_sweep(path, tmp / f"warm{n}", scheduler=addr, limit=2 * n)  # workers import geoddp
+                t0 = time.perf_counter()
+                run_sweep(path, tmp / f"dask{n}", scheduler=addr)
+                walls[n] = time.perf_counter() - t0
+                own = read_table(tmp / f"dask{n}")["case_time_s"].sum()
+                rows.append((f"sweep, LocalCluster {n} worker(s)", walls[n],
+                             f"{100 * (walls[n] / direct - 1):+.1f} % vs direct; runner overhead "
+                             f"{1e3 * (walls[n] * n - own) / len(cases):.2f} ms/case"))
+                if n == 2:
+                    client.gather(client.map(noop, range(200)))  # warm
+                    t0 = time.perf_counter()
+                    client.gather(client.map(noop, range(args.noop)))
+                    noop_per_task = (time.perf_counter() - t0) / args.noop
+        print(f"{len(cases)} cases, H = {args.steps}, {per_case * 1e3:.1f} ms per direct solve, "
+              f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; a process's first sweep also pays "
+              f"{first:.2f} s of imports")
+        print("| route | wall (s) | vs direct |\n|---|---|---|")
+        for name, wall, note in rows:
+            print(f"| {name} | {wall:.3f} | {note} |")
+        print(f"scaling 1 -> 2 workers: {walls[1] / walls[2]:.2f}x (target >= 1.8x)")
+        print(f"Dask per-task overhead (no-op map, 2 workers): {noop_per_task * 1e3:.3f} ms/task")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
