@@ -42,9 +42,15 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start_viewing():
+    # SIGINT at its default in the child: a shell starts background jobs (`cmd &`) with SIGINT ignored,
+    # and a child inherits that, so a suite run in the background would test nothing here.
     proc = subprocess.Popen([sys.executable, "-c", CHILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, env=os.environ.copy())
+                            stderr=subprocess.PIPE, env=os.environ.copy(), preexec_fn=_default_sigint)
     deadline = time.time() + 120
     buf = b""
     while b"Replaying" not in buf and time.time() < deadline:

@@ -190,7 +190,9 @@ def test_sigint_then_resume_equals_uninterrupted(slow, tmp_path):
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "geoddp.cli", "sweep", str(path), "--out", str(out), "--workers", "2", "--quiet",
            "--flush-rows", "1"]
-    proc = subprocess.Popen(cmd, env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # SIGINT at its default in the child (a suite started as a background job inherits it ignored)
+    proc = subprocess.Popen(cmd, env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 180
         while len(part_files(out)) < 3 and proc.poll() is None and time.monotonic() < deadline:

@@ -31,7 +31,11 @@ class Interrupted(KeyboardInterrupt):
         self.signum = signum
 
 
+_RECEIVED: list[int] = []  # signals that arrived during this run (main() clears it)
+
+
 def _on_signal(signum, frame) -> None:
+    _RECEIVED.append(signum)
     raise Interrupted(signum)
 
 
@@ -371,8 +375,11 @@ def _written() -> str:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     _WRITTEN.clear()
+    _RECEIVED.clear()
     previous = {}
-    for sig in (signal.SIGTERM, signal.SIGHUP):  # SIGINT already raises KeyboardInterrupt
+    for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+        if sig == signal.SIGINT and signal.getsignal(sig) is not signal.default_int_handler:
+            continue  # SIGINT ignored (a background job) or handled by the caller: leave it so
         try:
             previous[sig] = signal.signal(sig, _on_signal)
         except (ValueError, OSError):  # not the main thread
@@ -400,6 +407,10 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + int(signum)
     except Exception as exc:  # a bug: one line, not a traceback (GEODDP_TRACEBACK=1 shows it)
         import os
+
+        if _RECEIVED:  # a library turned the interrupt into another exception (a meshcat/zmq call cut short)
+            print(f"geoddp: interrupted by {signal.Signals(_RECEIVED[0]).name}; {_written()}", file=sys.stderr)
+            return 128 + int(_RECEIVED[0])
 
         if os.environ.get("GEODDP_TRACEBACK"):
             raise

@@ -206,9 +206,11 @@ def _run_dask(pending: list[Case], record: Callable[[Case, dict[str, Any], int],
     cluster = None
     if scheduler is None:
         n = workers or os.cpu_count() or 1
-        # host 127.0.0.1: nothing of the local cluster listens beyond this machine
+        # host 127.0.0.1: nothing of the local cluster listens beyond this machine. The scheduler's
+        # HTTP server starts even without the dashboard, on port 8787 unless told otherwise: a free
+        # loopback port, so two sweeps (or a sweep beside a cluster) never collide or warn.
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address="127.0.0.1:0" if dashboard else None,
+                               dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": dashboard},
                                silence_logs=logging.ERROR)
         client = Client(cluster)
     else:
