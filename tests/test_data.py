@@ -140,3 +140,12 @@ def test_the_api_solves_a_builtin_scene_by_name():
     assert api.load_scene("satellite_semi_implicit") == load_scene(data.scene_path("satellite_semi_implicit"))
     r = api.solve_scene("satellite_semi_implicit", verbose=False)
     assert r.converged and r.iterations == 3 and abs(r.cost - 494.7163633884) < 1e-9
+
+
+def test_the_sweep_files_are_examples_but_not_scenes():
+    from geoddp import data
+    from geoddp.sweep.spec import sweep_names
+
+    assert (ROOT / "examples" / "sweeps").samefile(data.sweep_dir())  # examples/sweeps is the package's folder
+    assert set(sweep_names()) == {"satellite_slew", "satellite_noise_mc"}
+    assert not set(sweep_names()) & set(data.scene_names())  # a sweep file is not a scene

@@ -9,6 +9,8 @@ same lookups work from a source checkout, an editable install and a plain ``pip 
     geoddp/data/scenes/hard/NAME.toml          the 13 hard cases
     geoddp/data/scenes/robots/NAME.toml        real robots of example-robot-data by name
                                                (ur5_reach, solo12_reorient, hector_fly)
+    geoddp/data/scenes/sweeps/NAME.toml        the built-in sweep files (issue 17; sweeps, not
+                                               scenes: :func:`sweep_dir`)
 
 A built-in scene is named by its file stem (``quadrotor``, ``satellite_paper``,
 ``tumbling_5rads``); stems are unique across the scene folders. The repository's ``examples/``
@@ -26,7 +28,7 @@ from pathlib import Path
 
 from ..validate import InputError, closest
 
-__all__ = ["urdf_dir", "scene_dir", "urdf_path", "builtin_urdf", "urdf_names", "scene_names", "scene_path",
+__all__ = ["urdf_dir", "scene_dir", "sweep_dir", "urdf_path", "builtin_urdf", "urdf_names", "scene_names", "scene_path",
            "builtin_scene"]
 
 
@@ -48,6 +50,12 @@ def urdf_dir() -> Path:
 def scene_dir() -> Path:
     """Folder of the built-in scene files (``examples/`` in the repository links here)."""
     return _root() / "scenes"
+
+
+def sweep_dir() -> Path:
+    """Folder of the built-in sweep files (``examples/sweeps/`` in the repository); its files
+    describe sweeps over scenes and are not scenes themselves."""
+    return scene_dir() / "sweeps"
 
 
 def urdf_names() -> tuple[str, ...]:
@@ -79,6 +87,8 @@ def urdf_path(name: str) -> Path:
 def _scenes() -> dict[str, Path]:
     found: dict[str, Path] = {}
     for p in sorted(scene_dir().rglob("*.toml")):
+        if p.parent == sweep_dir():
+            continue
         if p.stem in found:  # two files would answer to one name: refuse rather than pick one
             raise RuntimeError(f"built-in scene name {p.stem!r} is taken twice: {found[p.stem]} and {p}")
         found[p.stem] = p

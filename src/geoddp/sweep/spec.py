@@ -313,10 +313,11 @@ def _random_where(random: tuple[RandomSpec, ...], key: str) -> str:
 
 
 def sweep_dir() -> Path:
-    """Folder of the built-in sweep files (package data: geoddp/data/sweeps)."""
-    from importlib import resources
+    """Folder of the built-in sweep files (package data: geoddp/data/scenes/sweeps, which the
+    repository's ``examples/sweeps`` is)."""
+    from .. import data
 
-    return Path(str(resources.files("geoddp.data") / "sweeps"))
+    return data.sweep_dir()
 
 
 def sweep_names() -> tuple[str, ...]:
@@ -326,7 +327,7 @@ def sweep_names() -> tuple[str, ...]:
 
 def load_sweep(path: str | Path) -> Sweep:
     """Read a sweep file (see the module docstring), or a built-in sweep by name
-    (:func:`sweep_names`: ``"satellite_slew"``, ``"satellite_montecarlo"``), without validating
+    (:func:`sweep_names`: ``"satellite_slew"``, ``"satellite_noise_mc"``), without validating
     the cases.
 
     Raises:
