@@ -7,13 +7,15 @@ target, H = 1500 steps, ~20-60 ms per solve: the issue's ">= 20 ms" cases):
    to Parquet parts, the final table written) against a direct loop of
    ``geoddp.api.solve_scene(spec)`` over specs parsed beforehand (nothing written). Both serial
    in this process, and the sweep also on a warm 1-worker LocalCluster. Target: <= 10 %.
-2. scaling: the same sweep on a warm LocalCluster of 1 and then 2 worker processes. Target on a
-   2-core machine: >= 1.8x.
+2. scaling: the same sweep on a warm LocalCluster of 1 and of 2 worker processes, both clusters up
+   and warm, runs interleaved over --rounds rounds (median). Target on a 2-core machine: >= 1.8x.
+   Beside it, the machine's own ceiling: the same direct solves split over a plain process pool
+   of 1 and of 2 processes (no Dask, nothing written), interleaved with the sweeps.
 3. per-task scheduler overhead: ``client.map`` of a no-op over 2,000 tasks on the 2-worker
    cluster (Dask documents ~1 ms or less per task), and our runner's own per-case overhead:
    (wall x workers - sum of the cases' own times) / cases.
 
-Usage: python benchmarks/sweep.py [--cases 100] [--steps 1500] [--noop 2000]
+Usage: python benchmarks/sweep.py [--cases 200] [--steps 1500] [--noop 2000] [--rounds 3]
 Timings on a shared machine are not valid: run on an idle one.
 """
 from __future__ import annotations
@@ -50,9 +52,26 @@ def noop(x: int) -> int:
     return x
 
 
+def solve_many(texts: list[tuple[dict, str]]) -> float:
+    """Direct solves in a pool process (the scaling ceiling): parse and solve, return the seconds."""
+    t0 = time.perf_counter()
+    for scene, source in texts:
+        solve_scene(parse_scene(scene, source), verbose=False)
+    return time.perf_counter() - t0
+
+
+def pool_wall(pool, jobs: list[tuple[dict, str]], n: int) -> float:
+    """Wall time of ``jobs`` split into n equal contiguous shares over a warm process pool."""
+    shares = [jobs[i::n] for i in range(n)]
+    t0 = time.perf_counter()
+    list(pool.map(solve_many, shares))
+    return time.perf_counter() - t0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--cases", type=int, default=100)
+    ap.add_argument("--cases", type=int, default=200)
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the scaling runs")
     ap.add_argument("--steps", type=int, default=1500, help="horizon H of each case (dt = 2 ms)")
     ap.add_argument("--noop", type=int, default=2000, help="no-op tasks for the scheduler overhead")
     args = ap.parse_args()
@@ -83,34 +102,60 @@ def main() -> None:
         rows.append(("sweep, serial (validate, parts, table)", serial, f"{100 * (serial / direct - 1):+.1f} %; "
                      f"{1e3 * (serial - direct) / len(cases):.2f} ms/case"))
 
-        walls = {}
+        import statistics
+        from concurrent.futures import ProcessPoolExecutor
+        from multiprocessing import get_context
+
+        jobs = [(c.scene, c.source) for c in cases]
+        walls: dict[str, list[float]] = {"dask1": [], "dask2": [], "pool1": [], "pool2": []}
+        own: dict[int, float] = {}
         noop_per_task = None
-        for n in (1, 2):
-            # as run_sweep's own LocalCluster: no statistical profiler in the workers (it holds the GIL)
-            with dask.config.set({"distributed.worker.profile.enabled": False}), \
-                    LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                 dashboard_address=None, silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
-                addr = cluster.scheduler_address
-                run_sweep(path, tmp / f"warm{n}", scheduler=addr, limit=2 * n)  # workers import geoddp
-                t0 = time.perf_counter()
-                run_sweep(path, tmp / f"dask{n}", scheduler=addr)
-                walls[n] = time.perf_counter() - t0
-                own = read_table(tmp / f"dask{n}")["case_time_s"].sum()
-                rows.append((f"sweep, LocalCluster {n} worker(s)", walls[n],
-                             f"{100 * (walls[n] / direct - 1):+.1f} % vs direct; runner overhead "
-                             f"{1e3 * (walls[n] * n - own) / len(cases):.2f} ms/case"))
-                if n == 2:
-                    client.gather(client.map(noop, range(200)))  # warm
+        # as run_sweep's own LocalCluster: no statistical profiler in the workers (it holds the GIL)
+        with dask.config.set({"distributed.worker.profile.enabled": False}), \
+                LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                             dashboard_address=None, silence_logs=logging.ERROR) as c1, \
+                LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                             dashboard_address=None, silence_logs=logging.ERROR) as c2, \
+                ProcessPoolExecutor(1, mp_context=get_context("spawn")) as p1, \
+                ProcessPoolExecutor(2, mp_context=get_context("spawn")) as p2:
+            clusters = {1: c1, 2: c2}
+            pools = {1: p1, 2: p2}
+            for n in (1, 2):  # warm: the workers import geoddp and fill numba's caches
+                run_sweep(path, tmp / f"warm{n}", scheduler=clusters[n].scheduler_address, limit=4 * n)
+                pool_wall(pools[n], jobs[:2 * n], n)
+            for r in range(args.rounds):
+                for n in (1, 2):
+                    out = tmp / f"dask{n}-{r}"
                     t0 = time.perf_counter()
-                    client.gather(client.map(noop, range(args.noop)))
-                    noop_per_task = (time.perf_counter() - t0) / args.noop
+                    run_sweep(path, out, scheduler=clusters[n].scheduler_address)
+                    walls[f"dask{n}"].append(time.perf_counter() - t0)
+                    own[n] = read_table(out)["case_time_s"].sum()
+                    walls[f"pool{n}"].append(pool_wall(pools[n], jobs, n))
+            with Client(c2) as client:
+                client.gather(client.map(noop, range(200)))  # warm
+                t0 = time.perf_counter()
+                client.gather(client.map(noop, range(args.noop)))
+                noop_per_task = (time.perf_counter() - t0) / args.noop
+        med = {k: statistics.median(v) for k, v in walls.items()}
+        for n in (1, 2):
+            rows.append((f"sweep, LocalCluster {n} worker(s), median of {args.rounds}", med[f"dask{n}"],
+                         f"{100 * (med[f'dask{n}'] / direct - 1):+.1f} % vs direct; runner overhead "
+                         f"{1e3 * (med[f'dask{n}'] * n - own[n]) / len(cases):.2f} ms/case"))
+        for n in (1, 2):
+            rows.append((f"plain process pool, {n} process(es), median of {args.rounds}", med[f"pool{n}"],
+                         f"{100 * (med[f'pool{n}'] / direct - 1):+.1f} % vs direct"))
         print(f"{len(cases)} cases, H = {args.steps}, {per_case * 1e3:.1f} ms per direct solve, "
               f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; a process's first sweep also pays "
               f"{first:.2f} s of imports")
         print("| route | wall (s) | vs direct |\n|---|---|---|")
         for name, wall, note in rows:
             print(f"| {name} | {wall:.3f} | {note} |")
-        print(f"scaling 1 -> 2 workers: {walls[1] / walls[2]:.2f}x (target >= 1.8x)")
+        ratios = [a / b for a, b in zip(walls["dask1"], walls["dask2"])]
+        ceil = [a / b for a, b in zip(walls["pool1"], walls["pool2"])]
+        print(f"scaling 1 -> 2 workers (sweep): median {statistics.median(ratios):.2f}x, rounds "
+              f"{', '.join(f'{x:.2f}' for x in ratios)} (target >= 1.8x)")
+        print(f"scaling 1 -> 2 processes (plain pool, the machine's ceiling): median {statistics.median(ceil):.2f}x, "
+              f"rounds {', '.join(f'{x:.2f}' for x in ceil)}")
         print(f"Dask per-task overhead (no-op map, 2 workers): {noop_per_task * 1e3:.3f} ms/task")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -331,7 +331,7 @@ def test_integer_draws(tmp_path):
 
 
 def test_builtin_noise_monte_carlo_sweep(tmp_path):
-    # The authors' noise test as a sweep (data/sweeps/satellite_noise_mc.toml): each case solves the
+    # The authors' noise test as a sweep (examples/sweeps/satellite_noise_mc.toml): each case solves the
     # plan (J* = 6.0451953285) and flies it with its own simulation seed; 30 cases serially.
     out = tmp_path / "mc"
     run_sweep("satellite_noise_mc", out, serial=True, limit=30)
@@ -342,3 +342,61 @@ def test_builtin_noise_monte_carlo_sweep(tmp_path):
     closed_mean = df["sim.feedback.attitude_rad.max"].mean()
     # one sample per case, so each case's max is its terminal error; the gains cut it >= 20x
     assert closed_mean < open_mean / 20 and 3e-4 < closed_mean < 1.2e-3, (open_mean, closed_mean)
+
+
+# ------------------------------------------------------------------ tasks, progress, the extra
+
+
+def test_chunk_sizes_follow_the_case_time_and_keep_the_tail_balanced():
+    sizer = run_mod.ChunkSizer(threads=2)
+    assert sizer.size(1000) == 1  # no case time known yet: one case a task
+    for _ in range(4):
+        sizer.observe(0.02)  # 20 ms cases
+    sizer.observe(math.nan)  # a case whose task died carries no time: ignored
+    assert sizer.size(1000) == int(run_mod.TASK_SECONDS / 0.02)  # ~0.25 s a task
+    assert sizer.size(20) == 20 // 4  # the tail: an even share of what is left over 2 x threads
+    assert sizer.size(3) == 1 and sizer.size(0) == 1
+    fast = run_mod.ChunkSizer(threads=1)
+    fast.observe(1e-5)
+    assert fast.size(10**6) == run_mod.MAX_CHUNK  # capped: a lost worker costs little to redo
+    slow = run_mod.ChunkSizer(threads=1)
+    slow.observe(2.0)
+    assert slow.size(10**6) == 1  # a case longer than a task's target time goes alone
+
+
+def test_run_cases_keeps_order_and_records_a_bad_case(tmp_path):
+    cases = expand(load_sweep(write(tmp_path, SMALL)))[:3]
+    payloads = [run_mod.case_mod.payload(c) for c in cases]
+    import copy
+
+    bad = copy.deepcopy(payloads[1]["scene"])
+    bad["model"]["inertia"] = "heavy"
+    payloads[1] = dict(payloads[1], scene=bad)  # fails inside the task
+    rows = run_mod.run_cases(payloads)
+    direct = [run_mod.run_case(p) for p in payloads]
+    assert [r["J"] for r in rows][::2] == [r["J"] for r in direct][::2]
+    assert rows[1]["status"] == "error" and "inertia" in rows[1]["error"] and rows[0]["error"] == ""
+
+
+def test_progress_bar_counts_done_failed_and_running(tmp_path, monkeypatch):
+    import io
+
+    import geoddp.api
+
+    real = geoddp.api.solve_scene
+    monkeypatch.setattr(geoddp.api, "solve_scene", lambda spec, **kw: (
+        (_ for _ in ()).throw(RuntimeError("boom")) if float(spec.S_u[0, 0]) == 1.0 else real(spec, **kw)))
+    stream = io.StringIO()
+    run_sweep(write(tmp_path, SMALL), tmp_path / "out", serial=True, progress=stream)
+    last = stream.getvalue().replace("\r", "\n").strip().splitlines()[-1]
+    assert last.startswith("sweep: 100%") and "12/12" in last and "6 failed, 0 running" in last, last
+
+
+def test_a_missing_sweep_extra_is_named(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "tqdm", None)  # as if tqdm were not installed
+    with pytest.raises(InputError, match=r"geoddp\[sweep\].*") as exc:
+        run_sweep(write(tmp_path, SMALL), tmp_path / "out", serial=True, progress=sys.stderr)
+    assert "missing: tqdm" in str(exc.value)
+    assert not (tmp_path / "out").exists()  # refused before anything was written
