@@ -23,11 +23,16 @@ from typing import Any
 OUTCOME_COLUMNS = ("status", "converged", "J", "iterations", "gradient_norm", "solve_time_s", "case_time_s")
 
 
-def payload(case: Any, full_dir: str | None = None) -> dict[str, Any]:
+def payload(case: Any, full_dir: str | None = None, spec: Any = None) -> dict[str, Any]:
     """The plain data a worker needs to run ``case`` (a :class:`~geoddp.sweep.spec.Case`);
-    ``full_dir``: write the case's full Result as JSON there (a folder every worker can write)."""
-    return {"index": case.index, "hash": case.hash, "scene": case.scene, "simulation": case.simulation,
-            "source": case.source, "full_dir": full_dir}
+    ``full_dir``: write the case's full Result as JSON there (a folder every worker can write).
+    ``spec``: the case's scene spec, already validated in this process (serial runs only: a
+    payload sent to a worker stays plain data and the worker reads the scene itself)."""
+    p = {"index": case.index, "hash": case.hash, "scene": case.scene, "simulation": case.simulation,
+         "source": case.source, "full_dir": full_dir}
+    if spec is not None:
+        p["spec"] = spec
+    return p
 
 
 def run_case(p: dict[str, Any]) -> dict[str, Any]:
@@ -50,7 +55,9 @@ def run_case(p: dict[str, Any]) -> dict[str, Any]:
     try:
         from ..scene import parse_scene
 
-        spec = parse_scene(p["scene"], p["source"])
+        spec = p.get("spec")
+        if spec is None:
+            spec = parse_scene(p["scene"], p["source"])
         if p["simulation"] is None:
             from ..api import solve_scene
 

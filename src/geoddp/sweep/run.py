@@ -159,7 +159,8 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
         sweep = load_sweep(sweep_path)
     else:
         sweep_path = Path(sweep.source) if sweep.source != "<dict>" else None
-    cases = expand(sweep)  # every case validated before anything runs
+    specs: list[Any] | None = [] if serial else None  # serial: solve the specs validated here
+    cases = expand(sweep, specs)  # every case validated before anything runs
     require_extra(dask=not serial, progress=progress is not None)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise InputError("--workers", f"expected a number of worker processes >= 1, got {workers!r}")
@@ -190,8 +191,9 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
 
     try:
         if serial:
+            spec_of = {c.hash: s for c, s in zip(cases, specs or [])}
             for c in pending:
-                record(c, run_case(case_mod.payload(c, full_dir)), 1)
+                record(c, run_case(case_mod.payload(c, full_dir, spec_of.get(c.hash))), 1)
         else:
             _run_dask(pending, record, full_dir, workers=workers, scheduler=scheduler, dashboard=dashboard)
     finally:

@@ -554,14 +554,20 @@ def _culprit(parameter: str, case: Case, sweep: Sweep) -> str:
     return parameter
 
 
-def expand(sweep: Sweep) -> list[Case]:
+def expand(sweep: Sweep, specs: list[Any] | None = None) -> list[Case]:
     """Every case of ``sweep``, each validated by the scene reader before any runs.
+
+    Args:
+        specs: if a list, the validated scene spec of each case is appended to it, in case order
+            (the serial runner solves them without reading each scene twice).
 
     Raises:
         InputError: the first invalid case, naming the sweep key path and the case.
     """
     out = []
     for case in sweep.cases():
-        validate_case(case, sweep)
+        spec = validate_case(case, sweep)
+        if specs is not None:
+            specs.append(spec)
         out.append(case)
     return out
