@@ -400,3 +400,24 @@ def test_a_missing_sweep_extra_is_named(tmp_path, monkeypatch):
         run_sweep(write(tmp_path, SMALL), tmp_path / "out", serial=True, progress=sys.stderr)
     assert "missing: tqdm" in str(exc.value)
     assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+def test_validation_keeps_hashes_not_cases(tmp_path):
+    # The runner validates every case first but keeps only their hashes (a case's scene table is
+    # ~4 kB: 10^5 of them would be 400 MB); the cases are generated again as they are submitted.
+    import tracemalloc
+
+    from geoddp.sweep.spec import validate_all
+
+    sweep = load_sweep(write(tmp_path, SMALL.replace("samples = 3", "samples = 100")))
+    tracemalloc.start()
+    try:
+        hashes = validate_all(sweep)
+        _, peak_hashes = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        cases = expand(sweep)
+        _, peak_cases = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert hashes == [c.hash for c in cases] and len(hashes) == 400
+    assert peak_hashes < peak_cases / 4, (peak_hashes, peak_cases)

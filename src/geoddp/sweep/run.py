@@ -7,11 +7,12 @@ given to :func:`geoddp.sweep.case.run_case`, so the tables are equal (timing col
 """
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -19,7 +20,7 @@ from typing import Any, TextIO
 from ..outputs import write_atomic
 from ..validate import InputError
 from . import case as case_mod
-from .spec import Case, Sweep, expand, load_sweep
+from .spec import Case, Sweep, load_sweep, validate_all
 from .table import MANIFEST, PartWriter, done_hashes, part_files, read_parts, write_manifest, write_table
 
 # Tasks in flight per worker thread: enough to keep every worker busy while a result travels
@@ -159,8 +160,11 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
         sweep = load_sweep(sweep_path)
     else:
         sweep_path = Path(sweep.source) if sweep.source != "<dict>" else None
-    specs: list[Any] | None = [] if serial else None  # serial: solve the specs validated here
-    cases = expand(sweep, specs)  # every case validated before anything runs
+    # Every case validated before anything runs; only the hashes are kept, and the cases are
+    # generated again as they are submitted (memory stays flat). Serial: the specs validated
+    # here are the ones solved (a serial sweep is one process's work anyway).
+    specs: list[Any] | None = [] if serial else None
+    hashes = validate_all(sweep, specs)
     require_extra(dask=not serial, progress=progress is not None)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise InputError("--workers", f"expected a number of worker processes >= 1, got {workers!r}")
@@ -175,15 +179,17 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     out.mkdir(parents=True, exist_ok=True)
     if sweep_path is not None and sweep_path.is_file():
         write_atomic(out / "sweep.toml", sweep_path.read_bytes())
+    total = len(hashes)
     done = done_hashes(out) if resume else set()
-    pending = [c for c in cases if c.hash not in done]
-    skipped = len(cases) - len(pending)
+    n_pending = sum(h not in done for h in hashes)
+    skipped = total - n_pending
     if limit is not None:
-        pending = pending[:limit]
+        n_pending = min(n_pending, limit)
+    pending = itertools.islice((c for c in sweep.cases() if c.hash not in done), n_pending)
     full_dir = str((out / "cases").resolve()) if full else None
-    writer = PartWriter(out, len(cases), flush_rows=flush_rows, flush_seconds=flush_seconds)
-    bar = Progress(len(cases), skipped, progress)
-    write_manifest(out, {"name": sweep.name, "total": len(cases), "finished": False})
+    writer = PartWriter(out, total, flush_rows=flush_rows, flush_seconds=flush_seconds)
+    bar = Progress(total, skipped, progress)
+    write_manifest(out, {"name": sweep.name, "total": total, "finished": False})
 
     def record(c: Case, outcome: dict[str, Any], running: int) -> None:
         writer.add(make_row(c, outcome))
@@ -191,24 +197,23 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
 
     try:
         if serial:
-            spec_of = {c.hash: s for c, s in zip(cases, specs or [])}
+            spec_of = dict(zip(hashes, specs or []))
             for c in pending:
                 record(c, run_case(case_mod.payload(c, full_dir, spec_of.get(c.hash))), 1)
         else:
-            _run_dask(pending, record, full_dir, workers=workers, scheduler=scheduler, dashboard=dashboard)
+            _run_dask(pending, n_pending, record, full_dir, workers=workers, scheduler=scheduler, dashboard=dashboard)
     finally:
         writer.flush()  # what finished is on disk, whatever ended the run
     bar.update(skipped + writer.written, writer.failed, 0, final=True)
-    hashes = [c.hash for c in cases]
     df = read_parts(out, hashes)
-    complete = len(df) == len(cases)
+    complete = len(df) == total
     table = None
     if complete:
         table = write_table(out, df, csv=csv)[0]
     failed = int((df["status"] == "error").sum()) if len(df) else 0
-    write_manifest(out, {"name": sweep.name, "total": len(cases), "done": len(df), "failed": failed,
+    write_manifest(out, {"name": sweep.name, "total": total, "done": len(df), "failed": failed,
                          "finished": complete})
-    return SweepRun(len(cases), skipped, writer.written, writer.failed, complete, table, time.perf_counter() - t0)
+    return SweepRun(total, skipped, writer.written, writer.failed, complete, table, time.perf_counter() - t0)
 
 
 def run_case(p: dict[str, Any]) -> dict[str, Any]:
@@ -249,15 +254,16 @@ class ChunkSizer:
         return max(1, min(want, share, MAX_CHUNK))
 
 
-def _run_dask(pending: list[Case], record: Callable[[Case, dict[str, Any], int], None], full_dir: str | None, *,
-              workers: int | None, scheduler: str | None, dashboard: bool) -> None:
-    """Submit ``pending`` to a Dask cluster in a sliding window; ``record`` each finished case."""
+def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, dict[str, Any], int], None],
+              full_dir: str | None, *, workers: int | None, scheduler: str | None, dashboard: bool) -> None:
+    """Submit the ``n_pending`` cases of ``pending`` (generated as they go) to a Dask cluster in a
+    sliding window of tasks; ``record`` each finished case."""
     import logging
 
     import dask
     from distributed import Client, LocalCluster, as_completed
 
-    if not pending:
+    if n_pending == 0:
         return
     cluster = None
     if scheduler is None:
@@ -282,14 +288,16 @@ def _run_dask(pending: list[Case], record: Callable[[Case, dict[str, Any], int],
         window = max(2, IN_FLIGHT_PER_THREAD * threads)
         run_id = f"{os.getpid()}-{time.time_ns()}"
         sizer = ChunkSizer(threads)
-        todo = list(reversed(pending))  # popped from the end: case order
+        left = n_pending
         inflight: dict[str, list[Case]] = {}
         ac = as_completed()
 
         def submit() -> bool:
-            if not todo:
+            nonlocal left
+            if left == 0:
                 return False
-            group = [todo.pop() for _ in range(min(sizer.size(len(todo)), len(todo)))]
+            group = list(itertools.islice(pending, min(sizer.size(left), left)))
+            left -= len(group)
             f = client.submit(run_cases, [case_mod.payload(c, full_dir) for c in group],
                               key=f"geoddp-cases-{group[0].hash[:16]}-{len(group)}-{run_id}", pure=False,
                               retries=RETRIES)

@@ -554,6 +554,23 @@ def _culprit(parameter: str, case: Case, sweep: Sweep) -> str:
     return parameter
 
 
+def validate_all(sweep: Sweep, specs: list[Any] | None = None) -> list[str]:
+    """Validate every case of ``sweep`` (as :func:`expand`) and return their hashes in case
+    order, keeping no case: a runner regenerates the cases from ``sweep.cases()`` as it submits
+    them, so a sweep of 10^5 cases holds 10^5 hashes, not 10^5 scene tables (~4 kB each).
+
+    Args:
+        specs: if a list, the validated scene specs are appended to it, in case order.
+    """
+    hashes = []
+    for case in sweep.cases():
+        spec = validate_case(case, sweep)
+        if specs is not None:
+            specs.append(spec)
+        hashes.append(case.hash)
+    return hashes
+
+
 def expand(sweep: Sweep, specs: list[Any] | None = None) -> list[Case]:
     """Every case of ``sweep``, each validated by the scene reader before any runs.
 
