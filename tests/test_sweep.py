@@ -409,7 +409,7 @@ def test_validation_keeps_hashes_not_cases(tmp_path):
 
     from geoddp.sweep.spec import validate_all
 
-    sweep = load_sweep(write(tmp_path, SMALL.replace("samples = 3", "samples = 100")))
+    sweep = load_sweep(write(tmp_path, SMALL.replace("samples = 3", "samples = 30")))
     tracemalloc.start()
     try:
         hashes = validate_all(sweep)
@@ -419,5 +419,5 @@ def test_validation_keeps_hashes_not_cases(tmp_path):
         _, peak_cases = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert hashes == [c.hash for c in cases] and len(hashes) == 400
+    assert hashes == [c.hash for c in cases] and len(hashes) == 120
     assert peak_hashes < peak_cases / 4, (peak_hashes, peak_cases)
