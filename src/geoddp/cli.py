@@ -107,7 +107,7 @@ def _sweep_parser(sub) -> None:
     sw.add_argument("--flush-rows", type=int, default=200, help="write a part file every N finished cases "
                     "(and at least every 5 s)")
     sw.add_argument("--dashboard", action="store_true", help="start the local cluster's dashboard on 127.0.0.1")
-    sw.add_argument("--quiet", action="store_true", help="no progress line")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.add_argument("--summary", type=Path, metavar="DIR", help="print the summary of the sweep results in DIR")
     sw.add_argument("--plots", type=Path, help="with --summary: write parameter-vs-outcome figures into this folder")
 
