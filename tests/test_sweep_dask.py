@@ -212,3 +212,24 @@ def test_sigint_then_resume_equals_uninterrupted(slow, tmp_path):
     on_disk = hashes_on_disk(out)
     assert sorted(on_disk) == sorted(serial["hash"])  # each case recorded once over both runs
     pd.testing.assert_frame_equal(comparable(read_table(out)), serial, check_exact=True)
+
+
+def test_local_workers_share_the_cores_and_run_without_the_profiler():
+    # The sweep's own LocalCluster: GEODDP_THREADS = cores // workers in each worker (two workers
+    # on two cores must not start two compiled threads each), and Dask's profiler off.
+    import dask
+
+    from geoddp.sweep.run import local_cluster, worker_env
+
+    assert worker_env(2, cores=2) == {"GEODDP_THREADS": "1"}
+    assert worker_env(1, cores=2) == {"GEODDP_THREADS": "2"} and worker_env(3, cores=2) == {"GEODDP_THREADS": "1"}
+    cluster = local_cluster(2)
+    try:
+        with distributed.Client(cluster) as c:
+            seen = c.run(lambda: (os.environ.get("GEODDP_THREADS"),
+                                  dask.config.get("distributed.worker.profile.enabled")))
+    finally:
+        cluster.close()
+    want = str(max(1, (os.cpu_count() or 1) // 2))
+    assert len(seen) == 2 and all(v == (want, False) for v in seen.values()), seen
+    assert all(a.startswith("tcp://127.0.0.1:") for a in seen)

@@ -442,3 +442,37 @@ def test_property_inertia_accepts_iff_triangle_inequality(moments):
 @given(st.integers(1, 100000), st.sampled_from([1e-4, 1e-3, 0.01, 0.02, 0.05, 0.1, 0.25]))
 def test_property_time_grid_recovers_step_count(H, dt):
     assert v.time_grid(H * dt, dt) == H
+
+
+def test_threads_from_the_environment(monkeypatch):
+    from geoddp.validate import threads_from_environment
+
+    monkeypatch.delenv("GEODDP_THREADS", raising=False)
+    assert threads_from_environment() == 0
+    monkeypatch.setenv("GEODDP_THREADS", " 3 ")
+    assert threads_from_environment() == 3
+    for bad in ("0", "-1", "two", "1.5", "5000"):
+        monkeypatch.setenv("GEODDP_THREADS", bad)
+        with pytest.raises(InputError, match="GEODDP_THREADS") as exc:
+            threads_from_environment()
+        assert repr(bad) in str(exc.value)
+
+
+def test_multibody_threads_follow_the_environment_and_one_thread_means_no_speculation(monkeypatch):
+    import numpy as np
+
+    from geoddp.data import urdf_path
+    from geoddp.models.multibody import Multibody
+    from geoddp.solver import backward
+
+    monkeypatch.setenv("GEODDP_THREADS", "1")
+    mb = Multibody(urdf_path("quadrotor.urdf"), root="free_flyer", dt=0.01)
+    assert mb.threads == 1
+    assert Multibody(urdf_path("quadrotor.urdf"), root="free_flyer", dt=0.01, threads=2).threads == 2  # explicit wins
+    lin = type("Lin", (), {"second_order": object(), "Phi": np.zeros((1, 12, 12))})()
+    assert backward._speculation_pool(lin) is None
+    monkeypatch.delenv("GEODDP_THREADS")
+    assert Multibody(urdf_path("quadrotor.urdf"), root="free_flyer", dt=0.01).threads == 0  # the core's default
+    monkeypatch.setenv("GEODDP_THREADS", "lots")
+    with pytest.raises(InputError, match="GEODDP_THREADS"):
+        Multibody(urdf_path("quadrotor.urdf"), root="free_flyer", dt=0.01)

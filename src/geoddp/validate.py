@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import difflib
 import numbers
+import os
 from collections.abc import Iterable
 from typing import Any
 
@@ -60,6 +61,31 @@ class InputError(ValueError):
     def with_source(self, source: str) -> "InputError":
         """Return a copy of this error that also names the file the value came from."""
         return InputError(self.parameter, self.detail, source)
+
+
+THREADS_ENV = "GEODDP_THREADS"
+
+
+def threads_from_environment() -> int:
+    """Threads per process for the compiled passes, from the environment variable GEODDP_THREADS;
+    0 when it is unset or empty (the core's default: min(cores, 2)).
+
+    A sweep's local workers get it set (cores / workers), so that two worker processes on two
+    cores do not each start two threads; set it on the workers of any cluster for the same reason.
+
+    Raises:
+        InputError: naming GEODDP_THREADS, if it is not a whole number from 1 to 1024.
+    """
+    raw = os.environ.get(THREADS_ENV, "").strip()
+    if not raw:
+        return 0
+    try:
+        n = int(raw)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= 1024:
+        raise InputError(THREADS_ENV, f"expected a whole number of threads from 1 to 1024, got {raw!r}")
+    return n
 
 
 MAX_HORIZON = 10_000_000  # steps: beyond this the arrays over the horizon alone exceed any memory

@@ -47,7 +47,7 @@ from ..linalg import symmetric_from_upper
 from .. import integrators as integ
 from .. import rkmk4, variational
 from ..urdf_checks import read_urdf_text
-from ..validate import InputError, choice, finite_array, nonnegative_int, positive_float
+from ..validate import InputError, choice, finite_array, nonnegative_int, positive_float, threads_from_environment
 from . import compiled
 
 ROOTS = ("free_flyer", "spherical", "fixed")
@@ -133,7 +133,8 @@ class Multibody:
             geoddp._core imports, else "python"), "compiled" or "python" (the oracle). Holds the
             resolved choice after construction.
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
-            core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) workers of a
+            environment variable GEODDP_THREADS if set (:func:`geoddp.validate.threads_from_environment`),
+            else the core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) workers of a
             persistent pool, at least 16 nodes each, for first- and second-order passes alike.
         contract: with the compiled backend, keep the second-order terms of a solve's expansion
             factored and contract them with V_x' inside the backward pass (True, the default:
@@ -166,6 +167,8 @@ class Multibody:
         self.second_order = choice(self.second_order, "second_order", SECOND_ORDER_KINDS)
         self.backend = choice(self.backend, "backend", BACKENDS)
         self.threads = nonnegative_int(self.threads, "threads")
+        if self.threads == 0:  # the environment's choice (a sweep's workers), else the core's default
+            self.threads = threads_from_environment()
         if not isinstance(self.contract, (bool, np.bool_)):
             raise InputError("contract", f"expected True or False, got {self.contract!r}")
         supported = self.integrator in compiled.INTEGRATORS

@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import kernels
 from ..contract import Linearisation
+from ..validate import threads_from_environment
 from .options import SolverOptions
 
 try:  # pinocchio first: its import loads the libpinocchio geoddp._core links
@@ -147,9 +148,10 @@ _SPECULATION: dict = {"pid": None, "pool": None}
 
 def _speculation_pool(lin: Linearisation):
     """A one-worker thread pool for speculative passes, or None where they cannot run side by side:
-    only the compiled passes release the GIL (numba's do not), and only with two or more cores.
+    only the compiled passes release the GIL (numba's do not), and only with two or more cores
+    and GEODDP_THREADS not set to 1 (a sweep's worker on a core of its own).
     Made per process (a forked child gets its own: the parent's worker thread does not exist there)."""
-    if _core is None or _core.default_threads() < 2:
+    if _core is None or _core.default_threads() < 2 or threads_from_environment() == 1:
         return None
     if lin.second_order is None and lin.Phi.shape[1] < COMPILED_MIN_NX:
         return None

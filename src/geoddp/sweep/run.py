@@ -221,6 +221,35 @@ def run_case(p: dict[str, Any]) -> dict[str, Any]:
     return case_mod.run_case(p)
 
 
+def local_cluster(workers: int, dashboard: bool = False) -> Any:
+    """The sweep's own Dask ``LocalCluster``: ``workers`` processes of one thread each, everything
+    on 127.0.0.1, the cores shared out among the workers (:func:`worker_env`) and no statistical
+    profiler in them (it samples every thread's stack 100 times a second: a few % of a 2-core
+    machine's solves) unless a dashboard would show it."""
+    import logging
+
+    import dask
+    from distributed import LocalCluster
+
+    # host 127.0.0.1: nothing of the local cluster listens beyond this machine. The scheduler's
+    # HTTP server starts even without the dashboard, on port 8787 unless told otherwise: a free
+    # loopback port, so two sweeps (or a sweep beside a cluster) never collide or warn.
+    with dask.config.set({"distributed.worker.profile.enabled": dashboard}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                            dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": dashboard},
+                            silence_logs=logging.ERROR, env=worker_env(workers))
+
+
+def worker_env(workers: int, cores: int | None = None) -> dict[str, str]:
+    """Environment of a local cluster's worker processes: the cores shared out among them
+    (GEODDP_THREADS = cores // workers, at least 1), so that the compiled passes of two workers
+    on two cores run on one thread each instead of two each."""
+    from ..validate import THREADS_ENV
+
+    cores = cores or os.cpu_count() or 1
+    return {THREADS_ENV: str(max(1, cores // max(1, workers)))}
+
+
 def run_cases(payloads: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One Dask task: several cases in a row, their outcomes in the same order (a case that
     raises is an "error" row, so one bad case never costs its neighbours)."""
@@ -258,25 +287,13 @@ def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, d
               full_dir: str | None, *, workers: int | None, scheduler: str | None, dashboard: bool) -> None:
     """Submit the ``n_pending`` cases of ``pending`` (generated as they go) to a Dask cluster in a
     sliding window of tasks; ``record`` each finished case."""
-    import logging
-
-    import dask
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
 
     if n_pending == 0:
         return
     cluster = None
     if scheduler is None:
-        n = workers or os.cpu_count() or 1
-        # host 127.0.0.1: nothing of the local cluster listens beyond this machine. The scheduler's
-        # HTTP server starts even without the dashboard, on port 8787 unless told otherwise: a free
-        # loopback port, so two sweeps (or a sweep beside a cluster) never collide or warn.
-        # The workers' statistical profiler samples every thread's stack 100 times a second: off,
-        # unless a dashboard would show it (it cost a few % of a 2-core machine's solves).
-        with dask.config.set({"distributed.worker.profile.enabled": dashboard}):
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                   dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": dashboard},
-                                   silence_logs=logging.ERROR)
+        cluster = local_cluster(workers or os.cpu_count() or 1, dashboard)
         client = Client(cluster)
     else:
         try:
@@ -327,4 +344,4 @@ def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, d
                 cluster.close()
 
 
-__all__ = ["SweepRun", "run_sweep", "run_cases", "ChunkSizer", "require_extra", "make_row", "flatten", "MANIFEST", "Progress"]
+__all__ = ["SweepRun", "run_sweep", "run_cases", "ChunkSizer", "require_extra", "local_cluster", "worker_env", "make_row", "flatten", "MANIFEST", "Progress"]
