@@ -21,7 +21,6 @@ Timings on a shared machine are not valid: run on an idle one.
 from __future__ import annotations
 
 import argparse
-import logging
 import os
 import shutil
 import tempfile
@@ -32,6 +31,7 @@ from pathlib import Path
 from geoddp.api import solve_scene
 from geoddp.scene import parse_scene
 from geoddp.sweep import expand, load_sweep, read_table, run_sweep
+from geoddp.sweep.run import local_cluster
 
 SWEEP = """
 [sweep]
@@ -75,8 +75,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=1500, help="horizon H of each case (dt = 2 ms)")
     ap.add_argument("--noop", type=int, default=2000, help="no-op tasks for the scheduler overhead")
     args = ap.parse_args()
-    import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     tmp = Path(tempfile.mkdtemp(prefix="geoddp-sweep-bench-"))
     try:
@@ -98,12 +97,8 @@ def main() -> None:
         walls: dict[str, list[float]] = {k: [] for k in ("direct", "serial", "dask1", "pool1", "dask2", "pool2")}
         own: dict[int, list[float]] = {1: [], 2: []}
         noop_per_task = None
-        # as run_sweep's own LocalCluster: no statistical profiler in the workers (it holds the GIL)
-        with dask.config.set({"distributed.worker.profile.enabled": False}), \
-                LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
-                             dashboard_address=None, silence_logs=logging.ERROR) as c1, \
-                LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                             dashboard_address=None, silence_logs=logging.ERROR) as c2, \
+        # run_sweep's own LocalCluster (profiler off, GEODDP_THREADS = cores // workers)
+        with local_cluster(1) as c1, local_cluster(2) as c2, \
                 ProcessPoolExecutor(1, mp_context=get_context("spawn")) as p1, \
                 ProcessPoolExecutor(2, mp_context=get_context("spawn")) as p2:
             clusters = {1: c1, 2: c2}

@@ -151,9 +151,11 @@ def _speculation_pool(lin: Linearisation):
     only the compiled passes release the GIL (numba's do not), and only with two or more cores
     and GEODDP_THREADS not set to 1 (a sweep's worker on a core of its own).
     Made per process (a forked child gets its own: the parent's worker thread does not exist there)."""
-    if _core is None or _core.default_threads() < 2 or threads_from_environment() == 1:
+    if _core is None or _core.default_threads() < 2:
         return None
     if lin.second_order is None and lin.Phi.shape[1] < COMPILED_MIN_NX:
+        return None
+    if threads_from_environment() == 1:  # read after the structure: numba's passes never look
         return None
     import os
 

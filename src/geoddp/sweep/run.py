@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from ..outputs import write_atomic
-from ..validate import InputError
+from ..validate import THREADS_ENV, InputError
 from . import case as case_mod
 from .spec import Case, Sweep, load_sweep, validate_all
 from .table import MANIFEST, PartWriter, done_hashes, part_files, read_parts, write_manifest, write_table
@@ -27,10 +27,10 @@ from .table import MANIFEST, PartWriter, done_hashes, part_files, read_parts, wr
 # back, few enough that 10^5 cases never sit in the scheduler at once (memory stays flat).
 IN_FLIGHT_PER_THREAD = 3
 RETRIES = 2  # Dask re-runs a task this many times if it raises out of run_cases (it never should)
-# Cases per task: a Dask task costs ~1.5 ms of scheduler, client and worker time, which the two
-# cores share with the solves; grouping cases into tasks of ~TASK_SECONDS makes that cost
-# negligible (measured: 1 -> 2 workers went from 1.65-1.73x with one case a task to the figure in
-# the README). At most MAX_CHUNK cases, so a lost worker costs little to redo and memory stays flat.
+# Cases per task: a Dask task costs ~1.5-3 ms of scheduler, client and worker time, which the
+# cores share with the solves; grouping cases into tasks of ~TASK_SECONDS makes that cost about
+# 1 % of the work. At most MAX_CHUNK cases, so a lost worker costs little to redo and memory
+# stays flat.
 TASK_SECONDS = 0.25
 MAX_CHUNK = 64
 
@@ -244,8 +244,6 @@ def worker_env(workers: int, cores: int | None = None) -> dict[str, str]:
     """Environment of a local cluster's worker processes: the cores shared out among them
     (GEODDP_THREADS = cores // workers, at least 1), so that the compiled passes of two workers
     on two cores run on one thread each instead of two each."""
-    from ..validate import THREADS_ENV
-
     cores = cores or os.cpu_count() or 1
     return {THREADS_ENV: str(max(1, cores // max(1, workers)))}
 

@@ -554,6 +554,12 @@ def _culprit(parameter: str, case: Case, sweep: Sweep) -> str:
     return parameter
 
 
+def _validated(sweep: Sweep) -> Iterator[tuple[Case, Any]]:
+    """Every case of ``sweep`` with its scene spec, each validated by the scene reader."""
+    for case in sweep.cases():
+        yield case, validate_case(case, sweep)
+
+
 def validate_all(sweep: Sweep, specs: list[Any] | None = None) -> list[str]:
     """Validate every case of ``sweep`` (as :func:`expand`) and return their hashes in case
     order, keeping no case: a runner regenerates the cases from ``sweep.cases()`` as it submits
@@ -563,28 +569,17 @@ def validate_all(sweep: Sweep, specs: list[Any] | None = None) -> list[str]:
         specs: if a list, the validated scene specs are appended to it, in case order.
     """
     hashes = []
-    for case in sweep.cases():
-        spec = validate_case(case, sweep)
+    for case, spec in _validated(sweep):
         if specs is not None:
             specs.append(spec)
         hashes.append(case.hash)
     return hashes
 
 
-def expand(sweep: Sweep, specs: list[Any] | None = None) -> list[Case]:
+def expand(sweep: Sweep) -> list[Case]:
     """Every case of ``sweep``, each validated by the scene reader before any runs.
-
-    Args:
-        specs: if a list, the validated scene spec of each case is appended to it, in case order
-            (the serial runner solves them without reading each scene twice).
 
     Raises:
         InputError: the first invalid case, naming the sweep key path and the case.
     """
-    out = []
-    for case in sweep.cases():
-        spec = validate_case(case, sweep)
-        if specs is not None:
-            specs.append(spec)
-        out.append(case)
-    return out
+    return [case for case, _ in _validated(sweep)]
