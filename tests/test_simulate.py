@@ -273,8 +273,8 @@ def test_mpc_reuses_the_built_problem(monkeypatch, quad):
 
     monkeypatch.setattr(pin, "buildModelFromUrdf", counting("urdf", pin.buildModelFromUrdf))
     monkeypatch.setattr(mbm, "build_checked_model", counting("urdf", mbm.build_checked_model))
-    monkeypatch.setattr(sb, "_multibody", counting("build", sb._multibody))  # the one builder's two kinds
-    monkeypatch.setattr(sb, "_satellite", counting("build", sb._satellite))
+    monkeypatch.setattr(sb, "_multibody", counting("build", sb._multibody))  # the one builder's two backends
+    monkeypatch.setattr(sb, "_on_tso3", counting("build", sb._on_tso3))
     monkeypatch.setattr(sl, "_dispatch", counting("build", sl._dispatch))  # every scene read (file or dict)
     monkeypatch.setattr(prob.Problem, "__post_init__", counting("validate", prob.Problem.__post_init__))
     s = simulate(r, p, mpc, plant=plant, steps=10)
@@ -287,8 +287,8 @@ def test_mpc_reuses_the_built_problem(monkeypatch, quad):
     assert counts["urdf"] == 1
     from geoddp.scene import build_problem as build, load_scene
 
-    build(load_scene("quadrotor"))
-    assert counts["build"] == 2 and counts["validate"] == 1 and counts["urdf"] >= 2
+    build(load_scene("quadrotor"))  # read (1), the TSO(3) backend declines (2), the general one builds (3)
+    assert counts["build"] == 3 and counts["validate"] == 1 and counts["urdf"] >= 2
 
 
 def test_mpc_warm_start_shifts_and_repeats_the_last_control(authors):

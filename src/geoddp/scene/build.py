@@ -1,13 +1,17 @@
-"""The one builder: a validated spec (either kind) to a :class:`geoddp.problem.Problem`, the
-solver options of its ``[solver]`` table and its initial controls.
+"""The one builder: a validated spec to a :class:`geoddp.problem.Problem`, the solver options of
+its ``[solver]`` table and its initial controls.
 
-A satellite spec becomes the one-body model of its URDF (spherical root, no gravity, the scene's
-inertia) whose backend is chosen by structure (:func:`geoddp.models.satellite.satellite_model`:
-the compiled TSO(3) closed forms for the Euler schemes), with the paper's costs; a multibody spec
-becomes a :class:`geoddp.models.multibody.Multibody` with its cost terms.
+It reads the general schema only (:class:`~geoddp.scene.multibody.MultibodySceneSpec`); a
+satellite scene arrives translated (:meth:`~geoddp.scene.satellite.SceneSpec.general`). The
+model's backend is chosen here, by structure: where the model is one body on a spherical root
+without gravity, integrated by explicit or semi-implicit Euler, and every cost term has a closed
+form on TSO(3) (control, frame_rotation of the body, a velocity-only state_regularisation), the
+problem runs on the compiled TSO(3) closed forms (:class:`geoddp.models.satellite.Satellite`,
+paper Section VI); anything else on :class:`geoddp.models.multibody.Multibody`.
 """
 from __future__ import annotations
 
+import functools
 from typing import Any, Union
 
 import numpy as np
@@ -25,9 +29,10 @@ def build_problem(spec: AnySceneSpec):
     """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0); the
     model's backend is chosen when it is built (TSO(3) closed forms for the satellite). A fresh
     model each call. The shared tables (:mod:`.common`) act on the problem here, once for every kind."""
-    problem = _satellite(spec) if isinstance(spec, SceneSpec) else _multibody(spec)
-    if spec.has_limits:
-        problem = problem.with_limits(control_limits(spec, problem.model))
+    general = spec.general() if isinstance(spec, SceneSpec) else spec
+    problem = _on_tso3(general) or _multibody(general)
+    if general.has_limits:
+        problem = problem.with_limits(control_limits(general, problem.model))
     return problem
 
 
@@ -57,29 +62,80 @@ def control_limits(spec: AnySceneSpec, model: Any = None) -> tuple[np.ndarray, n
     return lo, hi
 
 
-def _satellite(spec: SceneSpec):
-    """The one-body model of ``spec.urdf`` (default satellite.urdf) with the paper's costs."""
-    from ..problem import satellite_problem
+def _on_tso3(spec: MultibodySceneSpec):
+    """The problem on the TSO(3) backend, or None where its structure does not allow it.
 
-    return satellite_problem(
-        inertia=spec.inertia, actuation=spec.actuation, dt=spec.dt, horizon=spec.horizon,
-        R0=spec.R0, Omega0=spec.Omega0, R_d=spec.Rd, Omega_d=spec.Omegad,
-        S_u=spec.S_u, S_R=spec.S_R, S_Omega=spec.S_Omega, attitude_kind=spec.attitude_kind,
-        running_S_R=spec.running_S_R, running_S_Omega=spec.running_S_Omega,
-        integrator=spec.integrator, second_order=spec.second_order, urdf=spec.urdf,
-    )
+    The same problem either way (the general model with these terms gives the same J* to 6e-16,
+    tests/test_scene.py); this one runs the satellite's compiled closed forms, ~10x faster."""
+    from ..costs import CostSum
+    from ..models.satellite import Satellite
+    from ..problem import Problem
+
+    if spec.root != "spherical" or spec.gravity or spec.integrator not in ("euler", "semi_implicit"):
+        return None
+    pm = _one_body_model(str(spec.urdf))
+    if pm is None:
+        return None
+    running = [_tso3_term(c, pm) for c in spec.running_costs]
+    terminal = [_tso3_term(c, pm) for c in spec.terminal_costs]
+    if any(t is None for t in running + terminal):
+        return None
+    # about the joint (the fixed point): the URDF's centre-of-mass inertia moved there, or the scene's
+    inertia = spec.inertia if spec.inertia is not None else pm.inertias[1].matrix()[3:, 3:]
+    model = Satellite(inertia=inertia, actuation=spec.actuation, dt=spec.dt, integrator=spec.integrator,
+                      second_order=spec.second_order, urdf=spec.urdf)
+    R0 = pin.Quaternion(np.asarray(spec.q0)).toRotationMatrix()  # the rotation q0 denotes
+    return Problem(model, R0, np.array(spec.v0), spec.horizon, CostSum(running), CostSum(terminal))
+
+
+@functools.lru_cache(maxsize=32)
+def _one_body_model(urdf: str) -> pin.Model | None:
+    """The URDF on a spherical root if it is one rigid body (nv = 3), else None. Cached: read-only."""
+    pm = pin.buildModelFromUrdf(urdf, pin.JointModelSpherical())
+    return pm if pm.nv == 3 else None
+
+
+def _tso3_term(c: Any, pm: pin.Model):
+    """The closed-form TSO(3) term of a general cost term (:mod:`geoddp.costs`), or None where there
+    is none: frame_rotation of a frame rotating with the body (any frame of joint 1 whose placement
+    has no rotation), a state_regularisation that weights the velocity only, any control term."""
+    from ..costs import AngularVelocityQuadratic, AttitudeChordal, AttitudeGeodesic, ControlQuadratic
+
+    if c.gauss_newton:
+        return None
+    if c.type == "control":
+        return ControlQuadratic(c.weight, c.reference)
+    if c.type == "frame_rotation":
+        f = pm.frames[pm.getFrameId(c.frame)]
+        if f.parentJoint != 1 or not np.array_equal(f.placement.rotation, np.eye(3)):
+            return None
+        return (AttitudeChordal if c.distance == "chordal" else AttitudeGeodesic)(c.weight, c.reference)
+    if c.type == "state_regularisation" and not np.any(c.weight[:3]) and not np.any(c.weight[:, :3]):
+        return AngularVelocityQuadratic(c.weight[3:, 3:], c.reference[4:])
+    return None
 
 
 def _multibody(spec: MultibodySceneSpec):
-    """The multibody model of ``spec.urdf`` with its cost terms."""
+    """The multibody model of ``spec.urdf`` (with ``spec.inertia`` on its one body, if given) with
+    its cost terms."""
     from ..models.multibody import Multibody
+    from ..models.satellite import _one_body
     from ..multibody_costs import MultibodyCostSum
     from ..problem import Problem
 
+    if spec.second_order == "paper":
+        raise InputError("second_order", "'paper' (the paper's eta-eta term) exists on the TSO(3) backend only: one "
+                         "body on a spherical root, no gravity, integrator euler or semi_implicit, and costs with "
+                         "closed forms there; use \"exact\"")
     model = Multibody(spec.urdf, root=spec.root, actuation=np.array(spec.actuation), dt=spec.dt,
                       integrator=spec.integrator, gravity=spec.gravity, second_order=spec.second_order,
                       package_dirs=spec.package_dirs)
     pm = model.pin_model
+    if spec.inertia is not None:
+        try:
+            _one_body(pm, spec.inertia)
+        except ValueError as e:
+            raise InputError("inertia", f"replaces the inertia of a one-body model; {e}") from None
     running = MultibodyCostSum([c.build(pm) for c in spec.running_costs], model=pm)
     terminal = MultibodyCostSum([c.build(pm) for c in spec.terminal_costs], model=pm, terminal=True)
     return Problem(model, np.array(spec.q0), np.array(spec.v0), spec.horizon, running, terminal)

@@ -15,7 +15,9 @@ Schema (``?`` = optional, with its default; paths as they appear in error messag
                    URDF's package:// mesh URIs are found, before ROS_PACKAGE_PATH; a robot's
                    own directory is added), srdf? (path: named postures; a robot's own SRDF),
                  root? = the robot's root (free flyer or fixed), else "free_flyer"
-                   (free_flyer | spherical | fixed), gravity? = true
+                   (free_flyer | spherical | fixed), gravity? = true,
+                 inertia? (3 numbers or 3x3, kg m^2: replaces the inertia of a one-body model on a
+                   spherical root, the satellite; its mass is kept)
     [actuation]? type? = "identity" (identity | matrix | thrusters | quadrotor | joints)
                  matrix (nv x m)                     for type = "matrix"
                  positions, directions (k x 3)       for type = "thrusters" (free-flyer root)
@@ -35,7 +37,8 @@ Schema (``?`` = optional, with its default; paths as they appear in error messag
                        state_regularisation | control), name? (a label)
       frame_placement     frame, weight (scalar | 6 | 6x6, [linear; angular]),
                           translation + one rotation form, or at_configuration (nq)
-      frame_rotation      frame, weight (3), one rotation form or at_configuration
+      frame_rotation      frame, weight (3 | 3x3), one rotation form or at_configuration,
+                          distance? = "geodesic" (geodesic | chordal: TSO(3) backend only)
       frame_translation   frame, weight (3), translation or at_configuration
       (frame terms)       gauss_newton? = false
       state_regularisation  q_reference? = "neutral" ("neutral" | "initial" | nq),
@@ -43,7 +46,7 @@ Schema (``?`` = optional, with its default; paths as they appear in error messag
                           or q_weight? / v_weight? (scalar | nv, default 0), gauss_newton? = false
       control             weight (scalar | m | m x m), reference? = 0 (m | "hover"); running only
     [solver]?    as for satellite scenes (expansion, switch_ratio, tol, grad_tol, max_iter,
-                 second_order? = "exact"); initial_controls? = "zero" | "hover" | (m) | (H x m)
+                 second_order? = "exact"; "paper" too on a spherical root without gravity); initial_controls? = "zero" | "hover" | (m) | (H x m)
 
 Weights are positive semidefinite (PSD). Running costs are summed over the H nodes without a dt
 factor (Crocoddyl multiplies running costs by dt: divide its weights by dt to compare). "hover"
@@ -67,6 +70,7 @@ from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
 from .reader import Reader, Schema, check_urdf
 
 COST_TYPES = ("frame_placement", "frame_rotation", "frame_translation", "state_regularisation", "control")
+DISTANCES = ("geodesic", "chordal")  # of a frame_rotation term
 ACTUATION_TYPES = ("identity", "matrix", "thrusters", "quadrotor", "joints")
 DEFAULT_INTEGRATOR = "euler"
 ROTATION_FORMS = ("quaternion", "rotation", "axis")  # "axis" goes with "angle_deg"
@@ -74,7 +78,7 @@ ROTATION_FORMS = ("quaternion", "rotation", "axis")  # "axis" goes with "angle_d
 ARRAYS = ("running_costs", "terminal_costs")
 SCHEMA: Schema = {  # [table] -> key -> required?
     "model": {"kind": True, "urdf": False, "robot": False, "package_dirs": False, "srdf": False, "root": False,
-              "gravity": False},
+              "gravity": False, "inertia": False},
     "actuation": {"type": False, "matrix": False, "positions": False, "directions": False,
                   "arm_length": False, "torque_coefficient": False, "joints": False},
     "initial": {"q": False, "v": False, "translation": False, "quaternion": False, "rotation": False,
@@ -97,7 +101,7 @@ _POSE_KEYS = ("translation", "quaternion", "rotation", "axis", "angle_deg")
 _COST_KEYS = {
     "frame_placement": ("frame", "weight", "at_configuration", "gauss_newton") + _POSE_KEYS,
     "frame_rotation": ("frame", "weight", "at_configuration", "gauss_newton", "quaternion", "rotation", "axis",
-                       "angle_deg"),
+                       "angle_deg", "distance"),
     "frame_translation": ("frame", "weight", "at_configuration", "gauss_newton", "translation"),
     "state_regularisation": ("q_reference", "v_reference", "weight", "q_weight", "v_weight", "gauss_newton"),
     "control": ("weight", "reference"),
@@ -123,6 +127,9 @@ class CostTermSpec:
             (state_regularisation), (m,) input (control).
         weight: (nr, nr) PSD weight matrix.
         gauss_newton: drop the second-order part of l_xx (frame and state terms).
+        distance: of a frame_rotation term: "geodesic" (1/2 r^T W r, r = log3(R_ref^T R), on
+            every model) or "chordal" (1/2 ||I - R_ref^T R||^2_W, paper eq. costR: the TSO(3)
+            backend only, so a one-body model on a spherical root without gravity).
     """
 
     type: str
@@ -132,6 +139,7 @@ class CostTermSpec:
     reference: np.ndarray
     weight: np.ndarray
     gauss_newton: bool = False
+    distance: str = "geodesic"
 
     def build(self, model: pin.Model) -> Any:
         """The :mod:`geoddp.multibody_costs` term on ``model``."""
@@ -140,6 +148,9 @@ class CostTermSpec:
         W, ref = np.array(self.weight), np.array(self.reference)
         if self.type == "frame_placement":
             return mc.FramePlacement(model, self.frame, ref, W=W, gauss_newton=self.gauss_newton)
+        if self.type == "frame_rotation" and self.distance == "chordal":
+            raise InputError(f"{self.path}.distance", '"chordal" runs on the TSO(3) backend only (one body on a '
+                             'spherical root, no gravity, integrator euler or semi_implicit); use "geodesic" here')
         if self.type == "frame_rotation":
             return mc.FrameRotation(model, self.frame, ref, W=W, gauss_newton=self.gauss_newton)
         if self.type == "frame_translation":
@@ -166,6 +177,8 @@ class MultibodySceneSpec(CommonSpec):
         initial_controls: None (zeros), (m,) constant input or (H, m) sequence.
         package_dirs: absolute directories searched for the URDF's ``package://`` mesh URIs.
         robot: the example-robot-data name of ``[model].robot``, or None.
+        inertia: (3, 3) rotational inertia about the centre of mass, kg m^2, replacing the URDF's
+            (its mass is kept), for a one-body model on a spherical root (the satellite); or None.
         expansion, switch_ratio, tol, grad_tol, max_iter, second_order: the ``[solver]`` table
             (:class:`~geoddp.scene.common.CommonSpec`).
 
@@ -190,6 +203,7 @@ class MultibodySceneSpec(CommonSpec):
     initial_controls: np.ndarray | None = None
     package_dirs: tuple[str, ...] = ()
     robot: str | None = None
+    inertia: np.ndarray | None = None
 
     kind = "multibody"
 
@@ -205,7 +219,12 @@ class MultibodySceneSpec(CommonSpec):
         put("integrator", v.choice(self.integrator, "integrator", mbm.INTEGRATORS))
         put("running_costs", tuple(self.running_costs))
         put("terminal_costs", tuple(self.terminal_costs))
-        self._check_common(mbm.SECOND_ORDER_KINDS, self.num_inputs)
+        if self.inertia is not None:
+            if self.root != "spherical":
+                raise InputError("inertia", f'expected None unless root = "spherical" (it replaces the inertia of a '
+                                 f"one-body model), got root = {self.root!r}")
+            put("inertia", readonly(v.inertia_matrix(self.inertia, "inertia")))
+        self._check_common(second_order_kinds(self.root, self.gravity), self.num_inputs)
         if self.initial_controls is not None:
             m = self.num_inputs
             U = v.finite_array(self.initial_controls, "initial_controls")
@@ -241,6 +260,14 @@ class MultibodySceneSpec(CommonSpec):
                 hint = f"; did you mean {guess!r}?" if guess else ""
                 raise InputError(k, f"cannot override this MultibodySceneSpec field{hint} (allowed: {', '.join(allowed)})")
         return dataclasses.replace(self, **overrides)
+
+
+def second_order_kinds(root: str, gravity: bool) -> tuple[str, ...]:
+    """The ``second_order`` values a model allows: the paper's expansion of the reconstruction
+    (Section IV, eta-eta term included) exists for TSO(3) only, so a spherical root without gravity."""
+    from ..models import multibody as mbm
+
+    return ("exact", "paper") if root == "spherical" and not gravity else mbm.SECOND_ORDER_KINDS
 
 
 # --------------------------------------------------------------------------------------
@@ -282,6 +309,12 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     urdf, robot, default_root, package_dirs, srdf = _model_source(r, model_t, base_dir)
     root = r.check(v.choice, model_t.get("root", default_root), "[model].root", mbm.ROOTS)
     gravity = r.boolean(model_t.get("gravity", True), "[model].gravity")
+    inertia = None
+    if "inertia" in model_t:
+        if root != "spherical":
+            raise r.err("[model].inertia", f'expected only with root = "spherical" (it replaces the inertia of a '
+                        f"one-body model), got root = {root!r}")
+        inertia = r.check(v.inertia_matrix, model_t["inertia"], "[model].inertia")
     horizon_t = r.table("horizon")
     dt = r.check(v.positive_float, horizon_t["dt"], "[horizon].dt")
     integrator = r.check(v.choice, horizon_t.get("integrator", DEFAULT_INTEGRATOR), "[horizon].integrator",
@@ -300,6 +333,8 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         raise r.err(f"[model].{e.parameter}", e.detail) from None
     pm = bare.pin_model
     nv = pm.nv
+    if inertia is not None and nv != 3:
+        raise r.err("[model].inertia", f"expected a one-body model (nv = 3 on the spherical root), got nv = {nv}")
 
     # ---- actuation
     act_t = r.table("actuation")
@@ -325,7 +360,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         raise r.err("[[running_costs]]", "expected at least one cost term in [[running_costs]] or [[terminal_costs]]")
 
     # ---- solver
-    common = read_common(r, mbm.SECOND_ORDER_KINDS, m, pm)
+    common = read_common(r, second_order_kinds(root, gravity), m, pm)
     s = r.table("solver")
     U0 = None
     if "initial_controls" in s:
@@ -344,7 +379,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         name=name, description=description, source=source, urdf=urdf, root=root, gravity=gravity,
         actuation=actuation, q0=q0, v0=v0, dt=dt, horizon=H, integrator=integrator,
         running_costs=tuple(running), terminal_costs=tuple(terminal), initial_controls=U0,
-        package_dirs=package_dirs, robot=robot, **common,
+        package_dirs=package_dirs, robot=robot, inertia=inertia, **common,
     )
 
 
@@ -578,6 +613,8 @@ def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: boo
         elif kind == "frame_rotation":
             W = r.weight(need_weight(), f"{path}.weight", 3)
             ref = M_at.rotation if M_at is not None else r.rotation(t, path, ROTATION_FORMS)
+            distance = r.check(v.choice, t.get("distance", "geodesic"), f"{path}.distance", DISTANCES)
+            return CostTermSpec(kind, label, path, frame, readonly(ref), readonly(W), gn, distance)
         else:
             W = r.weight(need_weight(), f"{path}.weight", 3)
             if M_at is not None:

@@ -1,9 +1,11 @@
 """The satellite schema: a TOML scene of one attitude-control problem on TSO(3) (paper Section
 VI), read with the one :class:`~geoddp.scene.reader.Reader` into a frozen :class:`SceneSpec`.
 
-The builder (:mod:`geoddp.scene.build`) translates it into the general problem: the one-body
-model of ``satellite.urdf`` (spherical root, no gravity, the scene's inertia), whose backend is
-chosen by structure (:func:`geoddp.models.satellite.satellite_model`).
+The schema is a translator: :meth:`SceneSpec.general` writes the scene in the general schema
+(:class:`~geoddp.scene.multibody.MultibodySceneSpec`: the one-body model of ``satellite.urdf``,
+spherical root, no gravity, the scene's inertia; the paper's costs as frame_rotation,
+state_regularisation and control terms), and the one builder (:mod:`geoddp.scene.build`) builds
+that, choosing the TSO(3) backend by structure.
 
 Schema (``?`` = optional, with its default)::
 
@@ -24,16 +26,20 @@ Schema (``?`` = optional, with its default)::
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
+from ..data import urdf_path
 from .. import validate as v
 from ..validate import InputError
 from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
+from .multibody import CostTermSpec, MultibodySceneSpec
 from .reader import Reader, Schema, check_urdf
 
 INTEGRATORS = ("euler", "semi_implicit")
@@ -156,6 +162,52 @@ class SceneSpec(CommonSpec):
         """(H, m) initial guess for the solver, or None for zeros."""
         return None if self.initial_controls is None else np.array(self.initial_controls)
 
+    def general(self) -> MultibodySceneSpec:
+        """This scene in the general schema, which the one builder reads (the translation):
+
+        - model: ``urdf`` (default the built-in satellite.urdf), root "spherical", no gravity,
+          this inertia, actuation matrix (3, m);
+        - initial state: q0 = the quaternion (x, y, z, w) of R0, v0 = Omega0;
+        - running costs (paper eq. costR): control (S_u), then, where non-zero, frame_rotation of
+          the body frame (running_S_R, R_d, this attitude_kind as its distance) and
+          state_regularisation (velocity weight running_S_Omega, reference Omega_d);
+        - terminal costs: frame_rotation (S_R) and state_regularisation (S_Omega);
+        - the shared tables ([solver], [limits], [simulation]) as they are.
+
+        The terms carry this schema's key paths (``[cost].attitude``, ...) for their messages.
+        Made once per spec (specs are frozen).
+        """
+        cached = self.__dict__.get("_general")
+        if cached is not None:
+            return cached
+        urdf = self.urdf if self.urdf is not None else urdf_path("satellite.urdf")
+        body = _body_frame(str(urdf))
+        m = self.num_inputs
+
+        def rotation(path: str, W: np.ndarray) -> CostTermSpec:
+            return CostTermSpec("frame_rotation", "attitude", path, body, self.Rd, W, distance=self.attitude_kind)
+
+        def rate(path: str, W: np.ndarray) -> CostTermSpec:
+            Wx = np.zeros((6, 6))
+            Wx[3:, 3:] = W  # tangent state (eta, dOmega): only the rate is weighted
+            ref = np.concatenate([[0.0, 0.0, 0.0, 1.0], self.Omegad])  # q part unweighted
+            return CostTermSpec("state_regularisation", "angular_velocity", path, None, readonly(ref), readonly(Wx))
+
+        running = [CostTermSpec("control", "control", "[cost].control", None, readonly(np.zeros(m)), self.S_u)]
+        if np.any(self.running_S_R != 0):
+            running.append(rotation("[cost].running_attitude", self.running_S_R))
+        if np.any(self.running_S_Omega != 0):
+            running.append(rate("[cost].running_angular_velocity", self.running_S_Omega))
+        terminal = [rotation("[cost].attitude", self.S_R), rate("[cost].angular_velocity", self.S_Omega)]
+        common = {f.name: getattr(self, f.name) for f in dataclasses.fields(CommonSpec)}
+        general = MultibodySceneSpec(
+            name=self.name, description=self.description, source=self.source, urdf=Path(urdf), root="spherical",
+            gravity=False, actuation=self.actuation, q0=pin.Quaternion(self.R0).coeffs().copy(), v0=self.Omega0,
+            dt=self.dt, horizon=self.horizon, integrator=self.integrator, running_costs=tuple(running),
+            terminal_costs=tuple(terminal), initial_controls=self.initial_controls, inertia=self.inertia, **common)
+        object.__setattr__(self, "_general", general)  # frozen dataclass: a cache, not a field
+        return general
+
     def with_overrides(self, **overrides: Any) -> "SceneSpec":
         """A copy with some fields replaced and the result re-validated.
 
@@ -191,6 +243,13 @@ class SceneSpec(CommonSpec):
         return True
 
     __hash__ = None  # type: ignore[assignment]  # holds arrays; equality is by value
+
+
+@functools.lru_cache(maxsize=32)
+def _body_frame(urdf: str) -> str:
+    """The name of the body frame of a one-body URDF on a spherical root (its one link)."""
+    pm = pin.buildModelFromUrdf(urdf, pin.JointModelSpherical())
+    return next(f.name for f in pm.frames if f.parentJoint == 1 and f.type == pin.FrameType.BODY)
 
 
 def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: str) -> SceneSpec:
