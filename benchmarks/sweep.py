@@ -7,10 +7,15 @@ target, H = 1500 steps, ~20-60 ms per solve: the issue's ">= 20 ms" cases):
    to Parquet parts, the final table written) against a direct loop of
    ``geoddp.api.solve_scene(spec)`` over specs parsed beforehand (nothing written). Both serial
    in this process, and the sweep also on a warm 1-worker LocalCluster. Target: <= 10 %.
-2. scaling: the same sweep on a warm LocalCluster of 1 and of 2 worker processes, both clusters up
-   and warm, runs interleaved over --rounds rounds (median). Target on a 2-core machine: >= 1.8x.
-   Beside it, the machine's own ceiling: the same direct solves split over a plain process pool
-   of 1 and of 2 processes (no Dask, nothing written), interleaved with the sweeps.
+2. scaling: the same sweep on a warm LocalCluster of 1 and of 2 worker processes, runs
+   interleaved over --rounds rounds (median). Target on a 2-core machine: >= 1.8x. Each round
+   starts the cluster it times and closes it after (untimed): idle Dask workers and nannies poll
+   (heartbeats, a memory monitor every 100 ms), and a second cluster left up beside the timed
+   one took cycles from it. Beside it, the machine's own ceiling: the same direct solves split
+   over a plain process pool of 1 and of 2 processes (no Dask, nothing written), interleaved with
+   the sweeps. From the cases' own solve times it also reports how busy the workers were
+   (sum of case times / (workers x wall)) and how much slower a case runs with two side by side
+   (the machine's contention: the same for any runner).
 3. per-task scheduler overhead: ``client.map`` of a no-op over 2,000 tasks on the 2-worker
    cluster (Dask documents ~1 ms or less per task), and our runner's own per-case overhead:
    (wall x workers - sum of the cases' own times) / cases.
@@ -95,16 +100,12 @@ def main() -> None:
 
         jobs = [(c.scene, c.source) for c in cases]
         walls: dict[str, list[float]] = {k: [] for k in ("direct", "serial", "dask1", "pool1", "dask2", "pool2")}
-        own: dict[int, list[float]] = {1: [], 2: []}
+        own: dict[int, list[float]] = {0: [], 1: [], 2: []}  # sum of the cases' own times (0: serial)
         noop_per_task = None
-        # run_sweep's own LocalCluster (profiler off, GEODDP_THREADS = cores // workers)
-        with local_cluster(1) as c1, local_cluster(2) as c2, \
-                ProcessPoolExecutor(1, mp_context=get_context("spawn")) as p1, \
+        with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as p1, \
                 ProcessPoolExecutor(2, mp_context=get_context("spawn")) as p2:
-            clusters = {1: c1, 2: c2}
             pools = {1: p1, 2: p2}
-            for n in (1, 2):  # warm: the workers import geoddp and fill numba's caches
-                run_sweep(path, tmp / f"warm{n}", scheduler=clusters[n].scheduler_address, limit=4 * n)
+            for n in (1, 2):  # warm: the processes import geoddp and load numba's caches
                 pool_wall(pools[n], jobs[:2 * n], n)
             # Every route once a round, interleaved, so a slow spell of this shared machine hits
             # them all alike; the figures are medians of the per-round ratios.
@@ -116,14 +117,19 @@ def main() -> None:
                 t0 = time.perf_counter()
                 run_sweep(path, tmp / f"serial-{r}", serial=True)
                 walls["serial"].append(time.perf_counter() - t0)
+                own[0].append(read_table(tmp / f"serial-{r}")["case_time_s"].sum())
                 for n in (1, 2):
                     out = tmp / f"dask{n}-{r}"
-                    t0 = time.perf_counter()
-                    run_sweep(path, out, scheduler=clusters[n].scheduler_address)
-                    walls[f"dask{n}"].append(time.perf_counter() - t0)
+                    # run_sweep's own LocalCluster (profiler off, GEODDP_THREADS = cores // workers),
+                    # warm (imports, numba caches) before the timed sweep, the only cluster up
+                    with local_cluster(n) as cluster:
+                        run_sweep(path, tmp / f"warm{n}-{r}", scheduler=cluster.scheduler_address, limit=4 * n)
+                        t0 = time.perf_counter()
+                        run_sweep(path, out, scheduler=cluster.scheduler_address)
+                        walls[f"dask{n}"].append(time.perf_counter() - t0)
                     own[n].append(read_table(out)["case_time_s"].sum())
                     walls[f"pool{n}"].append(pool_wall(pools[n], jobs, n))
-            with Client(c2) as client:
+            with local_cluster(2) as c2, Client(c2) as client:
                 client.gather(client.map(noop, range(200)))  # warm
                 t0 = time.perf_counter()
                 client.gather(client.map(noop, range(args.noop)))
@@ -136,8 +142,14 @@ def main() -> None:
         direct = med["direct"]
         per_case = direct / len(cases)
         rows = [("direct solve_scene loop", direct, "")]
+        # The runner's own work per case, from one run (immune to the machine's speed drifting
+        # between the direct loop and the sweep): the wall time less the cases' own solve times.
+        serial_over = statistics.median((w - o) / len(cases) for w, o in zip(walls["serial"], own[0]))
+        serial_case = statistics.median(o / len(cases) for o in own[0])
         rows.append(("sweep, serial (validate, parts, table)", med["serial"],
-                     f"{100 * (ratio('serial', 'direct') - 1):+.1f} % (median of the rounds' ratios)"))
+                     f"{100 * (ratio('serial', 'direct') - 1):+.1f} % (median of the rounds' ratios); runner "
+                     f"overhead {1e3 * serial_over:.2f} ms/case = {100 * serial_over / serial_case:.1f} % of a "
+                     f"{1e3 * serial_case:.1f} ms case"))
         for n in (1, 2):
             over = statistics.median((w * n - o) / len(cases) for w, o in zip(walls[f"dask{n}"], own[n]))
             rows.append((f"sweep, LocalCluster {n} worker(s)", med[f"dask{n}"],
@@ -161,6 +173,11 @@ def main() -> None:
         print(f"scaling from the fastest round of each: sweep {min(walls['dask1']) / min(walls['dask2']):.2f}x, "
               f"plain pool {min(walls['pool1']) / min(walls['pool2']):.2f}x; serial sweep vs direct loop "
               f"{100 * (min(walls['serial']) / min(walls['direct']) - 1):+.1f} %")
+        busy = {n: statistics.median(o / (n * w) for o, w in zip(own[n], walls[f"dask{n}"])) for n in (1, 2)}
+        slower = statistics.median(b / a for a, b in zip(own[1], own[2]))
+        print(f"workers busy solving (sum of case times / (workers x wall)): 1 worker {100 * busy[1]:.1f} %, "
+              f"2 workers {100 * busy[2]:.1f} %; a case takes {100 * (slower - 1):+.1f} % with two side by side "
+              f"(the machine's contention; the scaling is 2 x busy2/busy1 / that)")
         print(f"Dask per-task overhead (no-op map, 2 workers): {noop_per_task * 1e3:.3f} ms/task")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
