@@ -43,7 +43,10 @@ void bind_contracted(py::module_& m) {
   py::class_<SecondOrderTerms, std::shared_ptr<SecondOrderTerms>>(
       m, "SecondOrderTerms",
       "The second-order terms of a multibody expansion in factored form (dynamics.hpp), contracted with\n"
-      "V_x' on demand instead of forming Theta, Gamma, Xi.")
+      "V_x' on demand instead of forming Theta, Gamma, Xi.",
+      // local to this module: a second build of _core in the same process (benchmarks/speed_vs_main.py
+      // loads another checkout's as geoddp_ref._core) would otherwise fail to register it again
+      py::module_local())
       .def_readonly("N", &SecondOrderTerms::N)
       .def_readonly("nv", &SecondOrderTerms::nv)
       .def_readonly("m", &SecondOrderTerms::m)
