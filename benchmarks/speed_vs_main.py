@@ -46,6 +46,12 @@ def load_reference(checkout: Path, workdir: Path):
     sys.path.insert(0, str(workdir))
     ref = importlib.import_module("robots_ref")
     assert ref.Multibody.__module__.startswith("geoddp_ref"), ref.Multibody.__module__
+    # both sides must run their compiled cores: a reference whose _core failed to import would
+    # silently time the Python path (as happened while SecondOrderTerms was a global pybind11 type)
+    for name in ("geoddp_ref", "geoddp"):
+        compiled = importlib.import_module(f"{name}.models.compiled")
+        if compiled.IMPORT_ERROR is not None:
+            raise SystemExit(f"{name}._core does not import ({compiled.IMPORT_ERROR}): it would run the Python path")
     return ref
 
 
