@@ -149,3 +149,13 @@ def test_the_sweep_files_are_examples_but_not_scenes():
     assert (ROOT / "examples" / "sweeps").samefile(data.sweep_dir())  # examples/sweeps is the package's folder
     assert set(sweep_names()) == {"satellite_slew", "satellite_noise_mc"}
     assert not set(sweep_names()) & set(data.scene_names())  # a sweep file is not a scene
+
+
+def test_readme_test_command_is_exactly_what_ci_runs():
+    """The README's second set-up command and the last line of .ci/run are one command (they had
+    drifted apart: the README left out the Crocoddyl limits cross-check)."""
+    root = Path(__file__).resolve().parents[1]
+    ci = (root / ".ci" / "run").read_text().strip().splitlines()[-1]
+    readme = (root / "README.md").read_text().splitlines()
+    commands = [line for line in readme if line.startswith("python3 -m venv .venv && ") and "pytest" in line]
+    assert commands == [ci]

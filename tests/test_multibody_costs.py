@@ -441,11 +441,18 @@ def test_one_attitude_term_serves_tso3_and_a_general_model():
     terminal = MultibodyCostSum([term, StateRegularisation(pm, pin.neutral(pm), np.zeros(3), W)], model=pm, terminal=True)
     assert type(terminal.terms[0]).__name__ == "FrameRotation"
     gen = Problem(mb, pin.neutral(pm), np.zeros(3), ref.horizon, running, terminal)
-    for expansion in ("first", "switch"):  # measured: J to 6e-16, controls to 3.4e-15 relative
+    # Second order (exact on both): the same iterates (measured: J to 7e-16, controls to 2.3e-15
+    # relative). First order and switch: the general model's first-order model is a Gauss-Newton
+    # one, TSO(3)'s the paper's exact one, so the paths differ but end at the same verified
+    # minimum (measured: J to 4e-15, controls to 1.3e-8 relative: both stop within tol = 1e-8).
+    for expansion in ("second", "first", "switch"):
         a = solve(ref, SolverOptions(verbose=False, expansion=expansion))
         b = solve(gen, SolverOptions(verbose=False, expansion=expansion))
-        assert a.iterations == b.iterations
+        assert a.converged and b.converged
         assert abs(a.cost - b.cost) <= 1e-12 * a.cost
-        assert np.abs(a.controls - b.controls).max() <= 1e-12 * np.abs(a.controls).max()
+        close = 1e-12 if expansion == "second" else 1e-7
+        assert np.abs(a.controls - b.controls).max() <= close * np.abs(a.controls).max(), expansion
+        if expansion == "second":
+            assert a.iterations == b.iterations
     with pytest.raises(InputError, match=r"terms\[0\]\.frame"):
         MultibodyCostSum([AttitudeGeodesic(att.W, att.R_d)], model=pm, terminal=True)

@@ -59,6 +59,10 @@ class Linearisation:
             (nx + m, nx + m) matrix sum_i Vx_i [[Theta_i[k], Gamma_i[k]], [Gamma_i[k]^T, Xi_i[k]]]
             for Vx (nx,) (geoddp._core.SecondOrderTerms: the backward pass contracts with V_x'
             without forming the tensors). None otherwise.
+        gauss_newton: order 1 only: True when the cost Hessians are Gauss-Newton ones
+            (J_r^T W J_r, the second-order parts of the cost residuals dropped, as in
+            Crocoddyl's residual costs), so that the whole first-order model is a Gauss-Newton
+            one; False when they are exact (the paper's first-order DDP).
     """
 
     order: int
@@ -75,6 +79,7 @@ class Linearisation:
     lf_x: np.ndarray
     lf_xx: np.ndarray
     second_order: Any = None
+    gauss_newton: bool = False
 
     def tensors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Theta, Gamma, Xi) of an order-2 linearisation as dense arrays (shapes above), formed
@@ -96,11 +101,13 @@ class Linearisation:
         return Theta, Gamma, Xi
 
     @classmethod
-    def from_parts(cls, order: int, dynamics: Any, running: Any, terminal: Any) -> "Linearisation":
+    def from_parts(cls, order: int, dynamics: Any, running: Any, terminal: Any,
+                   gauss_newton: bool = False) -> "Linearisation":
         """Bundle a dynamics expansion (attributes Phi, B, Theta, Gamma, Xi) and running / terminal
         cost derivatives (attributes lx, lu, lxx, lux, luu over N nodes; terminal N = 1) without
         copying. Second-order arrays are dropped at order 1; a dynamics expansion whose second
-        order is factored (attribute ``terms``) hands it on as ``second_order``."""
+        order is factored (attribute ``terms``) hands it on as ``second_order``.
+        ``gauss_newton``: the cost derivatives' Hessians are Gauss-Newton ones (order 1 only)."""
         second = order == 2
         return cls(
             order=order, Phi=dynamics.Phi, B=dynamics.B,
@@ -109,7 +116,7 @@ class Linearisation:
             Xi=dynamics.Xi if second else None,
             second_order=getattr(dynamics, "terms", None) if second else None,
             l_x=running.lx, l_u=running.lu, l_xx=running.lxx, l_ux=running.lux, l_uu=running.luu,
-            lf_x=terminal.lx[0], lf_xx=terminal.lxx[0],
+            lf_x=terminal.lx[0], lf_xx=terminal.lxx[0], gauss_newton=bool(gauss_newton) and not second,
         )
 
 
@@ -140,7 +147,8 @@ class OptimalControlProblem(Protocol):
         ...
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
-        """Expansion of dynamics and costs along ``traj``, at order 1 or 2."""
+        """Expansion of dynamics and costs along ``traj``, at order 1 or 2 (order 2 exact in
+        both; order 1 may give Gauss-Newton cost Hessians and then says so in ``gauss_newton``)."""
         ...
 
     def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:

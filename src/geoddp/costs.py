@@ -168,6 +168,10 @@ class AngularVelocityQuadratic(CostTerm):
 class CostSum:
     """A sum of terms; the running or the terminal cost of a problem."""
 
+    # The satellite's terms keep the paper's exact expansion at order 1 too (Section VI: its
+    # first-order DDP drops only the dynamics' second-order terms), so its solves are the paper's.
+    first_order_gauss_newton = False
+
     def __init__(self, terms: list[CostTerm] | None = None) -> None:
         self.terms: list[CostTerm] = list(terms or [])
 

@@ -246,7 +246,7 @@ class _ResidualTerm(MultibodyCostTerm):
             H[:, j] = (Jp - Jm).T @ w / (2.0 * _FD_STEP)
         return 0.5 * (H + H.T)
 
-    def accumulate(self, Q, V, U, d):
+    def accumulate(self, Q, V, U, d, gauss_newton=False):
         self._check_nodes(Q.shape[0])
         nv = self.nv
         for k, q in enumerate(Q):
@@ -257,7 +257,7 @@ class _ResidualTerm(MultibodyCostTerm):
             G = J.T @ self.W @ J
             d.lxx[k, :nv, :nv] += 0.5 * (G + G.T)  # exactly symmetric (round-off is not)
             # exactly zero at r = 0: skip the 2 nv kinematics passes there
-            if not self.gauss_newton and np.any(w):
+            if not (self.gauss_newton or gauss_newton) and np.any(w):
                 d.lxx[k, :nv, :nv] += self._second_order(q, k, w)
 
 
@@ -442,7 +442,7 @@ class StateRegularisation(MultibodyCostTerm):
         r = self.residual(Q, V)
         return 0.5 * np.einsum("ni,ij,nj->n", r, self.W, r)
 
-    def accumulate(self, Q, V, U, d):
+    def accumulate(self, Q, V, U, d, gauss_newton=False):
         N, nv = Q.shape[0], self.nv
         r = self.residual(Q, V)
         w = r @ self.W  # (N, 2 nv); W symmetric
@@ -462,7 +462,7 @@ class StateRegularisation(MultibodyCostTerm):
             d.lxx[k, :nv, nv:] += JW[:, nv:]
             d.lxx[k, nv:, :nv] += JW[:, nv:].T
             wq = w[k, :nv]
-            if not self.gauss_newton and self.curved_dofs.size and np.any(wq):
+            if not (self.gauss_newton or gauss_newton) and self.curved_dofs.size and np.any(wq):
                 # difference is joint-wise, so its second-order part lives on curved joints only
                 H = np.zeros((nv, nv))
                 e = np.zeros(nv)
@@ -540,6 +540,10 @@ class MultibodyCostSum:
             Terms of other (sub)classes always run their Python code.
     """
 
+    # A first-order linearisation of a problem takes this sum's Gauss-Newton Hessians
+    # (derivatives(..., gauss_newton=True)): see geoddp.problem.Problem.linearise.
+    first_order_gauss_newton = True
+
     def __init__(self, terms: Sequence[MultibodyCostTerm], model: pin.Model | None = None,
                  terminal: bool = False, backend: str = "auto") -> None:
         self.terms = [_on_frames(t, model, i) for i, t in enumerate(terms)]
@@ -605,13 +609,21 @@ class MultibodyCostSum:
                 out += t.value(Q, V, U)
         return out
 
-    def derivatives(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> CostDerivatives:
-        """Summed :class:`CostDerivatives` (nx = 2 nv; m = 0 and empty l_u when U is None)."""
+    def derivatives(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,
+                    gauss_newton: bool = False) -> CostDerivatives:
+        """Summed :class:`CostDerivatives` (nx = 2 nv; m = 0 and empty l_u when U is None).
+
+        ``gauss_newton=True`` drops the second-order part of every built-in residual term (frame
+        terms, state regularisation), as if each had been built with ``gauss_newton=True``: the
+        Hessian J_r^T W J_r of a first-order (Gauss-Newton) iteration."""
         N = self._check(Q, V, U)
         d = CostDerivatives.zeros(N, 0 if U is None else U.shape[1], self.nx)
         for t in self.terms:
-            if self._core is None or not _compiled_term(self._core, t, Q, V, U, d.l, d):
-                t.accumulate(Q, V, U, d)
+            if self._core is None or not _compiled_term(self._core, t, Q, V, U, d.l, d, gauss_newton):
+                if gauss_newton and isinstance(t, (_ResidualTerm, StateRegularisation)):
+                    t.accumulate(Q, V, U, d, gauss_newton=True)
+                else:
+                    t.accumulate(Q, V, U, d)
         return d
 
 
@@ -623,7 +635,7 @@ def _rows(A: np.ndarray, N: int) -> np.ndarray:
 
 
 def _compiled_term(core: Any, t: MultibodyCostTerm, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,
-                   l: np.ndarray, d: CostDerivatives | None) -> bool:
+                   l: np.ndarray, d: CostDerivatives | None, gauss_newton: bool = False) -> bool:
     """Add term t's value into l (N,) and, with d, its derivatives into d, through the compiled
     kernels. Returns False (nothing added) for a term without a compiled twin: the caller runs
     the Python code. Checks the nodes first, so bad input raises the oracle's InputError."""
@@ -644,10 +656,11 @@ def _compiled_term(core: Any, t: MultibodyCostTerm, Q: np.ndarray, V: np.ndarray
     lxx = np.empty((0, 0)) if d is None else _rows(d.lxx, N)
     if kind is StateRegularisation:
         core.cost_state_regularisation(t.model, Qc, np.ascontiguousarray(V, dtype=float), t.q_ref, t.v_ref, t.W,
-                                       t.gauss_newton, d is not None, l, lx, lxx)
+                                       t.gauss_newton or gauss_newton, d is not None, l, lx, lxx)
         return True
     code, refs = _FRAME_KINDS[kind](t)
-    core.cost_frame_term(t.model, t.frame_id, code, Qc, refs, t.W, t.gauss_newton, d is not None, l, lx, lxx)
+    core.cost_frame_term(t.model, t.frame_id, code, Qc, refs, t.W, t.gauss_newton or gauss_newton, d is not None,
+                         l, lx, lxx)
     return True
 
 

@@ -14,6 +14,12 @@ Decisions the paper leaves open, and why:
   unregularised and keep their superlinear rate.
 * Line search: gamma in {1, 1/3, 1/9, ...} until J <= J_bar (the paper's test); if gamma falls
   below min_step, lambda is raised and the iteration is redone; past reg_max the solve stops.
+* First order and the switch: a first-order iteration drops the dynamics' second-order terms;
+  where the costs offer it (multibody residual terms) it also takes their Gauss-Newton Hessians
+  (``Linearisation.gauss_newton``), so the model is FDDP's. "switch" hands over to second order
+  after ``switch_after`` iterations, when a first-order step passes the cost test below (second
+  order then finishes instead of stopping at a linearly converging point) or, for an exact
+  first-order model only, at the paper's J_i / J_0 < sigma.
 * Stopping: |J_i - J_(i-1)| <= tol after an accepted step, or ||dJ/dU|| <= grad_tol (gradient by
   Lemma lemm:psi), or max_iter. A final backward pass at the returned iterate, with the exact
   second-order expansion and lambda = 0, gives the feedback gains and tells whether the point is
@@ -103,6 +109,7 @@ class _Solve:
         self.J0 = self.J
         self.hist = History(self.J, U, self.t_start, opt.record_controls)
         self.use_second = opt.expansion == "second"
+        self.first_order_gauss_newton = False  # what the last order-1 linearisation said
         self.lam = opt.reg_init
         self.it = 0
         self.status, self.message, self.converged = STATUS_MAX_ITER, f"reached max_iter = {opt.max_iter}", False
@@ -116,11 +123,17 @@ class _Solve:
 
     # ------------------------------------------------------------------ steps
     def expansion_order(self) -> int:
-        """The switch rule: second order once J_i / J_0 < switch_ratio or after switch_after iterations."""
+        """The switch rule: second order after switch_after iterations, or once J_i / J_0 <
+        switch_ratio (the paper's test) unless the first-order model is a Gauss-Newton one, or
+        when first order passes its cost test (:meth:`iterate`)."""
         opt = self.opt
-        if opt.expansion == "switch" and not self.use_second and (
-            (self.J0 > 0 and self.J / self.J0 < opt.switch_ratio) or self.it >= opt.switch_after
-        ):
+        # The paper's test hands over early because its first-order model carries exact, possibly
+        # indefinite cost Hessians. A Gauss-Newton model (lin.gauss_newton) has positive
+        # semidefinite ones and keeps converging like FDDP; handing over at J / J_0 < sigma
+        # replaced those iterations by second-order ones 2-3x dearer doing the same work (real
+        # robots: 1.5-3x the solve time, benchmarks/robots.py, 2026-11-25).
+        paper_test = not self.first_order_gauss_newton and self.J0 > 0 and self.J / self.J0 < opt.switch_ratio
+        if opt.expansion == "switch" and not self.use_second and (paper_test or self.it >= opt.switch_after):
             self.use_second = True
         return 2 if self.use_second else 1
 
@@ -137,6 +150,8 @@ class _Solve:
         once per iterate)."""
         t0 = time.perf_counter()
         lin = self.problem.linearise(self.traj, order)
+        if order == 1:
+            self.first_order_gauss_newton = lin.gauss_newton
         gnorm = self.grad_norm(lin)
         self.timings["derivatives"] += time.perf_counter() - t0
         self.hist.gradient(gnorm)
@@ -245,6 +260,11 @@ class _Solve:
         # ... unless J no longer changes beyond round-off: no step can make progress then.
         at_roundoff = abs(dJ) <= 4.0 * _EPS * abs(self.J)
         if abs(dJ) <= opt.tol and (undamped or at_roundoff):
+            if opt.expansion == "switch" and not self.use_second:
+                # first order has done what it can: second order finishes (quadratically) and
+                # the exact check decides, instead of stopping at a linearly converging point
+                self.use_second = True
+                return True
             if self.escaped():
                 return True
             self.stop(STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True)

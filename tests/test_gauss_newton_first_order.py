@@ -1,0 +1,115 @@
+"""First-order iterations on multibody costs are Gauss-Newton ones (issue 12), and the switch rule.
+
+* An order-1 linearisation of a multibody problem carries J_r^T W J_r cost Hessians: equal to
+  those of the same terms built with ``gauss_newton=True`` (compiled and Python oracle alike),
+  different from the exact order-2 ones where the residual is not zero, and flagged
+  ``gauss_newton``; the satellite's TSO(3) costs keep the paper's exact order-1 Hessians.
+* The switch rule: with a Gauss-Newton first order the paper's J_i / J_0 < sigma test does not
+  hand over (first order keeps going until its cost test or switch_after), and a first-order cost
+  test hands over to second order instead of stopping; on the satellite the paper's rule is
+  unchanged.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,
+                                    StateRegularisation)
+from geoddp.multibody_scenes import hover_controls, quadrotor
+from geoddp.problem import Problem, paper_problem
+from geoddp.scene import build_problem, load_scene
+from geoddp.solver import SolverOptions, solve
+
+
+def _manipulator_problem(backend: str, gauss_newton: bool = False) -> Problem:
+    """The quadrotor's free-flyer model with a far pose target and a posture term: the frame
+    residual is large, so the exact and Gauss-Newton Hessians differ."""
+    p = quadrotor(horizon=20)
+    pm = p.model.pin_model
+    frame = pm.frames[-1].name
+    target = pin.SE3(pin.exp3(np.array([0.3, -1.2, 2.0])), np.array([1.0, -2.0, 0.5]))
+    W = np.diag([1.0, 2.0, 3.0, 0.5, 0.7, 0.9])
+    q_ref = pin.neutral(pm)
+    q_ref[3:7] = pin.Quaternion(pin.exp3(np.array([0.4, 0.1, -0.8]))).coeffs()
+    running = MultibodyCostSum([ControlRegularisation(np.zeros(p.nu), 1e-2),
+                                StateRegularisation(pm, q_ref, None, 0.3, gauss_newton=gauss_newton)],
+                               backend=backend)
+    terminal = MultibodyCostSum([FramePlacement(pm, frame, target, W, gauss_newton=gauss_newton),
+                                 StateRegularisation(pm, q_ref, None, 0.3, gauss_newton=gauss_newton)],
+                                terminal=True, backend=backend)
+    return Problem(p.model, p.q0, p.v0, p.horizon, running, terminal)
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_order_one_takes_the_gauss_newton_cost_hessians(backend):
+    exact, gn = _manipulator_problem(backend), _manipulator_problem(backend, gauss_newton=True)
+    U = np.random.default_rng(0).normal(scale=2.0, size=(exact.horizon, exact.nu)) + hover_controls(quadrotor(horizon=20))
+    traj = exact.trajectory(U)
+    first, second = exact.linearise(traj, 1), exact.linearise(traj, 2)
+    reference = gn.linearise(gn.trajectory(U), 2)  # terms built Gauss-Newton: J_r^T W J_r at every order
+    assert first.gauss_newton and not second.gauss_newton
+    for name in ("l_x", "l_u", "l_xx", "l_ux", "l_uu", "lf_x", "lf_xx"):
+        np.testing.assert_allclose(getattr(first, name), getattr(reference, name), rtol=1e-12, atol=1e-12, err_msg=name)
+    # the exact Hessians differ by the residual-curvature part, which is not small here
+    assert np.abs(second.lf_xx - first.lf_xx).max() > 1e-2 * np.abs(second.lf_xx).max()
+    assert np.abs(second.l_xx - first.l_xx).max() > 1e-3 * np.abs(second.l_xx).max()
+    # Gauss-Newton Hessians are positive semidefinite; the exact terminal one is not, this far away
+    assert np.linalg.eigvalsh(first.lf_xx).min() > -1e-9 * np.abs(first.lf_xx).max()
+    assert np.linalg.eigvalsh(second.lf_xx).min() < 0.0
+
+
+def test_the_satellite_keeps_the_papers_exact_first_order():
+    p = paper_problem(horizon=30, dt=0.05)
+    U = np.random.default_rng(1).normal(size=(p.horizon, p.nu))
+    traj = p.trajectory(U)
+    first, second = p.linearise(traj, 1), p.linearise(traj, 2)
+    assert not first.gauss_newton
+    np.testing.assert_array_equal(first.lf_xx, second.lf_xx)
+    np.testing.assert_array_equal(first.l_xx, second.l_xx)
+
+
+def test_switch_keeps_gauss_newton_first_order_until_its_cost_test():
+    # UR5 pose reach: J / J_0 falls below sigma = 0.1 after the first iteration, yet first order
+    # runs on (the paper's test would have handed over there). With switch_after out of the way,
+    # it runs until a first-order step passes the cost test; second order then finishes and the
+    # exact check certifies the minimum.
+    r = solve_scene_quiet("ur5_reach", switch_after=50)
+    J = r.cost_history
+    first_below_sigma = int(np.argmax(J / J[0] < 0.1))
+    assert 1 <= first_below_sigma < r.iterations - 1
+    assert r.expansion_history[first_below_sigma] == "first"
+    n_first = r.expansion_history.count("first")
+    assert r.expansion_history == ["first"] * n_first + ["second"] * (r.iterations - n_first)
+    assert first_below_sigma < n_first < r.iterations
+    assert abs(J[n_first] - J[n_first - 1]) <= SolverOptions().tol  # the step that handed over passed the cost test
+    assert r.converged and r.extra["optimality"]["hessian_positive_definite"]
+    # first order alone stops there, at the same minimum to tol; switch's second-order steps finish it
+    f = solve_scene_quiet("ur5_reach", expansion="first")
+    assert f.iterations == n_first and abs(f.cost - r.cost) <= 1e-9 * r.cost
+    assert r.extra["optimality"]["newton_decrease"] < 1e-3 * f.extra["optimality"]["newton_decrease"]
+    # the default switch_after = 5 still hands over after five first-order iterations
+    d = solve_scene_quiet("ur5_reach")
+    assert d.expansion_history.count("first") == min(n_first, SolverOptions().switch_after)
+
+
+def test_the_satellite_switches_by_the_papers_rule():
+    r = solve(paper_problem(), SolverOptions(verbose=False))
+    J = r.cost_history
+    n_first = r.expansion_history.count("first")
+    # second order from the first iterate below sigma (4 iterations, the paper's J*)
+    assert n_first == int(np.argmax(J / J[0] < 0.1))
+    assert r.iterations == 4 and r.cost == pytest.approx(510.372636558827, rel=1e-12)
+
+
+def solve_scene_quiet(name: str, **options):
+    spec = load_scene(name)
+    options.setdefault("expansion", spec.expansion)
+    return solve(build_problem(spec), SolverOptions(verbose=False, **options), initial_controls=_guess(spec))
+
+
+def _guess(spec):
+    from geoddp.scene import initial_controls
+
+    return initial_controls(spec)
