@@ -110,6 +110,8 @@ class _Solve:
         self.hist = History(self.J, U, self.t_start, opt.record_controls)
         self.use_second = opt.expansion == "second"
         self.first_order_gauss_newton = False  # what the last order-1 linearisation said
+        self.first_steps: list[tuple[float, float]] = []  # (|dJ|, gamma) of the accepted first-order steps
+        self.pending: Linearisation | None = None  # exact linearisation at the iterate, for its next direction
         self.lam = opt.reg_init
         self.it = 0
         self.status, self.message, self.converged = STATUS_MAX_ITER, f"reached max_iter = {opt.max_iter}", False
@@ -133,7 +135,14 @@ class _Solve:
         # replaced those iterations by second-order ones 2-3x dearer doing the same work (real
         # robots: 1.5-3x the solve time, benchmarks/robots.py, 2026-11-25).
         paper_test = not self.first_order_gauss_newton and self.J0 > 0 and self.J / self.J0 < opt.switch_ratio
-        if opt.expansion == "switch" and not self.use_second and (paper_test or self.it >= opt.switch_after):
+        # ... and while Gauss-Newton converges superlinearly (a full step that cut the decrease
+        # 100x: small residuals), switch_after waits: the cost test comes within an iteration or
+        # two, and a second-order iteration there costs 2-4x a first-order one (UR5, Solo12). A
+        # fast linear rate (the space manipulator's 0.02-0.03 per step) still hands over.
+        superlinear = self.first_order_gauss_newton and len(self.first_steps) >= 2 and \
+            self.first_steps[-1][1] == 1.0 and self.first_steps[-1][0] <= 0.01 * self.first_steps[-2][0]
+        if opt.expansion == "switch" and not self.use_second and (
+                paper_test or (self.it >= opt.switch_after and not superlinear)):
             self.use_second = True
         return 2 if self.use_second else 1
 
@@ -149,7 +158,10 @@ class _Solve:
         """Linearise at the iterate; returns it and ||dJ/dU|| (projected with limits; recorded
         once per iterate)."""
         t0 = time.perf_counter()
-        lin = self.problem.linearise(self.traj, order)
+        if order == 2 and self.pending is not None:  # the check's exact linearisation, at this very iterate
+            lin, self.pending = self.pending, None
+        else:
+            lin = self.problem.linearise(self.traj, order)
         if order == 1:
             self.first_order_gauss_newton = lin.gauss_newton
         gnorm = self.grad_norm(lin)
@@ -190,7 +202,25 @@ class _Solve:
         self.checked = None
         return True
 
+    def certified_deep(self) -> bool:
+        """At a first-order stop of switch: the exact lambda = 0 pass at the iterate (the final
+        check's). True if it factorises with a Newton decrement <= 1e-3 of the final check's
+        threshold: the check's outcome is kept for the final check. Otherwise its linearisation
+        becomes the next (second-order) iteration's, so the work is not repeated."""
+        t0 = time.perf_counter()
+        lin2 = self.problem.linearise(self.traj, 2)
+        failed, d1, d2 = backward(lin2, self.ws, 0.0, self.traj.u)
+        self.timings["final_check"] += time.perf_counter() - t0
+        threshold = max(self.opt.tol, 16.0 * _EPS * abs(self.J))
+        if failed < 0 and np.isfinite(d1 - 0.5 * d2) and d1 - 0.5 * d2 <= 1e-3 * threshold:
+            self.checked, self.checked_node, self.checked_d = lin2, failed, (d1, d2)
+            return True
+        self.pending = lin2
+        return False
+
     def accept(self, traj: Trajectory, J: float, lam: float, step: float, expansion: str) -> None:
+        if expansion == "first":
+            self.first_steps.append((abs(J - self.J), step))
         self.traj, self.J = traj, J
         self.it += 1
         self.hist.accept(J, lam, step, expansion, traj.u)
@@ -262,9 +292,14 @@ class _Solve:
         if abs(dJ) <= opt.tol and (undamped or at_roundoff):
             if opt.expansion == "switch" and not self.use_second:
                 # first order has done what it can: second order finishes (quadratically) and
-                # the exact check decides, instead of stopping at a linearly converging point
-                self.use_second = True
-                return True
+                # the exact check decides, instead of stopping at a linearly converging point ...
+                if not self.first_order_gauss_newton or not self.certified_deep():
+                    self.use_second = True
+                    return True
+                # ... unless the exact check certifies this point already, to 1e-3 of the final
+                # check's threshold (then a Newton step would change J by less than that)
+                self.stop(STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True)
+                return False
             if self.escaped():
                 return True
             self.stop(STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True)
