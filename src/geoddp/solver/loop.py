@@ -282,6 +282,13 @@ class _Solve:
         self.accept(traj, J_new, self.lam, gamma, exp_name)
         if gamma >= 0.5:
             self.lam = self.lam / 10.0 if self.lam / 10.0 >= opt.reg_min else 0.0
+        elif gamma < 0.1 and lin.gauss_newton:
+            # A Gauss-Newton Q_uu is positive definite, so the restart rule never damps it; a step
+            # the line search cut below 0.1 says the model overshoots (with control limits: a
+            # Newton step far outside the box, then clamped). Raise lambda to the scale of Q_uu's
+            # smallest eigenvalue, as Crocoddyl raises its regularisation after a short step.
+            # (Quadrotor with thrust limits: first order 73 -> 38 iterations, switch 39 -> 28.)
+            self.lam = min(max(self.lam * 10.0, quu_min), opt.reg_max)
         # A small |dJ| after a damped step says nothing about optimality. The cost test counts
         # only after an undamped Newton-like step: gamma = 1 (or a model decrease below tol) and
         # lambda negligible against Q_uu (with S_u = 1e-8, lambda = 0.03 would dominate Q_uu and
