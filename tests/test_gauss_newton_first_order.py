@@ -122,9 +122,12 @@ def test_switch_hands_over_at_the_cost_test_and_reuses_the_checks_linearisation(
     # n_first order-1 linearisations, the check's (reused by the first second-order iteration),
     # one per later second-order iteration, and the stop check's (reused by the final check)
     assert p.orders == [1] * n_first + [2] * (r.iterations - n_first + 1)
-    # the default switch_after = 5 hands over there: the steps are linear, not superlinear
+    # the default switch_after = 5 hands over after five full first-order steps (damped ones do
+    # not count): the steps are linear, not superlinear
     d = solve(p.problem, SolverOptions(verbose=False))
-    assert d.expansion_history.count("first") == SolverOptions().switch_after
+    n = d.expansion_history.count("first")
+    full = [g for g, e in zip(d.step_history, d.expansion_history) if e == "first" and g == 1.0]
+    assert len(full) == SolverOptions().switch_after and d.step_history[n - 1] == 1.0 and n > len(full)
     assert d.cost == pytest.approx(r.cost, rel=1e-12)
 
 
@@ -158,3 +161,15 @@ def test_a_short_gauss_newton_step_raises_lambda():
     assert np.all(lam[short + 1] >= np.maximum(10.0 * lam[short], 1e-3)), (gamma[:10], lam[:10])
     assert r.converged and r.iterations <= 45
     assert r.cost == pytest.approx(1.760971054, rel=1e-8)
+
+
+def test_damped_gauss_newton_steps_hold_the_switch_at_most_four_switch_afters():
+    # Thrust-limited quadrotor from hover: its first Gauss-Newton steps are all damped (the box
+    # clamps the Newton step); with switch_after = 1 the hand-over waits for a full step, but
+    # never longer than 4 switch_after iterations.
+    spec = load_scene("quadrotor_thrust_limits")
+    p, U0 = build_problem(spec), _guess(spec)
+    r = solve(p, SolverOptions(verbose=False, switch_after=1), initial_controls=U0)
+    assert r.expansion_history[:4] == ["first"] * 4 and r.expansion_history[4] == "second"
+    assert all(g < 1.0 for g in r.step_history[:4])
+    assert r.converged and r.cost == pytest.approx(1.760971054, rel=1e-8)

@@ -44,7 +44,9 @@ class SolverOptions:
         switch_after: also switch after this many first-order iterations. The paper's test alone
             never fires when the optimum keeps most of the initial cost (a tumbling start,
             1:1000 inertia, an underactuated body), where first order then grinds on at a
-            linear rate for tens of iterations.
+            linear rate for tens of iterations. With a Gauss-Newton first-order model only full
+            (gamma = 1) first-order steps count, at most 4 switch_after iterations in all, and
+            not while the last one converged superlinearly (see geoddp.solver.loop).
         tol: stop when |J_i - J_(i-1)| <= tol.
         grad_tol: stop when ||dJ/dU||_2 <= grad_tol.
         max_iter: maximum number of accepted iterations.
