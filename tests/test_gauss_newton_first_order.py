@@ -122,6 +122,11 @@ def test_switch_hands_over_at_the_cost_test_and_reuses_the_checks_linearisation(
     # n_first order-1 linearisations, the check's (reused by the first second-order iteration),
     # one per later second-order iteration, and the stop check's (reused by the final check)
     assert p.orders == [1] * n_first + [2] * (r.iterations - n_first + 1)
+    # max_iter ending the solve right at that hand-over: the final check takes the check's
+    # linearisation too (MPC re-solves stop at max_iter)
+    p.orders.clear()
+    cut = solve(p, SolverOptions(verbose=False, switch_after=50, max_iter=n_first))
+    assert cut.iterations == n_first and p.orders == [1] * n_first + [2]
     # the default switch_after = 5 hands over after five full first-order steps (damped ones do
     # not count): the steps are linear, not superlinear
     d = solve(p.problem, SolverOptions(verbose=False))

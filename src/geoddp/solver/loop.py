@@ -345,7 +345,10 @@ class _Solve:
           optimum).
         """
         t0 = time.perf_counter()
-        lin = self.checked if self.checked is not None else self.problem.linearise(self.traj, 2)
+        # the exact linearisation at the iterate, made once: by the check of a stopping test, or by
+        # a first-order cost test whose hand-over max_iter cut short (pending), or here
+        lin = self.checked if self.checked is not None else self.pending if self.pending is not None \
+            else self.problem.linearise(self.traj, 2)
         gnorm = self.grad_norm(lin)
         self.hist.gradient(gnorm)
         # the check already ran this exact lambda = 0 pass when a stopping test passed here
