@@ -135,8 +135,9 @@ class _Solve:
         # The paper's test hands over early because its first-order model carries exact, possibly
         # indefinite cost Hessians. A Gauss-Newton model (lin.gauss_newton) has positive
         # semidefinite ones and keeps converging like FDDP; handing over at J / J_0 < sigma
-        # replaced those iterations by second-order ones 2-3x dearer doing the same work (real
-        # robots: 1.5-3x the solve time, benchmarks/robots.py, 2026-11-25).
+        # replaced those iterations by second-order ones 2-4x dearer doing the same work (with
+        # the rules below, switch solves on the real robots take 0.26-0.59x the time they took:
+        # benchmarks/speed_vs_main_2026-11-25b.log).
         paper_test = not self.first_order_gauss_newton and self.J0 > 0 and self.J / self.J0 < opt.switch_ratio
         # ... and while Gauss-Newton converges superlinearly (a full step that cut the decrease
         # 100x: small residuals), switch_after waits: the cost test comes within an iteration or
@@ -299,7 +300,7 @@ class _Solve:
             # the line search cut below 0.1 says the model overshoots (with control limits: a
             # Newton step far outside the box, then clamped). Raise lambda to the scale of Q_uu's
             # smallest eigenvalue, as Crocoddyl raises its regularisation after a short step.
-            # (Quadrotor with thrust limits: first order 73 -> 38 iterations, switch 39 -> 28.)
+            # (Quadrotor with thrust limits: first order 73 -> 38 iterations.)
             self.lam = min(max(self.lam * 10.0, quu_min), opt.reg_max)
         # A small |dJ| after a damped step says nothing about optimality. The cost test counts
         # only after an undamped Newton-like step: gamma = 1 (or a model decrease below tol) and
