@@ -34,6 +34,7 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 FLOORS: dict[str, int] = {
     # 0: leaves: input checks, compiled and numba kernels, package data
     "geoddp.validate": 0,
+    "geoddp.interrupts": 0,  # signals the CLI received, for loops to raise again; imports nothing
     "geoddp.outputs": 0,  # strict JSON and atomic writes (issue 13); imports only validate
     "geoddp.urdf_checks": 0,  # URDF encoding, axes, masses, inertias (issue 13); imports only validate
     "geoddp.kernels": 0,

@@ -251,6 +251,36 @@ def test_resume_after_interrupt_solves_each_case_once(tmp_path, monkeypatch):
         run_sweep(path, out, serial=True)
 
 
+def test_an_interrupt_whose_exception_was_swallowed_still_ends_the_sweep(tmp_path, monkeypatch):
+    # The CLI's handler records the signal, then raises; Python drops an exception raised inside
+    # a gc callback (Dask's client has one), and a sweep then ran on to its end (seen in CI).
+    # The record alone must stop the sweep after the case in hand, which is kept.
+    import signal
+
+    from geoddp import interrupts
+    from geoddp.interrupts import Interrupted
+
+    path = write(tmp_path, SMALL)
+    real = run_mod.run_case
+    solved: list[str] = []
+
+    def swallowed(p):
+        solved.append(p["hash"])
+        if len(solved) == 4:
+            interrupts.record(signal.SIGINT)  # the handler ran; its exception never arrived
+        return real(p)
+
+    monkeypatch.setattr(run_mod, "run_case", swallowed)
+    out = tmp_path / "out"
+    try:
+        with pytest.raises(Interrupted) as exc:
+            run_sweep(path, out, serial=True, flush_rows=3)
+    finally:
+        interrupts.clear()
+    assert exc.value.signum == signal.SIGINT and len(solved) == 4
+    assert len(read_table(out)) == 4  # the case in hand is recorded before the run ends
+
+
 def test_limit_then_resume_and_csv(tmp_path):
     path = write(tmp_path, SMALL)
     out = tmp_path / "out"

@@ -16,6 +16,8 @@ import signal
 import sys
 from pathlib import Path
 
+from . import interrupts
+from .interrupts import Interrupted
 from .validate import InputError
 
 EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
@@ -23,19 +25,10 @@ EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 _WRITTEN: list[str] = []  # outputs written by this run, for the exit message
 
 
-class Interrupted(KeyboardInterrupt):
-    """SIGINT, SIGTERM or SIGHUP during a run (a KeyboardInterrupt, so every cleanup path runs)."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-_RECEIVED: list[int] = []  # signals that arrived during this run (main() clears it)
-
-
 def _on_signal(signum, frame) -> None:
-    _RECEIVED.append(signum)
+    # recorded first: if the exception lands in a gc callback, Python drops it, and the sweep's
+    # loop raises it again from the record (geoddp.interrupts)
+    interrupts.record(signum)
     raise Interrupted(signum)
 
 
@@ -375,7 +368,7 @@ def _written() -> str:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     _WRITTEN.clear()
-    _RECEIVED.clear()
+    interrupts.clear()
     previous = {}
     for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
         if sig == signal.SIGINT and signal.getsignal(sig) is not signal.default_int_handler:
@@ -408,9 +401,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # a bug: one line, not a traceback (GEODDP_TRACEBACK=1 shows it)
         import os
 
-        if _RECEIVED:  # a library turned the interrupt into another exception (a meshcat/zmq call cut short)
-            print(f"geoddp: interrupted by {signal.Signals(_RECEIVED[0]).name}; {_written()}", file=sys.stderr)
-            return 128 + int(_RECEIVED[0])
+        got = interrupts.received()
+        if got:  # a library turned the interrupt into another exception (a meshcat/zmq call cut short)
+            print(f"geoddp: interrupted by {signal.Signals(got[0]).name}; {_written()}", file=sys.stderr)
+            return 128 + int(got[0])
 
         if os.environ.get("GEODDP_TRACEBACK"):
             raise

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
+from .. import interrupts
 from ..outputs import write_atomic
 from ..validate import THREADS_ENV, InputError
 from . import case as case_mod
@@ -194,6 +195,7 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     def record(c: Case, outcome: dict[str, Any], running: int) -> None:
         writer.add(make_row(c, outcome))
         bar.update(skipped + writer.written, writer.failed, running)
+        interrupts.check()  # a Ctrl-C whose exception a gc callback swallowed ends the run here
 
     try:
         if serial:
