@@ -193,8 +193,7 @@ class _Solve:
         (``checked`` then holds the check's linearisation for the final check)."""
         t0 = time.perf_counter()
         if lin2 is None:
-            lin2 = self.problem.linearise(self.traj, 2)
-            failed, d1, d2 = backward(lin2, self.ws, 0.0, self.traj.u)
+            lin2, failed, d1, d2 = self.exact_pass()
         else:
             failed, (d1, d2) = -1, d
         self.checked, self.checked_node, self.checked_d = lin2, failed, (d1, d2)
@@ -215,17 +214,26 @@ class _Solve:
         self.checked = None
         return True
 
+    def exact_pass(self) -> tuple[Linearisation, int, float, float]:
+        """The final check's work at the iterate: the exact (order 2) linearisation and its
+        lambda = 0 backward pass (gains into ws). Returns (lin2, failed node or -1, d1, d2)."""
+        lin2 = self.problem.linearise(self.traj, 2)
+        return (lin2, *backward(lin2, self.ws, 0.0, self.traj.u))
+
+    def newton_threshold(self) -> float:
+        """The largest Newton decrement the final check calls converged: tol, or the round-off
+        of J where that is larger."""
+        return max(self.opt.tol, 16.0 * _EPS * abs(self.J))
+
     def certified_deep(self) -> bool:
         """At a first-order stop of switch: the exact lambda = 0 pass at the iterate (the final
         check's). True if it factorises with a Newton decrement <= 1e-3 of the final check's
         threshold: the check's outcome is kept for the final check. Otherwise its linearisation
         becomes the next (second-order) iteration's, so the work is not repeated."""
         t0 = time.perf_counter()
-        lin2 = self.problem.linearise(self.traj, 2)
-        failed, d1, d2 = backward(lin2, self.ws, 0.0, self.traj.u)
+        lin2, failed, d1, d2 = self.exact_pass()
         self.timings["final_check"] += time.perf_counter() - t0
-        threshold = max(self.opt.tol, 16.0 * _EPS * abs(self.J))
-        if failed < 0 and np.isfinite(d1 - 0.5 * d2) and d1 - 0.5 * d2 <= 1e-3 * threshold:
+        if failed < 0 and np.isfinite(d1 - 0.5 * d2) and d1 - 0.5 * d2 <= 1e-3 * self.newton_threshold():
             self.checked, self.checked_node, self.checked_d = lin2, failed, (d1, d2)
             return True
         self.pending = lin2
@@ -359,7 +367,7 @@ class _Solve:
             failed, d1, d2 = backward(lin, self.ws, 0.0, self.traj.u)
         quu_min = float(self.ws.quu_eig.min()) if failed < 0 else None
         decrease = float(d1 - 0.5 * d2) if failed < 0 else None
-        threshold = max(self.opt.tol, 16.0 * _EPS * abs(self.J))
+        threshold = self.newton_threshold()
         if failed >= 0:
             factorisable_gains(lin, self.ws, self.opt, self.traj.u)  # gains for the user need a factorisable Q_uu
         self.timings["final_check"] += time.perf_counter() - t0
