@@ -23,7 +23,7 @@ from geoddp.scene import build_problem, load_scene
 from geoddp.solver import SolverOptions, solve
 
 
-def _manipulator_problem(backend: str, gauss_newton: bool = False) -> Problem:
+def _far_pose_problem(backend: str, gauss_newton: bool = False) -> Problem:
     """The quadrotor's free-flyer model with a far pose target and a posture term: the frame
     residual is large, so the exact and Gauss-Newton Hessians differ."""
     p = quadrotor(horizon=20)
@@ -44,7 +44,7 @@ def _manipulator_problem(backend: str, gauss_newton: bool = False) -> Problem:
 
 @pytest.mark.parametrize("backend", ["compiled", "python"])
 def test_order_one_takes_the_gauss_newton_cost_hessians(backend):
-    exact, gn = _manipulator_problem(backend), _manipulator_problem(backend, gauss_newton=True)
+    exact, gn = _far_pose_problem(backend), _far_pose_problem(backend, gauss_newton=True)
     U = np.random.default_rng(0).normal(scale=2.0, size=(exact.horizon, exact.nu)) + hover_controls(quadrotor(horizon=20))
     traj = exact.trajectory(U)
     first, second = exact.linearise(traj, 1), exact.linearise(traj, 2)
@@ -178,3 +178,29 @@ def test_damped_gauss_newton_steps_hold_the_switch_at_most_four_switch_afters():
     assert r.expansion_history[:4] == ["first"] * 4 and r.expansion_history[4] == "second"
     assert all(g < 1.0 for g in r.step_history[:4])
     assert r.converged and r.cost == pytest.approx(1.760971054, rel=1e-8)
+
+
+def test_a_cost_sum_without_gauss_newton_keeps_its_hessians_and_the_flag_stays_off():
+    # A user's own terminal cost sum (a derivatives() without gauss_newton) beside a
+    # MultibodyCostSum: order 1 takes Gauss-Newton Hessians where offered, the user's own
+    # elsewhere, and the linearisation is not flagged Gauss-Newton (the paper's switch rule).
+    p = _far_pose_problem("compiled")
+
+    class OwnSum:  # duck-typed: value and derivatives only
+        def __init__(self, inner):
+            self.inner, self.nx = inner, inner.nx
+
+        def value(self, Q, V, U):
+            return self.inner.value(Q, V, U)
+
+        def derivatives(self, Q, V, U):
+            return self.inner.derivatives(Q, V, U)
+
+    mixed = Problem(p.model, p.q0, p.v0, p.horizon, p.running, OwnSum(p.terminal))
+    U = hover_controls(quadrotor(horizon=20)) + np.random.default_rng(2).normal(size=(p.horizon, p.nu))
+    lin, ref1, ref2 = mixed.linearise(mixed.trajectory(U), 1), p.linearise(p.trajectory(U), 1), p.linearise(
+        p.trajectory(U), 2)
+    assert not lin.gauss_newton and ref1.gauss_newton
+    np.testing.assert_array_equal(lin.l_xx, ref1.l_xx)  # the running sum's Gauss-Newton Hessians
+    np.testing.assert_array_equal(lin.lf_xx, ref2.lf_xx)  # the user's sum: its own (exact) Hessian
+    assert np.abs(lin.lf_xx - ref1.lf_xx).max() > 1e-2 * np.abs(lin.lf_xx).max()

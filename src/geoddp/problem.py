@@ -137,8 +137,9 @@ class Problem:
         # from a target and made the first iterations regularise heavily (UR5 pose reach: 32
         # restarts to lambda = 4.4 and 11 iterations; Gauss-Newton: lambda 0 and 6, as FDDP).
         # Order 2 stays exact: the Newton steps and the final check need the true Hessian.
-        gn = order == 1 and getattr(self.running, "first_order_gauss_newton", False)
-        run, term = self.cost_derivatives(traj.q, traj.v, traj.u, gauss_newton=gn)
+        # (flagged only when every cost offers it: a user's own cost sum keeps its Hessians)
+        run, term = self.cost_derivatives(traj.q, traj.v, traj.u, gauss_newton=order == 1)
+        gn = order == 1 and all(_offers_gauss_newton(c) for c in (self.running, self.terminal))
         return Linearisation.from_parts(order, exp, run, term, gauss_newton=gn)
 
     def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
@@ -216,13 +217,21 @@ class Problem:
         self, q: np.ndarray, v: np.ndarray, controls: np.ndarray, gauss_newton: bool = False
     ) -> tuple[CostDerivatives, CostDerivatives]:
         """Running derivatives at k < H and terminal derivatives at k = H (N = 1); with
-        ``gauss_newton`` (costs whose ``first_order_gauss_newton`` is True) the Gauss-Newton
-        Hessians of their residual terms."""
+        ``gauss_newton``, the Gauss-Newton Hessians of each cost that offers them (its
+        ``first_order_gauss_newton`` is True); any other cost gives its own."""
         H = self.horizon
-        if not gauss_newton:
-            return self.running.derivatives(q[:H], v[:H], controls), self.terminal.derivatives(q[H:], v[H:], None)
-        return (self.running.derivatives(q[:H], v[:H], controls, gauss_newton=True),
-                self.terminal.derivatives(q[H:], v[H:], None, gauss_newton=True))
+
+        def of(cost: Any, *nodes: Any) -> CostDerivatives:
+            if gauss_newton and _offers_gauss_newton(cost):
+                return cost.derivatives(*nodes, gauss_newton=True)
+            return cost.derivatives(*nodes)
+
+        return of(self.running, q[:H], v[:H], controls), of(self.terminal, q[H:], v[H:], None)
+
+
+def _offers_gauss_newton(cost: Any) -> bool:
+    """True for a cost sum whose derivatives() takes gauss_newton=True (MultibodyCostSum)."""
+    return bool(getattr(cost, "first_order_gauss_newton", False))
 
 
 MultibodyProblem = Problem  # the multibody problem is the same class (issue 11)
