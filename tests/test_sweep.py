@@ -281,6 +281,23 @@ def test_an_interrupt_whose_exception_was_swallowed_still_ends_the_sweep(tmp_pat
     assert len(read_table(out)) == 4  # the case in hand is recorded before the run ends
 
 
+def test_the_cli_forgets_its_signals_when_it_returns(monkeypatch):
+    # A signal recorded during one CLI run (its exception swallowed, the run finished) must not
+    # stop a later sweep in the same process.
+    import signal
+
+    from geoddp import cli, interrupts
+
+    def run_that_swallows_a_sigint(args):
+        interrupts.record(signal.SIGINT)
+        return cli.EXIT_CONVERGED
+
+    monkeypatch.setattr(cli, "_run", run_that_swallows_a_sigint)
+    assert cli.main(["run", "satellite_paper", "--quiet"]) == cli.EXIT_CONVERGED
+    assert interrupts.received() == []
+    interrupts.check()  # nothing to raise
+
+
 def test_limit_then_resume_and_csv(tmp_path):
     path = write(tmp_path, SMALL)
     out = tmp_path / "out"

@@ -416,6 +416,7 @@ def main(argv: list[str] | None = None) -> int:
             viewer.stop_servers()
         for sig, h in previous.items():
             signal.signal(sig, h)
+        interrupts.clear()  # a record outliving the run would stop a later sweep in this process
 
 
 if __name__ == "__main__":
