@@ -7,7 +7,11 @@
 * The switch rule: with a Gauss-Newton first order the paper's J_i / J_0 < sigma test does not
   hand over, switch_after waits while first order converges superlinearly, and a first-order cost
   test hands over to second order (reusing the exact check's linearisation) unless that check
-  certifies the point to 1e-3 of its threshold; on the satellite the paper's rule is unchanged.
+  certifies the point (Newton decrement <= CERTIFY_EARLY of its threshold); on the satellite the
+  paper's rule is unchanged.
+* Early certification: an exact lambda = 0 pass that certifies its iterate ends the solve there,
+  and switch linearises exactly one iterate early when Gauss-Newton predicts that its next step
+  would pass the cost test.
 """
 from __future__ import annotations
 
@@ -17,10 +21,12 @@ import pytest
 
 from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,
                                     StateRegularisation)
-from geoddp.multibody_scenes import hover_controls, quadrotor, space_manipulator
+from geoddp.multibody_scenes import hover_controls, quadrotor, space_manipulator, spacecraft_docking
 from geoddp.problem import Problem, paper_problem
+from geoddp.result import STATUS_CONVERGED_COST
 from geoddp.scene import build_problem, load_scene
 from geoddp.solver import SolverOptions, solve
+from geoddp.solver.loop import ANTICIPATE, CERTIFY_EARLY
 
 
 def _far_pose_problem(backend: str, gauss_newton: bool = False) -> Problem:
@@ -84,56 +90,90 @@ class _CountingProblem:
         return self.problem.linearise(traj, order)
 
 
-def test_switch_keeps_a_superlinear_gauss_newton_first_order_to_a_certified_stop():
+def _polished(problem, result):
+    """The same problem re-solved by exact second order from ``result``'s controls (to 1e-13)."""
+    return solve(problem, SolverOptions(verbose=False, expansion="second", tol=1e-13), initial_controls=result.controls)
+
+
+def test_switch_anticipates_the_certifying_exact_pass_of_a_superlinear_gauss_newton():
     # UR5 pose reach: J / J_0 falls below sigma = 0.1 after the first iteration, yet first order
-    # runs on (the paper's test would have handed over there); at switch_after = 5 the last step
-    # had cut the decrease 1000x, so switch_after waits too; the cost test then passes at a point
-    # the exact check certifies to 1e-3 of its threshold: the solve stops there, all first order,
-    # and the final check reuses that exact linearisation (one order-2 linearisation in all).
+    # runs on (the paper's test would have handed over there); switch_after = 5 full steps pass
+    # while the steps converge superlinearly, so it waits. The next decrease Gauss-Newton predicts,
+    # dJ_i^2 / dJ_(i-1), is below ANTICIPATE of the threshold: the next linearisation is the exact
+    # one, its lambda = 0 pass certifies the iterate (Newton decrement <= CERTIFY_EARLY of the
+    # threshold) and the solve stops there; the final check reuses that pass (one order-2
+    # linearisation in all, no Gauss-Newton iteration after it).
     spec = load_scene("ur5_reach")
     p = _CountingProblem(build_problem(spec))
     r = solve(p, SolverOptions(verbose=False), initial_controls=_guess(spec))
     J = r.cost_history
     assert 1 <= int(np.argmax(J / J[0] < 0.1)) < 3
-    assert r.expansion_history == ["first"] * r.iterations and r.iterations > SolverOptions().switch_after
+    assert r.expansion_history == ["first"] * r.iterations and r.iterations >= SolverOptions().switch_after
     dJ = -np.diff(J)
-    assert dJ[SolverOptions().switch_after - 1] <= 0.01 * dJ[SolverOptions().switch_after - 2]
-    assert abs(dJ[-1]) <= SolverOptions().tol
     o = r.extra["optimality"]
-    assert r.converged and o["hessian_positive_definite"] and o["newton_decrease"] <= 1e-3 * o["newton_threshold"]
+    assert dJ[-1] <= 0.01 * dJ[-2] and dJ[-1] ** 2 / dJ[-2] <= ANTICIPATE * o["newton_threshold"]
+    assert dJ[-1] > SolverOptions().tol  # the Gauss-Newton cost test had not passed yet
     assert p.orders == [1] * r.iterations + [2]
+    assert r.converged and "predicted decrease of a full Newton step" in r.message
+    assert o["hessian_positive_definite"] and o["newton_decrease"] <= CERTIFY_EARLY * o["newton_threshold"]
+    # the certificate is true: polished by exact Newton steps, J falls by the decrement, no more
+    best = _polished(p.problem, r)
+    assert 0.0 <= r.cost - best.cost <= CERTIFY_EARLY * o["newton_threshold"]
+    assert r.cost - best.cost == pytest.approx(o["newton_decrease"], rel=0.05)
     assert r.cost == pytest.approx(0.850648648464, rel=1e-9)
 
 
+def test_a_certifying_second_order_pass_ends_the_solve_before_its_step():
+    # Space manipulator (the built-in scene), default switch: five full Gauss-Newton steps (linear,
+    # not superlinear), then second order. Its second exact lambda = 0 pass already has a Newton
+    # decrement (2e-11) below CERTIFY_EARLY of the threshold, although the step before changed J
+    # by 8e-6: the solve stops at that iterate (the final check reuses the pass) instead of
+    # stepping and linearising once more to certify (the paper's cost test would).
+    p = _CountingProblem(space_manipulator())
+    r = solve(p, SolverOptions(verbose=False))
+    n_first = r.expansion_history.count("first")
+    full = [g for g, e in zip(r.step_history, r.expansion_history) if e == "first" and g == 1.0]
+    assert len(full) == SolverOptions().switch_after and r.step_history[n_first - 1] == 1.0 and n_first > len(full)
+    n_second = r.iterations - n_first
+    assert n_second >= 1 and r.expansion_history[n_first:] == ["second"] * n_second
+    assert p.orders == [1] * n_first + [2] * (n_second + 1)
+    o = r.extra["optimality"]
+    assert r.converged and "predicted decrease of a full Newton step" in r.message
+    assert o["newton_decrease"] <= CERTIFY_EARLY * o["newton_threshold"]
+    best = _polished(p.problem, r)
+    assert 0.0 <= r.cost - best.cost <= CERTIFY_EARLY * o["newton_threshold"]
+
+
 def test_switch_hands_over_at_the_cost_test_and_reuses_the_checks_linearisation():
-    # Space manipulator (H = 60): Gauss-Newton converges linearly at 0.02-0.07 a step. With
-    # switch_after out of the way, first order runs to its cost test; the exact check there finds
-    # a Newton decrement (4e-11) above 1e-3 of its threshold, so second order takes over, starting
-    # from that check's linearisation (not a second one at the same point).
-    p = _CountingProblem(space_manipulator(horizon=60, dt=0.05))
+    # Spacecraft docking: Gauss-Newton converges linearly. With switch_after out of the way, first
+    # order runs to its cost test; the exact check there finds a Newton decrement above
+    # CERTIFY_EARLY of its threshold, so second order takes over, starting from that check's
+    # linearisation (not a second one at the same point).
+    p = _CountingProblem(spacecraft_docking())
     r = solve(p, SolverOptions(verbose=False, switch_after=50))
     first = solve(p.problem, SolverOptions(verbose=False, expansion="first"))
     n_first = r.expansion_history.count("first")
     assert n_first == first.iterations and r.expansion_history[n_first:] == ["second"] * (r.iterations - n_first)
     assert r.iterations > n_first
     o, of = r.extra["optimality"], first.extra["optimality"]
-    assert of["newton_decrease"] > 1e-3 * of["newton_threshold"]
+    assert of["newton_decrease"] > CERTIFY_EARLY * of["newton_threshold"]
     assert r.converged and o["newton_decrease"] < 1e-3 * of["newton_decrease"] and r.cost < first.cost
     # n_first order-1 linearisations, the check's (reused by the first second-order iteration),
-    # one per later second-order iteration, and the stop check's (reused by the final check)
+    # then one per later second-order iterate (the last reused by the final check)
     assert p.orders == [1] * n_first + [2] * (r.iterations - n_first + 1)
     # max_iter ending the solve right at that hand-over: the final check takes the check's
     # linearisation too (MPC re-solves stop at max_iter)
     p.orders.clear()
     cut = solve(p, SolverOptions(verbose=False, switch_after=50, max_iter=n_first))
     assert cut.iterations == n_first and p.orders == [1] * n_first + [2]
-    # the default switch_after = 5 hands over after five full first-order steps (damped ones do
-    # not count): the steps are linear, not superlinear
-    d = solve(p.problem, SolverOptions(verbose=False))
-    n = d.expansion_history.count("first")
-    full = [g for g, e in zip(d.step_history, d.expansion_history) if e == "first" and g == 1.0]
-    assert len(full) == SolverOptions().switch_after and d.step_history[n - 1] == 1.0 and n > len(full)
-    assert d.cost == pytest.approx(r.cost, rel=1e-12)
+
+
+def test_second_order_alone_keeps_stepping_to_its_cost_test():
+    # expansion = "second" never ran a Gauss-Newton model: early certification is switch's and
+    # first's, so its stopping rules are the paper's (a step, then |dJ| <= tol).
+    r = solve(space_manipulator(horizon=60, dt=0.05), SolverOptions(verbose=False, expansion="second"))
+    assert r.converged and r.status == STATUS_CONVERGED_COST and "predicted decrease of a full Newton step" not in r.message
+    assert abs(r.cost_history[-1] - r.cost_history[-2]) <= SolverOptions().tol
 
 
 def test_the_satellite_switches_by_the_papers_rule():

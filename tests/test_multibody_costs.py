@@ -444,13 +444,14 @@ def test_one_attitude_term_serves_tso3_and_a_general_model():
     # Second order (exact on both): the same iterates (measured: J to 7e-16, controls to 2.3e-15
     # relative). First order and switch: the general model's first-order model is a Gauss-Newton
     # one, TSO(3)'s the paper's exact one, so the paths differ but end at the same verified
-    # minimum (measured: J to 4e-15, controls to 1.3e-8 relative: both stop within tol = 1e-8).
+    # minimum (measured: J to 4e-15; controls to 4.3e-7 relative since the general model stops
+    # at the first point it certifies, Newton decrement <= tol / 10, as J - J* ~ dU^T H dU / 2).
     for expansion in ("second", "first", "switch"):
         a = solve(ref, SolverOptions(verbose=False, expansion=expansion))
         b = solve(gen, SolverOptions(verbose=False, expansion=expansion))
         assert a.converged and b.converged
         assert abs(a.cost - b.cost) <= 1e-12 * a.cost
-        close = 1e-12 if expansion == "second" else 1e-7
+        close = 1e-12 if expansion == "second" else 2e-6
         assert np.abs(a.controls - b.controls).max() <= close * np.abs(a.controls).max(), expansion
         if expansion == "second":
             assert a.iterations == b.iterations
