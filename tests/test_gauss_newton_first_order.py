@@ -244,3 +244,25 @@ def test_a_cost_sum_without_gauss_newton_keeps_its_hessians_and_the_flag_stays_o
     np.testing.assert_array_equal(lin.l_xx, ref1.l_xx)  # the running sum's Gauss-Newton Hessians
     np.testing.assert_array_equal(lin.lf_xx, ref2.lf_xx)  # the user's sum: its own (exact) Hessian
     assert np.abs(lin.lf_xx - ref1.lf_xx).max() > 1e-2 * np.abs(lin.lf_xx).max()
+
+
+def test_an_anticipated_exact_pass_that_does_not_certify_is_a_second_order_iteration(monkeypatch):
+    # With ANTICIPATE raised 1e6x, switch linearises exactly one iterate after the first
+    # superlinear Gauss-Newton step, far from certified: that pass is then the first second-order
+    # iteration's direction (no other linearisation at that iterate), and the solve ends at the
+    # optimum of the default rules, certified.
+    import geoddp.solver.loop as loop
+
+    spec = load_scene("ur5_reach")
+    reference = solve(build_problem(spec), SolverOptions(verbose=False), initial_controls=_guess(spec))
+    monkeypatch.setattr(loop, "ANTICIPATE", 1e6 * ANTICIPATE)
+    p = _CountingProblem(build_problem(spec))
+    r = solve(p, SolverOptions(verbose=False), initial_controls=_guess(spec))
+    n_first = r.expansion_history.count("first")
+    assert n_first < reference.iterations and r.expansion_history[n_first:] == ["second"] * (r.iterations - n_first)
+    dJ = -np.diff(r.cost_history[: n_first + 1])
+    assert dJ[-1] <= 0.01 * dJ[-2] and dJ[-1] ** 2 / dJ[-2] > ANTICIPATE * r.extra["optimality"]["newton_threshold"]
+    # one linearisation per iterate: order 1 up to the anticipation, then order 2, the last one
+    # the certifying pass the final check reuses
+    assert p.orders == [1] * n_first + [2] * (r.iterations - n_first + 1)
+    assert r.converged and abs(r.cost - reference.cost) <= SolverOptions().tol
