@@ -168,8 +168,7 @@ class _Solve:
         # 100x: small residuals), switch_after waits: the cost test comes within an iteration or
         # two, and a second-order iteration there costs 2-4x a first-order one (UR5, Solo12). A
         # fast linear rate (the space manipulator's 0.02-0.03 per step) still hands over.
-        superlinear = self.first_order_gauss_newton and len(self.first_steps) >= 2 and \
-            self.first_steps[-1][1] == 1.0 and self.first_steps[-1][0] <= 0.01 * self.first_steps[-2][0]
+        superlinear = self.superlinear()
         # ... and counts only full Gauss-Newton steps: a step the line search damped says the
         # iterate is still far (the line search, not the model, sets the step; with control
         # limits, the box), where a second-order iteration's extra cost buys nothing (Solo12
@@ -185,15 +184,20 @@ class _Solve:
             self.use_second = True
         return 2 if self.use_second else 1
 
+    def superlinear(self) -> bool:
+        """The last first-order step was a full Gauss-Newton step that cut the decrease of the one
+        before at least 100x."""
+        return self.first_order_gauss_newton and len(self.first_steps) >= 2 and \
+            self.first_steps[-1][1] == 1.0 and self.first_steps[-1][0] <= 0.01 * self.first_steps[-2][0]
+
     def converged_next(self) -> bool:
         """Gauss-Newton predicts that its next step changes J by less than ANTICIPATE of the final
         check's threshold: the last two first-order steps were full and the last cut the decrease
         at least 100x (superlinear), so the next decrease is about dJ_i^2 / dJ_(i-1)."""
-        if not self.certifies_early() or len(self.first_steps) < 2:
+        if not self.certifies_early() or not self.superlinear():
             return False
-        (d_prev, g_prev), (d_last, g_last) = self.first_steps[-2:]
-        return g_prev == 1.0 and g_last == 1.0 and 0.0 < d_prev and d_last <= 0.01 * d_prev and \
-            d_last * d_last / d_prev <= ANTICIPATE * self.newton_threshold()
+        (d_prev, g_prev), (d_last, _) = self.first_steps[-2:]
+        return g_prev == 1.0 and 0.0 < d_prev and d_last * d_last / d_prev <= ANTICIPATE * self.newton_threshold()
 
     def grad_norm(self, lin: Linearisation) -> float:
         """||dJ/dU||, or with control limits the norm of the projected gradient (the components
