@@ -7,7 +7,12 @@ the expansion's time with one worker thread and with the default.
 * per expansion: ``Multibody.expansion`` (first and second order) along the scene's initial
   rollout with ``threads=1`` and ``threads=0`` (the core's default), medians.
 
-Run: ``python benchmarks/core_dynamics.py [--runs 3]``. Timings only; the tests check the numbers.
+``--integrator rk4`` (or any integrator) solves the same scenes with that integrator instead of the
+scenes' own, ``--horizon H`` with H steps (the Python rk4 oracle takes ~0.2 s per node and
+second-order linearisation).
+
+Run: ``python benchmarks/core_dynamics.py [--runs 3] [--integrator rk4 --horizon 40]``. Timings
+only; the tests check the numbers.
 """
 from __future__ import annotations
 
@@ -22,7 +27,17 @@ import numpy as np
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "multibody"
 
 
-def solve_times(scene: Path, runs: int) -> dict:
+def _spec(scene: Path, integrator: str | None, horizon: int | None):
+    """A fresh spec per call (solve_scene builds a problem once per spec object, with the backend
+    the environment asks for at that moment)."""
+    from geoddp.api import load_scene
+
+    spec = load_scene(scene)
+    overrides = {k: v for k, v in (("integrator", integrator), ("horizon", horizon)) if v is not None}
+    return spec.with_overrides(**overrides) if overrides else spec
+
+
+def solve_times(scene: Path, runs: int, integrator: str | None = None, horizon: int | None = None) -> dict:
     from geoddp.api import solve_scene
 
     out = {"python": [], "compiled": []}
@@ -30,7 +45,7 @@ def solve_times(scene: Path, runs: int) -> dict:
     for r in range(runs + 1):  # first round: warm-up
         for backend in ("python", "compiled"):
             os.environ["GEODDP_MULTIBODY_BACKEND"] = "python" if backend == "python" else "auto"
-            res = solve_scene(scene, verbose=False)
+            res = solve_scene(_spec(scene, integrator, horizon), verbose=False)
             if r > 0:
                 out[backend].append(res.solve_time_s)
             info[backend] = (res.iterations, res.cost)
@@ -38,16 +53,15 @@ def solve_times(scene: Path, runs: int) -> dict:
     return {b: (statistics.median(t), *info[b]) for b, t in out.items()}
 
 
-def _problem(scene: Path):
-    from geoddp.api import load_scene
+def _problem(scene: Path, integrator: str | None, horizon: int | None):
     from geoddp import api
 
-    spec = load_scene(scene)
+    spec = _spec(scene, integrator, horizon)
     return api.build_problem(spec), api.initial_controls(spec)
 
 
-def threads_times(scene: Path, runs: int) -> dict:
-    problem, U0 = _problem(scene)
+def threads_times(scene: Path, runs: int, integrator: str | None = None, horizon: int | None = None) -> dict:
+    problem, U0 = _problem(scene, integrator, horizon)
     model = problem.model
     U = U0 if U0 is not None else np.zeros((problem.horizon, problem.nu))
     Q, V = problem.rollout(U)
@@ -68,22 +82,26 @@ def threads_times(scene: Path, runs: int) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--integrator", default=None, help="solve every scene with this integrator")
+    ap.add_argument("--horizon", type=int, default=None, help="and this many steps")
     args = ap.parse_args()
     from geoddp.models import compiled
 
-    print(f"default threads: {compiled._core.default_threads()}")
+    scenes_own = "the scenes'"
+    print(f"default threads: {compiled._core.default_threads()}; integrator: {args.integrator or scenes_own}; "
+          f"horizon: {args.horizon or scenes_own}")
     print("| scene | python per solve | compiled per solve | speed-up | iterations | J* python | J* compiled |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     scenes = sorted(EXAMPLES.glob("*.toml"))
     for scene in scenes:
-        t = solve_times(scene, args.runs)
+        t = solve_times(scene, args.runs, args.integrator, args.horizon)
         (tp, ip, jp), (tc, ic, jc) = t["python"], t["compiled"]
         print(f"| {scene.stem} | {tp:.3f} s | {tc:.3f} s | {tp / tc:.1f}x | {ip} / {ic} | {jp:.12g} | {jc:.12g} |")
     print()
     print("| scene | order 1, 1 thread | order 1, default | order 2, 1 thread | order 2, default |")
     print("|---|---:|---:|---:|---:|")
     for scene in scenes:
-        e = threads_times(scene, args.runs)
+        e = threads_times(scene, args.runs, args.integrator, args.horizon)
         print(f"| {scene.stem} | {1e3 * e[1, 1]:.2f} ms | {1e3 * e[1, 0]:.2f} ms | {1e3 * e[2, 1]:.2f} ms | {1e3 * e[2, 0]:.2f} ms |")
 
 

@@ -16,6 +16,8 @@
 
 #include "lie.hpp"
 #include "pool.hpp"
+#include "rkmk4.hpp"
+#include "variational.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -79,12 +81,36 @@ static void parallel_for(int N, int threads, Fn fn) {
   WorkerPool::get().run(T, task);
 }
 
+void parallel_nodes(int N, int threads, const std::function<void(int, int)>& fn) {
+  parallel_for(N, threads, [&](int b, int e, int) { fn(b, e); });
+}
+
+// The variational step's model and scratch, for a sequential pass (rollout, forward pass).
+struct SequentialVariational {
+  VariationalModel vm;
+  VariationalWork w;
+  explicit SequentialVariational(const Setup& s) : vm(*s.model, s.H, s.m, s.dt), w(vm) {}
+};
+static std::unique_ptr<SequentialVariational> variational_for(const Setup& s) {
+  return s.integrator == VARIATIONAL ? std::make_unique<SequentialVariational>(s) : nullptr;
+}
+
 static inline bool all_finite(const Eigen::VectorXd& x) { return x.allFinite(); }
 
 // One explicit / semi-implicit Euler step (geoddp.models.multibody.Multibody._step).
-static void step(const Setup& s, pinocchio::Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+// RK4: cpp/rkmk4.hpp.
+static void step(const Setup& s, pinocchio::Data& data, const std::vector<JointGroup>& groups,
+                 SequentialVariational* var, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                  const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1) {
   const Model& model = *s.model;
+  if (s.integrator == RK4) {
+    rk4_step(model, data, groups, q, v, tau, s.dt, q1, v1);
+    return;
+  }
+  if (var != nullptr) {
+    variational_step(var->vm, var->w, q, v, tau, q1, v1);
+    return;
+  }
   pinocchio::aba(model, data, q, v, tau);
   v1 = v + s.dt * data.ddq;
   const Eigen::VectorXd w = s.dt * (s.integrator == SEMI_IMPLICIT ? v1 : v);
@@ -94,6 +120,8 @@ static void step(const Setup& s, pinocchio::Data& data, const Eigen::VectorXd& q
 void rollout(const Setup& s, const double* q0, const double* v0, const double* U, int N, double* Q, double* V) {
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m;
+  const std::vector<JointGroup> groups = joint_groups(model);
+  const std::unique_ptr<SequentialVariational> var = variational_for(s);
   pinocchio::Data data(model);
   CMatMap Hm(s.H, nv, m);
   MatMap Qm(Q, N + 1, nq), Vm(V, N + 1, nv);
@@ -105,7 +133,7 @@ void rollout(const Setup& s, const double* q0, const double* v0, const double* U
     q = Qm.row(k).transpose();
     v = Vm.row(k).transpose();
     tau = Hm * Um.row(k).transpose();
-    step(s, data, q, v, tau, q1, v1);
+    step(s, data, groups, var.get(), q, v, tau, q1, v1);
     Qm.row(k + 1) = q1.transpose();
     Vm.row(k + 1) = v1.transpose();
   }
@@ -129,6 +157,7 @@ bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, con
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv;
   const std::vector<JointGroup> groups = joint_groups(model);
+  const std::unique_ptr<SequentialVariational> var = variational_for(s);
   pinocchio::Data data(model);
   CMatMap Hm(s.H, nv, m);
   CMatMap Qb(Qbar, N + 1, nq), Vb(Vbar, N + 1, nv), Ub(Ubar, N, m), kf(kff, N, m);
@@ -154,7 +183,7 @@ bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, con
     }
     Uo.row(k) = u.transpose();
     tau = Hm * u;
-    step(s, data, q, v, tau, q1, v1);
+    step(s, data, groups, var.get(), q, v, tau, q1, v1);
     if (!all_finite(q1) || !all_finite(v1)) return false;
     Qo.row(k + 1) = q1.transpose();
     Vo.row(k + 1) = v1.transpose();
@@ -376,6 +405,24 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   const double dt = s.dt;
   const bool semi = s.integrator == SEMI_IMPLICIT;
   const std::vector<JointGroup> groups = joint_groups(model);
+  if (s.integrator == VARIATIONAL)
+    throw std::invalid_argument("integrator: the variational expansion is variational_velocity_derivatives + the reconstruction");
+  if (s.integrator == RK4) {
+    parallel_for(N, threads, [&](int b, int e, int) {
+      Rk4Work w(model, m);
+      Eigen::VectorXd q(nq), v(nv), u(m);
+      for (int k = b; k < e; ++k) {
+        q = CVecMap(Q + (size_t)k * nq, nq);
+        v = CVecMap(V + (size_t)k * nv, nv);
+        u = CVecMap(U + (size_t)k * m, m);
+        const bool second = order >= 2;
+        rk4_node_expansion(s, groups, w, q, v, u, Phi + (size_t)k * n * n, B + (size_t)k * n * m,
+                           second ? Theta + (size_t)k * n * n * n : nullptr,
+                           second ? Gamma + (size_t)k * n * n * m : nullptr, second ? Xi + (size_t)k * n * m * m : nullptr);
+      }
+    });
+    return;
+  }
   lie::Mat3 C3[3];
   lie::Mat6 C6[6];
   lie::so3_structure(C3);
@@ -523,6 +570,8 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
 // blocks copied into `t` instead of being assembled into Theta, Gamma, Xi.
 void expansion_contracted(const Setup& s, const double* Q, const double* V, const double* U, int N, int threads,
                           double* Phi, double* B, SecondOrderTerms& t) {
+  if (s.integrator == RK4 || s.integrator == VARIATIONAL)
+    throw std::invalid_argument("integrator: the factored second order is for euler and semi_implicit");
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv, nz = n + m;
   const double dt = s.dt;

@@ -3,7 +3,7 @@
 // C++ twins of geoddp.models.multibody.Multibody (rollout, velocity_derivatives, expansion) and
 // of the forward pass of geoddp.multibody_problem.MultibodyProblem.rollout_closed_loop, for the
 // integrators "euler" (paper eq. disceq: q+ = q exp(dt v)) and "semi_implicit" (q+ = q exp(dt v+)),
-// both with v+ = v + dt aba(q, v, H u).
+// both with v+ = v + dt aba(q, v, H u), and "rk4" (cpp/rkmk4.hpp).
 //
 // Every array is float64, C-contiguous (row-major), shapes as documented per function. The
 // tangent state is zeta = (dq, dv), n = 2 nv, z = (dq, dv, du), nz = n + m. Nothing here imports
@@ -13,6 +13,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,7 +24,11 @@ namespace dyn {
 typedef pinocchio::Model Model;
 typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
 
-enum Integrator { EULER = 0, SEMI_IMPLICIT = 1 };
+// RK4: the Runge-Kutta-Munthe-Kaas step of cpp/rkmk4.hpp (rollout, forward pass, expansion; not
+// velocity_derivatives or the factored second order, which are the Euler schemes' structure).
+// VARIATIONAL: the forward variational Euler step of cpp/variational.hpp (rollout and forward pass
+// here; its velocity derivatives through variational_velocity_derivatives).
+enum Integrator { EULER = 0, SEMI_IMPLICIT = 1, RK4 = 2, VARIATIONAL = 3 };
 
 // One joint's Lie group (geoddp.configuration.JointGroup): kind 0 vector, 1 so2, 2 so3, 3 se3.
 struct JointGroup {
@@ -120,6 +125,11 @@ void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* om
 // Worker threads of a pass when threads <= 0 ("default"): min(cores, 2), and at least 16 nodes
 // per worker (workers come from a persistent pool, cpp/pool.hpp).
 int default_threads();
+
+// Runs fn(begin, end) on contiguous chunks of [0, N) with `threads` workers (<= 0: the default,
+// at least 16 nodes per worker) of the persistent pool; the chunks depend only on N and the worker
+// count, so per-node results do not depend on the number of threads.
+void parallel_nodes(int N, int threads, const std::function<void(int, int)>& fn);
 
 }  // namespace dyn
 }  // namespace geoddp

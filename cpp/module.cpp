@@ -12,6 +12,7 @@
 
 #include "contracted.hpp"
 #include "dynamics.hpp"
+#include "variational.hpp"
 #include "pin_model.hpp"
 #include "riccati.hpp"
 
@@ -37,7 +38,8 @@ static void check_shape(const Arr& a, std::initializer_list<long> shape, const c
 
 static Setup make_setup(const pinocchio::Model& model, const Arr& H, double dt, int integrator) {
   check_shape(H, {model.nv, -1}, "actuation");
-  if (integrator != 0 && integrator != 1) throw py::value_error("integrator: expected 0 (euler) or 1 (semi_implicit)");
+  if (integrator < 0 || integrator > 3)
+    throw py::value_error("integrator: expected 0 (euler), 1 (semi_implicit), 2 (rk4) or 3 (variational)");
   return Setup{&model, H.data(), (int)H.shape(1), dt, (geoddp::dyn::Integrator)integrator};
 }
 
@@ -56,6 +58,11 @@ PYBIND11_MODULE(_core, m) {
   m.attr("PINOCCHIO_VERSION") = PINOCCHIO_VERSION;
   m.attr("EULER") = 0;
   m.attr("SEMI_IMPLICIT") = 1;
+  m.attr("RK4") = 2;
+  m.attr("VARIATIONAL") = 3;
+  // the variational step's Newton iteration did not converge; the message is |v| at the step
+  // (geoddp.models.multibody re-raises geoddp.variational.StepDidNotConverge naming dt)
+  py::register_exception<geoddp::dyn::StepNotConverged>(m, "StepDidNotConverge", PyExc_ArithmeticError);
 
   m.def("default_threads", &geoddp::dyn::default_threads, "Worker threads used when threads <= 0.");
 
@@ -148,6 +155,32 @@ PYBIND11_MODULE(_core, m) {
       py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("Q"), py::arg("V"), py::arg("U"),
       py::arg("order") = 1, py::arg("threads") = 0,
       "Derivatives of v+ = v + dt aba(q, v, H u) at N nodes: F1 (N, nv, nz), F2 (N, nv, nz, nz) or None.");
+
+  m.def(
+      "variational_velocity_derivatives",
+      [](py::handle pm, const Arr& H, double dt, const Arr& Q, const Arr& V, const Arr& Vnext, int order,
+         int threads) -> py::tuple {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        Setup s = make_setup(model, H, dt, 3);
+        const int N = (int)Q.shape(0), nv = model.nv, nz = 2 * nv + s.m;
+        check_shape(Q, {N, model.nq}, "Q");
+        check_shape(V, {N, nv}, "V");
+        check_shape(Vnext, {N, nv}, "V_next");
+        Arr F1 = empty({N, nv, nz});
+        Arr F2 = order >= 2 ? empty({N, nv, nz, nz}) : empty({0});
+        {
+          py::gil_scoped_release nogil;
+          const geoddp::dyn::VariationalModel vm(model, H.data(), s.m, dt);
+          geoddp::dyn::variational_velocity_derivatives(vm, Q.data(), V.data(), Vnext.data(), N, order, threads,
+                                                        F1.mutable_data(), order >= 2 ? F2.mutable_data() : nullptr);
+        }
+        if (order < 2) return py::make_tuple(F1, py::none());
+        return py::make_tuple(F1, F2);
+      },
+      py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("Q"), py::arg("V"), py::arg("V_next"),
+      py::arg("order") = 1, py::arg("threads") = 0,
+      "Derivatives of the variational Euler step's v+ (solved: V_next) at N nodes by implicit differentiation: "
+      "F1 (N, nv, nz), F2 (N, nv, nz, nz) or None (geoddp.variational.VariationalEuler.velocity_derivatives).");
 
   m.def(
       "expansion",

@@ -57,6 +57,12 @@ class StepDidNotConverge(ArithmeticError):
     """Newton's method for the implicit velocity update did not converge (dt too large)."""
 
 
+def not_converged_message(dt: float, v_norm: str) -> str:
+    """The one message of a step that did not converge (Python and compiled paths); v_norm is |v|
+    at the step, already formatted."""
+    return f"the variational Euler velocity update did not converge at dt = {dt} s (|v| = {v_norm}); use a smaller dt"
+
+
 @dataclass
 class VariationalEuler:
     """The forward variational Euler step of a Pinocchio model: constants only.
@@ -172,10 +178,7 @@ class VariationalEuler:
                 break
             if alpha == 1.0 and np.linalg.norm(dy) <= NEWTON_TOL * (1.0 + np.linalg.norm(y)):
                 return q_next, y
-        raise StepDidNotConverge(
-            f"the variational Euler velocity update did not converge at dt = {dt} s "
-            f"(|v| = {np.linalg.norm(v):.3g}); use a smaller dt"
-        )
+        raise StepDidNotConverge(not_converged_message(dt, f"{np.linalg.norm(v):.3g}"))
 
     # ------------------------------------------------------------------ derivatives
     def _residual_jacobian(self, data: pin.Data, fdata: pin.Data, q: np.ndarray, v: np.ndarray, y: np.ndarray) -> np.ndarray:

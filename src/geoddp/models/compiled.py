@@ -1,9 +1,8 @@
 """The compiled backend of :class:`geoddp.models.multibody.Multibody`: thin checks around
 :mod:`geoddp._core` (C++17 over the libpinocchio inside the ``pin`` wheel).
 
-Which backend runs: a multibody model uses the compiled core when its integrator is "euler" or
-"semi_implicit" and the extension imports; "rk4" and "variational" stay on the Python path for
-now. The Python path stays as the oracle the tests compare the core against.
+Which backend runs: a multibody model uses the compiled core (any of its four integrators) when
+the extension imports. The Python path stays as the oracle the tests compare the core against.
 
 The extension must run with the very pin it was compiled against (the layout of
 ``pinocchio::Model`` is shared with the Python object): it checks ``pinocchio.__version__`` at
@@ -19,7 +18,9 @@ import numpy as np
 
 from ..validate import InputError
 
-INTEGRATORS = {"euler": 0, "semi_implicit": 1}
+INTEGRATORS = {"euler": 0, "semi_implicit": 1, "rk4": 2, "variational": 3}
+#: the integrators whose second order the core also keeps factored (expansion_contracted)
+CONTRACTED_INTEGRATORS = ("euler", "semi_implicit")
 
 try:  # pinocchio first: its import loads the libpinocchio the extension links
     import pinocchio  # noqa: F401

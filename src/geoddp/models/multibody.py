@@ -26,12 +26,17 @@ Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
 Backends (chosen when the model is built, ``backend=``): "compiled" runs the rollout and the
 whole expansion in the C++ core (:mod:`geoddp.models.compiled`): the same quantities, with the
 velocity update's second order exact from Pinocchio's ``ComputeRNEASecondOrderDerivatives`` (no
-differences) and SE(3)'s dJr exact; "python" is the code below, kept as the oracle. "auto" (the
-default) picks "compiled" for the euler and semi_implicit integrators when the extension imports,
-"python" otherwise (rk4 and variational always run in Python for now); the environment variable
+differences) and SE(3)'s dJr exact (rk4: its analytic step Jacobian and, for the second order,
+central differences of it, as below; variational: the residual's Jacobian analytic, with the
+kinetic-energy Hessian from the same second-order RNEA, and its second order one central
+difference of that Jacobian, where the Python oracle differences a difference); "python" is the
+code below, kept as the oracle. "auto" (the default) picks "compiled" when the extension imports,
+"python" otherwise; the environment variable
 GEODDP_MULTIBODY_BACKEND=python makes "auto" pick "python".
 """
 from __future__ import annotations
+
+import contextlib
 
 import os
 from dataclasses import dataclass, field
@@ -129,8 +134,8 @@ class Multibody:
             (the paper's forward variational Euler, implicit; :mod:`geoddp.variational`).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
-        backend: "auto" (default: "compiled" when the integrator is euler or semi_implicit and
-            geoddp._core imports, else "python"), "compiled" or "python" (the oracle). Holds the
+        backend: "auto" (default: "compiled" when geoddp._core imports, else "python"),
+            "compiled" or "python" (the oracle). Holds the
             resolved choice after construction.
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
             environment variable GEODDP_THREADS if set (:func:`geoddp.validate.threads_from_environment`),
@@ -179,7 +184,7 @@ class Multibody:
         elif self.backend == "compiled":
             if not supported:
                 raise InputError("backend", f"expected 'python' or 'auto' for integrator {self.integrator!r} (the compiled "
-                                 "core runs 'euler' and 'semi_implicit'), got 'compiled'")
+                                 "core runs 'euler', 'semi_implicit' and 'rk4'), got 'compiled'")
             compiled.require()
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
@@ -340,7 +345,7 @@ class Multibody:
     @property
     def contracts_second_order(self) -> bool:
         """True if :meth:`expansion` can return factored second-order terms (``contracted=True``)."""
-        return self.backend == "compiled" and bool(self.contract)
+        return self.backend == "compiled" and bool(self.contract) and self.integrator in compiled.CONTRACTED_INTEGRATORS
 
     @property
     def semi_implicit(self) -> bool:
@@ -392,13 +397,22 @@ class Multibody:
         """Validate controls (H, m)."""
         return finite_array(controls, "controls", (H, self.nu))
 
+    @contextlib.contextmanager
+    def _step_errors(self):
+        """The core's variational step failure as the Python path raises it (naming dt)."""
+        try:
+            yield
+        except compiled._core.StepDidNotConverge as exc:
+            raise variational.StepDidNotConverge(variational.not_converged_message(self.dt, str(exc))) from None
+
     def rollout(self, q0: np.ndarray, v0: np.ndarray, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Open-loop rollout: q0 (nq,), v0 (nv,), controls (H, m) -> Q (H+1, nq), V (H+1, nv)."""
         q0, v0 = self.check_state(q0, v0)
         U = self.check_controls(controls)
         H = U.shape[0]
         if self.backend == "compiled":
-            return compiled._core.rollout(self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, U)
+            with self._step_errors():
+                return compiled._core.rollout(self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, U)
         data = self.pin_model.createData()
         Q = np.empty((H + 1, self.nq))
         V = np.empty((H + 1, self.nv))
@@ -422,12 +436,13 @@ class Multibody:
         if self.backend == "compiled":
             nq, nv, m = self.nq, self.nv, self.nu
             ca, co = compiled.check_array, compiled.check_output
-            return compiled._core.rollout_closed_loop(
-                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
-                ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
-                ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
-                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)),
-                *(() if lower is None else (ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m)))))
+            with self._step_errors():
+                return compiled._core.rollout_closed_loop(
+                    self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
+                    ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
+                    ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
+                    co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)),
+                    *(() if lower is None else (ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m)))))
         data = self._data
         Q_out[0], V_out[0] = q0, v0
         for k in range(H):
@@ -594,7 +609,7 @@ class Multibody:
             Phi, B, terms = compiled._core.expansion_contracted(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, self.threads)
             return integ.Expansion(Phi=Phi, B=B, terms=terms)
-        if self.backend == "compiled":
+        if self.backend == "compiled" and self._variational is None:
             Phi, B, Theta, Gamma, Xi = compiled._core.expansion(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, order, self.threads)
             return integ.Expansion(Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi)
@@ -602,7 +617,10 @@ class Multibody:
         n, nz = 2 * nv, 2 * nv + m
         if self.integrator == "rk4":
             return self._expansion_rk4(Q, V, U, order)
-        if self._variational is not None:
+        if self._variational is not None and self.backend == "compiled":
+            F1, F2 = compiled._core.variational_velocity_derivatives(
+                self.pin_model, self.actuation, self.dt, Q[:H], V[:H], V[1:], order, self.threads)
+        elif self._variational is not None:
             # Implicit velocity update, explicit-Euler reconstruction q+ = q exp(dt v).
             F1, F2 = self._variational.velocity_derivatives(Q[:H], V[:H], V[1:], U, order)
         else:

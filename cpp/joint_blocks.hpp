@@ -1,0 +1,82 @@
+// Block-diagonal reconstruction operators over a model's joint groups (the identity on vector and
+// SO(2) joints; lie.hpp's closed forms on SO(3), SE(3)): Jr, Jr^-1, Ad_exp(-theta), and dJr applied
+// to a vector. Shared by the RKMK4 step (rkmk4.cpp) and the variational Euler step (variational.cpp).
+// Twins of geoddp.lie.product.block_Ad_Jr, block_Jr_inv and second_order_tensors.
+#pragma once
+
+#include <pinocchio/spatial.hpp>
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "dynamics.hpp"
+#include "lie.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+// Jr(theta), Jr(theta)^-1 and, if A != nullptr, Ad_exp(-theta): block-diagonal over the joint
+// groups, the identity on vector and SO(2) joints (geoddp.lie.product.block_Ad_Jr / block_Jr_inv).
+inline void blocks(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta, Eigen::MatrixXd* A,
+            Eigen::MatrixXd& Jr, Eigen::MatrixXd& Jinv) {
+  if (A != nullptr) A->setIdentity();
+  Jr.setIdentity();
+  Jinv.setIdentity();
+  for (const JointGroup& g : groups) {
+    const int o = g.idx_v;
+    if (g.kind == SO3) {
+      const lie::Vec3 x = theta.segment<3>(o);
+      if (A != nullptr) A->block<3, 3>(o, o) = pinocchio::exp3(x).transpose();
+      const lie::Mat3 J = lie::so3_jr(x);
+      Jr.block<3, 3>(o, o) = J;
+      Jinv.block<3, 3>(o, o) = J.inverse();
+    } else if (g.kind == SE3) {
+      const Eigen::Matrix<double, 6, 1> x = theta.segment<6>(o);
+      if (A != nullptr) A->block<6, 6>(o, o) = pinocchio::exp6(pinocchio::Motion(-x)).toActionMatrix();
+      const lie::Mat6 J = lie::se3_jr(x);
+      Jr.block<6, 6>(o, o) = J;
+      Jinv.block<6, 6>(o, o) = J.inverse();
+    }
+  }
+}
+
+// Mdj = dJr(theta)[.] y: Mdj(a, l) = sum_b d Jr(a, b) / d theta_l y_b, so that
+// d(Jr^-1 v) = Jr^-1 (dv - Mdj dtheta) (rkmk4's module docstring).
+inline void djr_apply(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta, const Eigen::VectorXd& y,
+               Eigen::MatrixXd& Mdj) {
+  Mdj.setZero();
+  for (const JointGroup& g : groups) {
+    const int o = g.idx_v;
+    if (g.kind == SO3) {
+      lie::Mat3 Dl[3];
+      lie::so3_djr(theta.segment<3>(o), Dl);
+      for (int l = 0; l < 3; ++l) Mdj.block<3, 1>(o, o + l) = Dl[l] * y.segment<3>(o);
+    } else if (g.kind == SE3) {
+      lie::Mat6 Dl[6];
+      lie::se3_djr(theta.segment<6>(o), Dl);
+      for (int l = 0; l < 6; ++l) Mdj.block<6, 1>(o, o + l) = Dl[l] * y.segment<6>(o);
+    }
+  }
+}
+
+// N = dJr(theta)[.]^T s: N(i, l) = sum_j d Jr(j, i) / d theta_l s_j, so that
+// d/dtheta [Jr(theta)^-T p] = -Jr^-T N with s = Jr^-T p (variational.py's _dKT).
+inline void djr_transpose_apply(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta,
+                                const Eigen::VectorXd& s, Eigen::MatrixXd& N) {
+  N.setZero();
+  for (const JointGroup& g : groups) {
+    const int o = g.idx_v;
+    if (g.kind == SO3) {
+      lie::Mat3 Dl[3];
+      lie::so3_djr(theta.segment<3>(o), Dl);
+      for (int l = 0; l < 3; ++l) N.block<3, 1>(o, o + l) = Dl[l].transpose() * s.segment<3>(o);
+    } else if (g.kind == SE3) {
+      lie::Mat6 Dl[6];
+      lie::se3_djr(theta.segment<6>(o), Dl);
+      for (int l = 0; l < 6; ++l) N.block<6, 1>(o, o + l) = Dl[l].transpose() * s.segment<6>(o);
+    }
+  }
+}
+
+}  // namespace dyn
+}  // namespace geoddp

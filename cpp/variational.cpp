@@ -1,0 +1,260 @@
+// Forward variational Euler step and derivatives (see variational.hpp; twin of
+// src/geoddp/variational.py, whose names and order of operations this follows).
+#include "variational.hpp"
+
+#include <pinocchio/algorithm/aba.hpp>
+#include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/joint-configuration.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
+#include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+
+#include <Eigen/LU>
+#include <cmath>
+#include <cstdio>
+
+#include "joint_blocks.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+namespace {
+
+typedef Eigen::Map<const RowMat> CMatMap;
+typedef Eigen::Map<const Eigen::VectorXd> CVecMap;
+
+// Newton converges quadratically: once a correction is below 1e-9 relative, the velocity is exact
+// to round-off (variational.py's NEWTON_TOL, NEWTON_MAX_ITER).
+const double NEWTON_TOL = 1e-9;
+const int NEWTON_MAX_ITER = 30;
+
+void mass(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q, Eigen::MatrixXd& M) {
+  pinocchio::crba(*vm.model, w.data, q);
+  M = w.data.M;
+  M.triangularView<Eigen::StrictlyLower>() = M.transpose();
+}
+
+// D(q, x) = d(M(q) x)/dq, right-trivialised: RNEA's dtau/dq at (q, 0, x) without gravity.
+void Dmat(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q, const Eigen::VectorXd& x,
+          Eigen::MatrixXd& D) {
+  pinocchio::computeRNEADerivatives(vm.free_model, w.fdata, q, w.zero, x);
+  D = w.fdata.dtau_dq;
+}
+
+// Jr(x)^-1 into K (block-diagonal).
+void Kmat(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& x, Eigen::MatrixXd& K) {
+  blocks(vm.groups, x, nullptr, w.Jr, K);
+}
+
+// out = d/dx [K(x)^T p] for fixed p = -K^T dJr[.]^T (K^T p).
+void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& x, const Eigen::MatrixXd& K,
+         const Eigen::VectorXd& p, Eigen::MatrixXd& out) {
+  w.s.noalias() = K.transpose() * p;
+  djr_transpose_apply(vm.groups, x, w.s, w.N);
+  out.noalias() = -K.transpose() * w.N;
+}
+
+// d/deta [dL/dq(q exp(eta), v)] at eta = 0 into w.Hk: the kinetic part exact, 1/2 d/dq_j of
+// D(q, v)^T v = 1/2 sum_p v_p d2tau_p/dq_i dq_j (Pinocchio's second-order RNEA at (q, 0, v), no
+// gravity; the (i, j) order is that of differentiating the trivialised D along q exp(h e_j), as
+// the Python oracle's differences do), minus the generalised gravity's derivative.
+void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
+                        const Eigen::VectorXd& v) {
+  const int nv = vm.model->nv;
+  pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
+  const auto& T = w.fdata.d2tau_dqdq;
+  for (int i = 0; i < nv; ++i)
+    for (int j = 0; j < nv; ++j) {
+      double acc = 0.0;
+      for (int p = 0; p < nv; ++p) acc += v[p] * T(p, i, j);
+      w.Hk(i, j) = 0.5 * acc;
+    }
+  w.T.resize(nv, nv);  // reuse as the gravity derivative's buffer
+  w.T.setZero();
+  pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, q, w.T);
+  w.Hk -= w.T;
+}
+
+// R at y (into w.r) with K1 = K(-dt y) and D1 = D(q+, y); M1 = M(q+), g1 = g(q+), b fixed.
+void implicit_terms(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& qn,
+                    const Eigen::VectorXd& y, Eigen::VectorXd& r, Eigen::MatrixXd& K1, Eigen::MatrixXd& D1) {
+  const double dt = vm.dt;
+  Kmat(vm, w, -dt * y, K1);
+  Dmat(vm, w, qn, y, D1);
+  w.tmp.noalias() = w.M1 * y;
+  r.noalias() = K1.transpose() * w.tmp;
+  r.noalias() -= (0.5 * dt) * (D1.transpose() * y);
+  r += dt * w.g1 - w.b;
+}
+
+// R_y = K1^T M1 - dt d/dx[K(x)^T M1 y]|_(x = -dt y) - dt D1^T, into out.
+void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::MatrixXd& K1,
+                       const Eigen::MatrixXd& D1, const Eigen::VectorXd& y, Eigen::MatrixXd& out) {
+  const double dt = vm.dt;
+  w.tmp.noalias() = w.M1 * y;
+  dKT(vm, w, -dt * y, K1, w.tmp, w.S);
+  out.noalias() = K1.transpose() * w.M1;
+  out -= dt * w.S;
+  out.noalias() -= dt * D1.transpose();
+}
+
+// [R_eta, R_dv, R_y] at any (q, v, y), into J (nv, 3 nv).
+void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
+                       const Eigen::VectorXd& v, const Eigen::VectorXd& y, Eigen::MatrixXd& J) {
+  const Model& model = *vm.model;
+  const int nv = model.nv;
+  const double dt = vm.dt;
+  const Eigen::VectorXd omega = dt * v;
+  pinocchio::integrate(model, q, omega, w.qn);
+  blocks(vm.groups, omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
+  Kmat(vm, w, -dt * y, w.K1);
+  mass(vm, w, w.qn, w.M1);
+  Dmat(vm, w, w.qn, y, w.D1);
+  lagrangian_hessian(vm, w, w.qn, y);
+  Eigen::MatrixXd S = w.K1.transpose() * w.D1 - dt * w.Hk;  // dR/deta+
+  mass(vm, w, q, w.M0);
+  Dmat(vm, w, q, v, w.D0);
+  J.leftCols(nv).noalias() = S * w.A;
+  J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
+  w.tmp.noalias() = w.M0 * v;
+  dKT(vm, w, omega, w.K0, w.tmp, w.Kt);
+  J.middleCols(nv, nv).noalias() = dt * (S * w.Jv);
+  J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
+  J.middleCols(nv, nv) -= dt * w.Kt;
+  Eigen::MatrixXd Ry(nv, nv);
+  velocity_jacobian(vm, w, w.K1, w.D1, y, Ry);
+  J.rightCols(nv) = Ry;
+}
+
+}  // namespace
+
+VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_, double dt_)
+    : model(&model_), free_model(model_), groups(joint_groups(model_)), H(H_), m(m_), dt(dt_) {
+  free_model.gravity.setZero();
+}
+
+VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {
+  const int nv = vm.model->nv, nq = vm.model->nq;
+  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &T})
+    M->resize(nv, nv);
+  J.resize(nv, 3 * nv);
+  Jp.resize(nv, 3 * nv);
+  zero = Eigen::VectorXd::Zero(nv);
+  for (Eigen::VectorXd* x : {&y, &r, &g1, &b, &tmp, &vd, &yd, &s}) x->resize(nv);
+  qn.resize(nq);
+  qd.resize(nq);
+}
+
+void variational_step(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
+                      const Eigen::VectorXd& v, const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1) {
+  const Model& model = *vm.model;
+  const int nv = model.nv;
+  const double dt = vm.dt;
+  Eigen::VectorXd qn(model.nq);
+  pinocchio::integrate(model, q, dt * v, qn);
+  // b = K(dt v)^T M(q) v + dt tau: the y-independent part of R
+  Kmat(vm, w, dt * v, w.K0);
+  mass(vm, w, q, w.M0);
+  w.b.noalias() = w.K0.transpose() * (w.M0 * v);
+  w.b += dt * tau;
+  mass(vm, w, qn, w.M1);
+  w.g1 = pinocchio::computeGeneralizedGravity(model, w.data, qn);
+  // Start from the better of v and the explicit (symplectic) Euler velocity; damped Newton
+  // (backtracking on |R|) keeps stiff light links from throwing the iteration off.
+  Eigen::VectorXd y = v + dt * pinocchio::aba(model, w.data, qn, v, tau);
+  Eigen::VectorXd r(nv), r0(nv), rt(nv), yt(nv), dy(nv);
+  Eigen::MatrixXd K1(nv, nv), D1(nv, nv), Kx(nv, nv), Dx(nv, nv), Ry(nv, nv);
+  implicit_terms(vm, w, qn, y, r, K1, D1);
+  implicit_terms(vm, w, qn, v, r0, Kx, Dx);
+  if (!r.allFinite() || r0.norm() < r.norm()) {
+    y = v;
+    r = r0;
+    K1 = Kx;
+    D1 = Dx;
+  }
+  for (int it = 0; it < NEWTON_MAX_ITER; ++it) {
+    velocity_jacobian(vm, w, K1, D1, y, Ry);
+    dy = Ry.partialPivLu().solve(r);
+    const double norm_r = r.norm(), tol = NEWTON_TOL * (1.0 + y.norm());
+    double alpha = 1.0;
+    while (true) {
+      yt = y - alpha * dy;
+      implicit_terms(vm, w, qn, yt, rt, Kx, Dx);
+      if (rt.norm() < norm_r || alpha < 1e-6 || alpha * dy.norm() <= tol) break;
+      alpha *= 0.5;
+    }
+    y = yt;
+    r = rt;
+    K1 = Kx;
+    D1 = Dx;
+    if (!y.allFinite()) break;
+    if (alpha == 1.0 && dy.norm() <= NEWTON_TOL * (1.0 + y.norm())) {
+      q1 = qn;
+      v1 = y;
+      return;
+    }
+  }
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.3g", v.norm());
+  throw StepNotConverged(buf);
+}
+
+void variational_velocity_derivatives(const VariationalModel& vm, const double* Q, const double* V,
+                                      const double* Vnext, int N, int order, int threads, double* F1, double* F2) {
+  const Model& model = *vm.model;
+  const int nq = model.nq, nv = model.nv, m = vm.m, nz = 2 * nv + m, nw = 3 * nv;
+  const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
+  CMatMap Hm(vm.H, nv, m);
+  parallel_nodes(N, threads, [&](int begin, int end) {
+    VariationalWork w(vm);
+    Eigen::VectorXd q(nq), v(nv), y(nv), qp(nq), vp(nv), yp(nv), e(nw);
+    Eigen::MatrixXd Rz(nv, nz), F1k(nv, nz), Jm(nv, nw), Tj(nv, nw), P = Eigen::MatrixXd::Zero(nw, nz);
+    std::vector<Eigen::MatrixXd> T(nv, Eigen::MatrixXd(nw, nw));
+    Eigen::MatrixXd TP(nw, nz), PTP(nz, nz), stack(nv, (size_t)nz * nz), F2k(nv, (size_t)nz * nz);
+    for (int k = begin; k < end; ++k) {
+      q = CVecMap(Q + (size_t)k * nq, nq);
+      v = CVecMap(V + (size_t)k * nv, nv);
+      y = CVecMap(Vnext + (size_t)k * nv, nv);
+      residual_jacobian(vm, w, q, v, y, w.J);
+      const Eigen::PartialPivLU<Eigen::MatrixXd> lu(w.J.rightCols(nv));
+      Rz.leftCols(2 * nv) = w.J.leftCols(2 * nv);
+      Rz.rightCols(m) = -dt * Hm;
+      F1k = -lu.solve(Rz);
+      Eigen::Map<RowMat>(F1 + (size_t)k * nv * nz, nv, nz) = F1k;
+      if (order < 2) continue;
+      // R_ww by central differences of the analytic Jacobian along w = (eta, dv, y): T[i](a, j)
+      for (int j = 0; j < nw; ++j) {
+        e.setZero();
+        e[j] = h;
+        pinocchio::integrate(model, q, e.head(nv), qp);
+        residual_jacobian(vm, w, qp, v + e.segment(nv, nv), y + e.tail(nv), w.Jp);
+        pinocchio::integrate(model, q, -e.head(nv), qp);
+        residual_jacobian(vm, w, qp, v - e.segment(nv, nv), y - e.tail(nv), Jm);
+        Tj = (w.Jp - Jm) / (2.0 * h);
+        for (int i = 0; i < nv; ++i) T[i].col(j) = Tj.row(i).transpose();
+      }
+      // Differentiating the right-trivialised Jacobian along integrate(q, h e_j) adds an
+      // antisymmetric bracket term to the eta-eta block: the symmetric part is the (0)-Hessian.
+      // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1].
+      P.topLeftCorner(2 * nv, 2 * nv).setIdentity();
+      P.bottomRows(nv) = F1k;
+      for (int i = 0; i < nv; ++i) {
+        const Eigen::MatrixXd Ts = 0.5 * (T[i] + T[i].transpose());
+        TP.noalias() = Ts * P;
+        PTP.noalias() = P.transpose() * TP;
+        for (int a = 0; a < nz; ++a)
+          for (int b = 0; b < nz; ++b) stack(i, (size_t)a * nz + b) = PTP(a, b);
+      }
+      F2k = -lu.solve(stack);
+      // exactly symmetric, as the Python oracle's F2 (P^T T P is symmetric up to round-off)
+      double* out = F2 + (size_t)k * nv * nz * nz;
+      for (int i = 0; i < nv; ++i)
+        for (int a = 0; a < nz; ++a)
+          for (int b = 0; b < nz; ++b)
+            out[((size_t)i * nz + a) * nz + b] = 0.5 * (F2k(i, (size_t)a * nz + b) + F2k(i, (size_t)b * nz + a));
+    }
+  });
+}
+
+}  // namespace dyn
+}  // namespace geoddp

@@ -1,0 +1,68 @@
+// The paper's forward variational Euler step (implicit transition dynamics, eq. disceq1/receq1/
+// dynamicseq1) on a Pinocchio model, and its derivatives by implicit differentiation (eq. firstimp
+// and the Hessian after it): C++ twin of geoddp.variational.VariationalEuler (module docstring
+// there for the residual R(q, v, y, u) = 0 that defines y = v+).
+//
+// What the compiled version computes exactly where the Python one differences: the trivialised
+// Hessian of the kinetic energy in q (the q-derivative of D(q, y)^T y, D = d(M(q) y)/dq) comes
+// from Pinocchio's ComputeRNEASecondOrderDerivatives at (q, 0, y) on the gravity-free model
+// instead of central differences of D. So the residual's Jacobian [R_eta, R_dv, R_y] is analytic
+// throughout, and the second-order term R_ww is one central difference of it (not the Python
+// oracle's difference of a difference): F2 = -R_y^-1 P^T R_ww P.
+//
+// Arrays as in dynamics.hpp: float64, row-major; z = (dq, dv, du), nz = 2 nv + m.
+#pragma once
+
+#include <pinocchio/multibody.hpp>
+
+#include <Eigen/Core>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dynamics.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+// Newton's method for the implicit velocity update did not converge (dt too large). what() is
+// |v| at the step, formatted %.3g (the Python wrapper writes the message, naming dt).
+struct StepNotConverged : std::runtime_error {
+  explicit StepNotConverged(const std::string& what) : std::runtime_error(what) {}
+};
+
+// Central-difference step of R_ww: the Jacobian differenced is analytic (round-off ~1e-16 / h,
+// truncation ~h^2: both ~1e-10 at 1e-5).
+constexpr double VARIATIONAL_FD_STEP = 1e-5;
+
+// The model and its gravity-free copy (for D(q, w)), shared read-only by every worker.
+struct VariationalModel {
+  const Model* model;
+  Model free_model;
+  std::vector<JointGroup> groups;
+  const double* H;  // (nv, m) row-major
+  int m;
+  double dt;
+  VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
+};
+
+// Per-worker scratch.
+struct VariationalWork {
+  pinocchio::Data data, fdata;
+  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, J, Jp, T, Pw, PT;
+  Eigen::VectorXd zero, qn, y, r, g1, b, tmp, qd, vd, yd, s;
+  explicit VariationalWork(const VariationalModel& vm);
+};
+
+// One step: q (nq), v (nv), tau (nv) -> q1 (nq), v1 (nv). Throws StepNotConverged.
+void variational_step(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
+                      const Eigen::VectorXd& v, const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1);
+
+// Derivatives of v+ at N nodes by implicit differentiation: Q (N, nq), V (N, nv), Vnext (N, nv)
+// the solved v+, -> F1 (N, nv, nz) and for order 2 F2 (N, nv, nz, nz) (symmetric (0)-Hessian).
+// The controls enter R only affinely (through b), so neither F1 nor F2 depends on them.
+void variational_velocity_derivatives(const VariationalModel& vm, const double* Q, const double* V,
+                                      const double* Vnext, int N, int order, int threads, double* F1, double* F2);
+
+}  // namespace dyn
+}  // namespace geoddp
