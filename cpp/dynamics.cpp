@@ -183,7 +183,11 @@ bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, con
     }
     Uo.row(k) = u.transpose();
     tau = Hm * u;
-    step(s, data, groups, var.get(), q, v, tau, q1, v1);
+    try {
+      step(s, data, groups, var.get(), q, v, tau, q1, v1);
+    } catch (const StepNotConverged&) {
+      return false;  // a trial whose implicit step has no solution: rejected like a non-finite one
+    }
     if (!all_finite(q1) || !all_finite(v1)) return false;
     Qo.row(k + 1) = q1.transpose();
     Vo.row(k + 1) = v1.transpose();

@@ -55,7 +55,8 @@ void rollout(const Setup& s, const double* q0, const double* v0, const double* U
 // Forward pass of Algorithm 1 (eq. dustar): u_k = u_bar_k - gamma k_k - K_k zeta_k, zeta_k =
 // (difference(q_bar_k, q_k) with exact SO(2) entries, v_k - v_bar_k). Qbar (N+1, nq), Vbar
 // (N+1, nv), Ubar (N, m), kff (N, m), K (N, m, 2 nv); writes Qout, Vout (N+1, .), Uout (N, m).
-// Returns false (and stops) as soon as a state is non-finite, as the Python path does.
+// Returns false (and stops) as soon as a state is non-finite or, with the variational step, an
+// implicit step does not converge (a trial the line search rejects), as the Python path does.
 // With control limits lower, upper (N, m) (issue 15; both or neither), u_k is clamped into
 // [lower_k, upper_k] after the feedback law, before it is applied and stored (NaN stays NaN).
 bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, const double* Qbar,

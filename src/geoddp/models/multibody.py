@@ -427,7 +427,9 @@ class Multibody:
         lower: np.ndarray | None = None, upper: np.ndarray | None = None,
     ) -> bool:
         """Forward pass of Algorithm 1 (eq. dustar) from (q0, v0): u_k = u_bar_k - gamma k_k - K_k
-        zeta_k with zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite.
+        zeta_k with zeta_k = local(x_bar_k, x_k). Returns False if the state became non-finite or
+        (variational integrator) an implicit step did not converge: the line search rejects the
+        trial. The open-loop :meth:`rollout` raises StepDidNotConverge instead.
 
         Shapes: Q_bar, Q_out (H+1, nq); V_bar, V_out (H+1, nv); u_bar, k_ff, u_out (H, m);
         K_fb (H, m, 2 nv). With control limits lower, upper (H, m), u_k is clamped into the box
@@ -436,7 +438,7 @@ class Multibody:
         if self.backend == "compiled":
             nq, nv, m = self.nq, self.nv, self.nu
             ca, co = compiled.check_array, compiled.check_output
-            with self._step_errors():
+            with self._step_errors():  # (the core returns False on a step that does not converge)
                 return compiled._core.rollout_closed_loop(
                     self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
                     ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
@@ -451,7 +453,10 @@ class Multibody:
             if lower is not None:  # np.minimum/maximum propagate NaN, as the compiled clamp does
                 u = np.minimum(np.maximum(u, lower[k]), upper[k])
             u_out[k] = u
-            q1, v1 = self._step(data, Q_out[k], V_out[k], u)
+            try:
+                q1, v1 = self._step(data, Q_out[k], V_out[k], u)
+            except variational.StepDidNotConverge:
+                return False  # a trial whose implicit step has no solution: rejected like a non-finite one
             if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
                 return False
             Q_out[k + 1], V_out[k + 1] = q1, v1
