@@ -409,8 +409,6 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   const double dt = s.dt;
   const bool semi = s.integrator == SEMI_IMPLICIT;
   const std::vector<JointGroup> groups = joint_groups(model);
-  if (s.integrator == VARIATIONAL)
-    throw std::invalid_argument("integrator: the variational expansion is variational_velocity_derivatives + the reconstruction");
   if (s.integrator == RK4) {
     parallel_for(N, threads, [&](int b, int e, int) {
       Rk4Work w(model, m);
@@ -432,8 +430,14 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   lie::so3_structure(C3);
   lie::se3_structure(C6);
   CMatMap Hm(s.H, nv, m);
+  // the variational step: its own velocity derivatives (dense F2), the explicit-Euler reconstruction
+  const std::unique_ptr<VariationalModel> vmod =
+      s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
   parallel_for(N, threads, [&](int b0, int e0, int) {
     NodeWork w(model, m);
+    const std::unique_ptr<VariationalNodeWork> vw = vmod ? std::make_unique<VariationalNodeWork>(*vmod) : nullptr;
+    RowMat F2d(vw && order >= 2 ? nv : 0, (Eigen::Index)nz * nz);
+    Eigen::VectorXd ynext(vw ? nv : 0);
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
     RowMat A(nv, nv), Jr(nv, nv), G2(order >= 2 ? n : 0, (Eigen::Index)nz * nz);
     RowMat Ds, Cp, Mz, WDW;  // per-group scratch (reused: no allocation per node)
@@ -444,7 +448,12 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
       w.q = CVecMap(Q + (size_t)k * nq, nq);
       w.v = CVecMap(V + (size_t)k * nv, nv);
       w.tau = Hm * CVecMap(U + (size_t)k * m, m);
-      node_derivatives(s, w, F1.data(), order >= 2);
+      if (vw) {
+        ynext = CVecMap(V + (size_t)(k + 1) * nv, nv);
+        variational_node(*vmod, *vw, w.q, w.v, ynext, F1.data(), order >= 2 ? F2d.data() : nullptr);
+      } else {
+        node_derivatives(s, w, F1.data(), order >= 2);
+      }
       // reconstruction velocity w_bar: v_k (euler) or v_{k+1} (semi-implicit)
       omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), order >= 2 ? Dt.data() : nullptr);
@@ -495,7 +504,10 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
       // velocity update: F2 (symmetric, zero off the active pairs) in the bottom rows and, for
       // the semi-implicit reconstruction, dt Jr F2 in the top rows (Jr is the identity outside
       // the SO(3)/SE(3) blocks, so only those blocks multiply)
-      const int np = w.pairs.count();
+      if (vw) {  // the variational step's dense F2; its reconstruction is explicit Euler's
+        for (int p = 0; p < nv; ++p) G2.row(nv + p) = F2d.row(p);
+      }
+      const int np = vw ? 0 : w.pairs.count();
       if (semi) {
         JF2u = dt * w.F2u;
         for (const JointGroup& g : groups)

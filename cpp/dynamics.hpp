@@ -26,8 +26,8 @@ typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> R
 
 // RK4: the Runge-Kutta-Munthe-Kaas step of cpp/rkmk4.hpp (rollout, forward pass, expansion; not
 // velocity_derivatives or the factored second order, which are the Euler schemes' structure).
-// VARIATIONAL: the forward variational Euler step of cpp/variational.hpp (rollout and forward pass
-// here; its velocity derivatives through variational_velocity_derivatives).
+// VARIATIONAL: the forward variational Euler step of cpp/variational.hpp (rollout, forward pass and
+// expansion: its implicit velocity derivatives with the explicit-Euler reconstruction).
 enum Integrator { EULER = 0, SEMI_IMPLICIT = 1, RK4 = 2, VARIATIONAL = 3 };
 
 // One joint's Lie group (geoddp.configuration.JointGroup): kind 0 vector, 1 so2, 2 so3, 3 se3.

@@ -199,59 +199,80 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   throw StepNotConverged(buf);
 }
 
-void variational_velocity_derivatives(const VariationalModel& vm, const double* Q, const double* V,
-                                      const double* Vnext, int N, int order, int threads, double* F1, double* F2) {
+VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
+  const int nq = vm.model->nq, nv = vm.model->nv, nz = 2 * nv + vm.m, nw = 3 * nv;
+  qp.resize(nq);
+  e.resize(nw);
+  Rz.resize(nv, nz);
+  F1k.resize(nv, nz);
+  Jm.resize(nv, nw);
+  Tj.resize(nv, nw);
+  P = Eigen::MatrixXd::Zero(nw, nz);
+  P.topLeftCorner(2 * nv, 2 * nv).setIdentity();
+  TP.resize(nw, nz);
+  PTP.resize(nz, nz);
+  stack.resize(nv, (Eigen::Index)nz * nz);
+  F2k.resize(nv, (Eigen::Index)nz * nz);
+  T.assign(nv, Eigen::MatrixXd(nw, nw));
+}
+
+void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
+                      const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* F2) {
   const Model& model = *vm.model;
-  const int nq = model.nq, nv = model.nv, m = vm.m, nz = 2 * nv + m, nw = 3 * nv;
+  const int nv = model.nv, m = vm.m, nz = 2 * nv + m, nww = 3 * nv;
   const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
   CMatMap Hm(vm.H, nv, m);
+  VariationalWork& w = nw.w;
+  residual_jacobian(vm, w, q, v, y, w.J);
+  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(w.J.rightCols(nv));
+  nw.Rz.leftCols(2 * nv) = w.J.leftCols(2 * nv);
+  nw.Rz.rightCols(m) = -dt * Hm;
+  nw.F1k = -lu.solve(nw.Rz);
+  Eigen::Map<RowMat>(F1, nv, nz) = nw.F1k;
+  if (F2 == nullptr) return;
+  // R_ww by central differences of the analytic Jacobian along w = (eta, dv, y): T[i](a, j)
+  for (int j = 0; j < nww; ++j) {
+    nw.e.setZero();
+    nw.e[j] = h;
+    pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
+    residual_jacobian(vm, w, nw.qp, v + nw.e.segment(nv, nv), y + nw.e.tail(nv), w.Jp);
+    pinocchio::integrate(model, q, -nw.e.head(nv), nw.qp);
+    residual_jacobian(vm, w, nw.qp, v - nw.e.segment(nv, nv), y - nw.e.tail(nv), nw.Jm);
+    nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
+  }
+  // Differentiating the right-trivialised Jacobian along integrate(q, h e_j) adds an
+  // antisymmetric bracket term to the eta-eta block: the symmetric part is the (0)-Hessian.
+  // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1].
+  nw.P.bottomRows(nv) = nw.F1k;
+  for (int i = 0; i < nv; ++i) {
+    const Eigen::MatrixXd Ts = 0.5 * (nw.T[i] + nw.T[i].transpose());
+    nw.TP.noalias() = Ts * nw.P;
+    nw.PTP.noalias() = nw.P.transpose() * nw.TP;
+    for (int a = 0; a < nz; ++a)
+      for (int b = 0; b < nz; ++b) nw.stack(i, (Eigen::Index)a * nz + b) = nw.PTP(a, b);
+  }
+  nw.F2k = -lu.solve(nw.stack);
+  // exactly symmetric, as the Python oracle's F2 (P^T T P is symmetric up to round-off)
+  for (int i = 0; i < nv; ++i)
+    for (int a = 0; a < nz; ++a)
+      for (int b = 0; b < nz; ++b)
+        F2[((size_t)i * nz + a) * nz + b] =
+            0.5 * (nw.F2k(i, (Eigen::Index)a * nz + b) + nw.F2k(i, (Eigen::Index)b * nz + a));
+}
+
+void variational_velocity_derivatives(const VariationalModel& vm, const double* Q, const double* V,
+                                      const double* Vnext, int N, int order, int threads, double* F1, double* F2) {
+  const int nq = vm.model->nq, nv = vm.model->nv, nz = 2 * nv + vm.m;
   parallel_nodes(N, threads, [&](int begin, int end) {
-    VariationalWork w(vm);
-    Eigen::VectorXd q(nq), v(nv), y(nv), qp(nq), vp(nv), yp(nv), e(nw);
-    Eigen::MatrixXd Rz(nv, nz), F1k(nv, nz), Jm(nv, nw), Tj(nv, nw), P = Eigen::MatrixXd::Zero(nw, nz);
-    std::vector<Eigen::MatrixXd> T(nv, Eigen::MatrixXd(nw, nw));
-    Eigen::MatrixXd TP(nw, nz), PTP(nz, nz), stack(nv, (size_t)nz * nz), F2k(nv, (size_t)nz * nz);
+    VariationalNodeWork nw(vm);
+    Eigen::VectorXd q(nq), v(nv), y(nv);
     for (int k = begin; k < end; ++k) {
       q = CVecMap(Q + (size_t)k * nq, nq);
       v = CVecMap(V + (size_t)k * nv, nv);
       y = CVecMap(Vnext + (size_t)k * nv, nv);
-      residual_jacobian(vm, w, q, v, y, w.J);
-      const Eigen::PartialPivLU<Eigen::MatrixXd> lu(w.J.rightCols(nv));
-      Rz.leftCols(2 * nv) = w.J.leftCols(2 * nv);
-      Rz.rightCols(m) = -dt * Hm;
-      F1k = -lu.solve(Rz);
-      Eigen::Map<RowMat>(F1 + (size_t)k * nv * nz, nv, nz) = F1k;
-      if (order < 2) continue;
-      // R_ww by central differences of the analytic Jacobian along w = (eta, dv, y): T[i](a, j)
-      for (int j = 0; j < nw; ++j) {
-        e.setZero();
-        e[j] = h;
-        pinocchio::integrate(model, q, e.head(nv), qp);
-        residual_jacobian(vm, w, qp, v + e.segment(nv, nv), y + e.tail(nv), w.Jp);
-        pinocchio::integrate(model, q, -e.head(nv), qp);
-        residual_jacobian(vm, w, qp, v - e.segment(nv, nv), y - e.tail(nv), Jm);
-        Tj = (w.Jp - Jm) / (2.0 * h);
-        for (int i = 0; i < nv; ++i) T[i].col(j) = Tj.row(i).transpose();
-      }
-      // Differentiating the right-trivialised Jacobian along integrate(q, h e_j) adds an
-      // antisymmetric bracket term to the eta-eta block: the symmetric part is the (0)-Hessian.
-      // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1].
-      P.topLeftCorner(2 * nv, 2 * nv).setIdentity();
-      P.bottomRows(nv) = F1k;
-      for (int i = 0; i < nv; ++i) {
-        const Eigen::MatrixXd Ts = 0.5 * (T[i] + T[i].transpose());
-        TP.noalias() = Ts * P;
-        PTP.noalias() = P.transpose() * TP;
-        for (int a = 0; a < nz; ++a)
-          for (int b = 0; b < nz; ++b) stack(i, (size_t)a * nz + b) = PTP(a, b);
-      }
-      F2k = -lu.solve(stack);
-      // exactly symmetric, as the Python oracle's F2 (P^T T P is symmetric up to round-off)
-      double* out = F2 + (size_t)k * nv * nz * nz;
-      for (int i = 0; i < nv; ++i)
-        for (int a = 0; a < nz; ++a)
-          for (int b = 0; b < nz; ++b)
-            out[((size_t)i * nz + a) * nz + b] = 0.5 * (F2k(i, (size_t)a * nz + b) + F2k(i, (size_t)b * nz + a));
+      variational_node(vm, nw, q, v, y, F1 + (size_t)k * nv * nz,
+                       order >= 2 ? F2 + (size_t)k * nv * nz * nz : nullptr);
     }
   });
 }

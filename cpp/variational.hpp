@@ -58,6 +58,20 @@ struct VariationalWork {
 void variational_step(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                       const Eigen::VectorXd& v, const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1);
 
+// Scratch of variational_node beyond VariationalWork (the second order's buffers).
+struct VariationalNodeWork {
+  VariationalWork w;
+  Eigen::VectorXd qp, e;
+  Eigen::MatrixXd Rz, F1k, Jm, Tj, P, TP, PTP, stack, F2k;
+  std::vector<Eigen::MatrixXd> T;
+  explicit VariationalNodeWork(const VariationalModel& vm);
+};
+
+// One node: F1 (nv, nz) row-major and, if F2 != nullptr, F2 (nv, nz, nz) row-major, symmetric,
+// at (q, v) with the solved v+ = y.
+void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
+                      const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* F2);
+
 // Derivatives of v+ at N nodes by implicit differentiation: Q (N, nq), V (N, nv), Vnext (N, nv)
 // the solved v+, -> F1 (N, nv, nz) and for order 2 F2 (N, nv, nz, nz) (symmetric (0)-Hessian).
 // The controls enter R only affinely (through b), so neither F1 nor F2 depends on them.

@@ -450,10 +450,32 @@ def test_variational_threads_give_identical_results():
     for t in (2, 3, 0):
         for a, b in zip(one, _var_F(cc, Q[:-1], V[:-1], V[1:], 2, t)):
             assert np.array_equal(a, b)
-    for integrator in ("expansion", "expansion_contracted"):
-        with pytest.raises(ValueError, match="integrator"):
-            args = (cc.pin_model, cc.actuation, cc.dt, core.VARIATIONAL, Q, V, U)
-            getattr(core, integrator)(*args, *((2, 0) if integrator == "expansion" else (0,)))
+    with pytest.raises(ValueError, match="integrator"):
+        core.expansion_contracted(cc.pin_model, cc.actuation, cc.dt, core.VARIATIONAL, Q, V, U, 0)
+
+
+@pytest.mark.parametrize("case", CASES, ids=IDS)
+def test_variational_expansion_equals_python(case, monkeypatch):
+    """The core's whole expansion (its F1, F2 and the explicit-Euler reconstruction in C++) equals
+    the Python reconstruction fed the core's F1, F2 (tight), and the Python oracle (at its
+    accuracy)."""
+    py, cc = _models(case, "variational")
+    q0, v0, _ = _state(py, 41)
+    U = np.random.default_rng(42).normal(size=(3, py.nu))
+    Q, V = py.rollout(q0, v0, U)
+    e1, e2 = cc.expansion(Q, V, U, order=1), cc.expansion(Q, V, U, order=2)
+    assert e1.Theta is None and np.array_equal(e1.Phi, e2.Phi) and np.array_equal(e1.B, e2.B)
+    exact = _var_F(cc, Q[:-1], V[:-1], V[1:])
+    monkeypatch.setattr(type(py._variational), "velocity_derivatives", lambda self, *a, **k: exact)
+    ef = py.expansion(Q, V, U, order=2)
+    assert _rel(e2.Phi, ef.Phi) < 1e-13 and _rel(e2.B, ef.B) < 1e-13
+    for name in ("Theta", "Gamma", "Xi"):
+        assert _rel(getattr(e2, name), getattr(ef, name)) < 1e-12, name
+    monkeypatch.undo()
+    ep = py.expansion(Q, V, U, order=2)
+    assert _rel(e2.Phi, ep.Phi) < 1e-10 and _rel(e2.B, ep.B) < 1e-10
+    for name in ("Theta", "Gamma", "Xi"):
+        assert _rel(getattr(e2, name), getattr(ep, name)) < 2e-6, name
 
 
 def test_variational_step_that_cannot_converge_raises_or_rejects_the_trial():

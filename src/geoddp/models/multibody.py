@@ -614,7 +614,7 @@ class Multibody:
             Phi, B, terms = compiled._core.expansion_contracted(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, self.threads)
             return integ.Expansion(Phi=Phi, B=B, terms=terms)
-        if self.backend == "compiled" and self._variational is None:
+        if self.backend == "compiled":
             Phi, B, Theta, Gamma, Xi = compiled._core.expansion(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, order, self.threads)
             return integ.Expansion(Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi)
@@ -622,10 +622,7 @@ class Multibody:
         n, nz = 2 * nv, 2 * nv + m
         if self.integrator == "rk4":
             return self._expansion_rk4(Q, V, U, order)
-        if self._variational is not None and self.backend == "compiled":
-            F1, F2 = compiled._core.variational_velocity_derivatives(
-                self.pin_model, self.actuation, self.dt, Q[:H], V[:H], V[1:], order, self.threads)
-        elif self._variational is not None:
+        if self._variational is not None:
             # Implicit velocity update, explicit-Euler reconstruction q+ = q exp(dt v).
             F1, F2 = self._variational.velocity_derivatives(Q[:H], V[:H], V[1:], U, order)
         else:
