@@ -1,5 +1,6 @@
-// Multibody dynamics kernels (see dynamics.hpp). One translation unit holds every Pinocchio
-// template instantiation the core needs, to keep the compile time small.
+// Multibody dynamics kernels (see dynamics.hpp). Compiled in one translation unit with rkmk4.cpp
+// and variational.cpp (core_algorithms.cpp), which holds every Pinocchio template instantiation
+// the core needs, to keep the compile time small.
 #include "dynamics.hpp"
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
@@ -22,10 +23,6 @@
 namespace geoddp {
 namespace dyn {
 
-typedef Eigen::Map<const Eigen::VectorXd> CVecMap;
-typedef Eigen::Map<Eigen::VectorXd> VecMap;
-typedef Eigen::Map<const RowMat> CMatMap;
-typedef Eigen::Map<RowMat> MatMap;
 
 std::vector<JointGroup> joint_groups(const Model& model) {
   std::vector<JointGroup> out;

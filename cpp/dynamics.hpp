@@ -23,6 +23,10 @@ namespace dyn {
 
 typedef pinocchio::Model Model;
 typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
+typedef Eigen::Map<const Eigen::VectorXd> CVecMap;
+typedef Eigen::Map<Eigen::VectorXd> VecMap;
+typedef Eigen::Map<const RowMat> CMatMap;
+typedef Eigen::Map<RowMat> MatMap;
 
 // RK4: the Runge-Kutta-Munthe-Kaas step of cpp/rkmk4.hpp (rollout, forward pass, expansion; not
 // velocity_derivatives or the factored second order, which are the Euler schemes' structure).

@@ -14,7 +14,6 @@ namespace dyn {
 
 namespace {
 
-typedef Eigen::Map<const RowMat> CMatMap;
 
 // The classical tableau: stage offsets c_i and weights w_i (times h / 6).
 const double C_STAGE[4] = {0.0, 0.5, 0.5, 1.0};

@@ -20,8 +20,6 @@ namespace dyn {
 
 namespace {
 
-typedef Eigen::Map<const RowMat> CMatMap;
-typedef Eigen::Map<const Eigen::VectorXd> CVecMap;
 
 // Newton converges quadratically: once a correction is below 1e-9 relative, the velocity is exact
 // to round-off (variational.py's NEWTON_TOL, NEWTON_MAX_ITER).
