@@ -164,16 +164,21 @@ def test_velocity_second_derivatives_exact(case):
         assert np.array_equal(F2c, np.swapaxes(F2c, 2, 3))
 
 
-def test_threads_give_identical_results():
-    py, cc = _models(CASES[3], "semi_implicit")
+@pytest.mark.parametrize("integrator, H", [("semi_implicit", 17), ("rk4", 5), ("variational", 5)])
+def test_threads_give_identical_results(integrator, H):
+    py, cc = _models(CASES[3], integrator)
     q0, v0, _ = _state(py, 8)
-    U = np.random.default_rng(9).normal(size=(17, py.nu))
+    U = np.random.default_rng(9).normal(size=(H, py.nu))
     Q, V = cc.rollout(q0, v0, U)
-    one = core.expansion(cc.pin_model, cc.actuation, cc.dt, 1, Q, V, U, 2, 1)
+    code = compiled.INTEGRATORS[integrator]
+    one = core.expansion(cc.pin_model, cc.actuation, cc.dt, code, Q, V, U, 2, 1)
     for t in (2, 3, 0):
-        other = core.expansion(cc.pin_model, cc.actuation, cc.dt, 1, Q, V, U, 2, t)
+        other = core.expansion(cc.pin_model, cc.actuation, cc.dt, code, Q, V, U, 2, t)
         for a, b in zip(one, other):
             assert np.array_equal(a, b)
+    if integrator not in compiled.CONTRACTED_INTEGRATORS:  # their second order is formed, never factored
+        with pytest.raises(ValueError, match="integrator"):
+            core.expansion_contracted(cc.pin_model, cc.actuation, cc.dt, code, Q, V, U, 0)
 
 
 # ---------------------------------------------------------------------------- reconstruction
@@ -362,20 +367,6 @@ def test_rk4_expansion_against_differences_of_the_compiled_step(case):
     assert np.abs(T - ref).max() < 2e-6 * max(1.0, np.abs(ref).max())
 
 
-def test_rk4_threads_give_identical_results():
-    _, cc = _models(CASES[3], "rk4")
-    q0, v0, _ = _state(cc, 8)
-    U = np.random.default_rng(9).normal(size=(5, cc.nu))
-    Q, V = cc.rollout(q0, v0, U)
-    one = core.expansion(cc.pin_model, cc.actuation, cc.dt, core.RK4, Q, V, U, 2, 1)
-    for t in (2, 3, 0):
-        other = core.expansion(cc.pin_model, cc.actuation, cc.dt, core.RK4, Q, V, U, 2, t)
-        for a, b in zip(one, other):
-            assert np.array_equal(a, b)
-    with pytest.raises(ValueError, match="integrator"):
-        core.expansion_contracted(cc.pin_model, cc.actuation, cc.dt, core.RK4, Q, V, U, 0)
-
-
 @pytest.mark.parametrize("integrator", ["rk4", "variational"])
 def test_solve_equals_python(integrator, monkeypatch):
     """A whole switch solve with rk4 or the variational step (first- and second-order iterations,
@@ -441,19 +432,6 @@ def test_variational_velocity_derivatives_equal_python_and_differences(case):
         D[:, :, j] = (4 * c2 - c1) / 3
     ref = 0.5 * (D + np.swapaxes(D, 1, 2))
     assert np.abs(F2c[k] - ref).max() / scale < 1e-7
-
-
-def test_variational_threads_give_identical_results():
-    _, cc = _models(CASES[3], "variational")
-    q0, v0, _ = _state(cc, 8)
-    U = np.random.default_rng(9).normal(size=(5, cc.nu))
-    Q, V = cc.rollout(q0, v0, U)
-    one = _var_F(cc, Q[:-1], V[:-1], V[1:], 2, 1)
-    for t in (2, 3, 0):
-        for a, b in zip(one, _var_F(cc, Q[:-1], V[:-1], V[1:], 2, t)):
-            assert np.array_equal(a, b)
-    with pytest.raises(ValueError, match="integrator"):
-        core.expansion_contracted(cc.pin_model, cc.actuation, cc.dt, core.VARIATIONAL, Q, V, U, 0)
 
 
 @pytest.mark.parametrize("case", CASES, ids=IDS)

@@ -37,7 +37,6 @@ GEODDP_MULTIBODY_BACKEND=python makes "auto" pick "python".
 from __future__ import annotations
 
 import contextlib
-
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -176,15 +175,11 @@ class Multibody:
             self.threads = threads_from_environment()
         if not isinstance(self.contract, (bool, np.bool_)):
             raise InputError("contract", f"expected True or False, got {self.contract!r}")
-        supported = self.integrator in compiled.INTEGRATORS
-        if self.backend == "auto":
+        if self.backend == "auto":  # the core runs every integrator
             # GEODDP_MULTIBODY_BACKEND=python forces the oracle everywhere (scene files, CLI).
             forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
-            self.backend = "compiled" if supported and compiled.available() and forced != "python" else "python"
+            self.backend = "compiled" if compiled.available() and forced != "python" else "python"
         elif self.backend == "compiled":
-            if not supported:
-                raise InputError("backend", f"expected 'python' or 'auto' for integrator {self.integrator!r} (the compiled "
-                                 "core runs 'euler', 'semi_implicit' and 'rk4'), got 'compiled'")
             compiled.require()
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
@@ -438,13 +433,12 @@ class Multibody:
         if self.backend == "compiled":
             nq, nv, m = self.nq, self.nv, self.nu
             ca, co = compiled.check_array, compiled.check_output
-            with self._step_errors():  # (the core returns False on a step that does not converge)
-                return compiled._core.rollout_closed_loop(
-                    self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
-                    ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
-                    ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
-                    co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)),
-                    *(() if lower is None else (ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m)))))
+            return compiled._core.rollout_closed_loop(  # False on a step that does not converge
+                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
+                ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
+                ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
+                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)),
+                *(() if lower is None else (ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m)))))
         data = self._data
         Q_out[0], V_out[0] = q0, v0
         for k in range(H):
