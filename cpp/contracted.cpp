@@ -1,6 +1,7 @@
 // Contraction of the factored second-order terms with V_x' and the backward pass using it (see
 // contracted.hpp). Eigen only: no Pinocchio algorithm is instantiated here.
 #include "contracted.hpp"
+#include "riccati_blocks.hpp"
 #include "small_cholesky.hpp"
 
 #include <cmath>
@@ -92,6 +93,8 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
 using smallchol::cholesky_inplace;
 using smallchol::cholesky_solve;
 using smallchol::upper_to_full;
+using ric::add_xt_y_upper;
+using ric::q_blocks;
 
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
@@ -104,19 +107,9 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
   *d1 = 0.0;
   *d2 = 0.0;
   for (int k = H - 1; k >= 0; --k) {
-    CMat P(Phi + (size_t)k * n * n, n, n), Bk(B + (size_t)k * n * m, n, m);
-    VxxPhi.noalias() = Vxx * P;
-    VxxB.noalias() = Vxx * Bk;
-    Qx = CVec(lx + (size_t)k * n, n);
-    Qx.noalias() += P.transpose() * Vx;
-    Qu = CVec(lu + (size_t)k * m, m);
-    Qu.noalias() += Bk.transpose() * Vx;
-    Qxx = CMat(lxx + (size_t)k * n * n, n, n);
-    Qxx.noalias() += P.transpose() * VxxPhi;
-    Qux = CMat(lux + (size_t)k * m * n, m, n);
-    Qux.noalias() += Bk.transpose() * VxxPhi;
-    Quu = CMat(luu + (size_t)k * m * m, m, m);
-    Quu.noalias() += Bk.transpose() * VxxB;
+    q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
+             lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
+             Qxx, Qux, Quu);
     // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted
     contract(t, k, Vx.data(), S);
     Qxx += S.topLeftCorner(n, n);
@@ -145,7 +138,7 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
     Vx = Qx;
     Vx.noalias() -= Qux.transpose() * kk;
     Vxx = Qxx;
-    Vxx.noalias() -= Qux.transpose() * KK;
+    add_xt_y_upper(-1.0, Qux, KK, Vxx);
     upper_to_full(Vxx);
   }
   *d1 = s1;

@@ -15,6 +15,7 @@
 #include "variational.hpp"
 #include "pin_model.hpp"
 #include "riccati.hpp"
+#include "small_gemm.hpp"
 
 namespace geoddp {
 void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
@@ -65,6 +66,24 @@ PYBIND11_MODULE(_core, m) {
   py::register_exception<geoddp::dyn::StepNotConverged>(m, "StepDidNotConverge", PyExc_ArithmeticError);
 
   m.def("default_threads", &geoddp::dyn::default_threads, "Worker threads used when threads <= 0.");
+  m.def("gemm_isa", &geoddp::gemm::isa, "Which build of the Riccati products runs: 'avx2+fma', 'x86-64' or 'generic'.");
+  m.def("has_avx2_fma", &geoddp::gemm::has_avx2_fma, "Whether the CPU runs the AVX2/FMA build of the products.");
+  m.def(
+      "gemm",
+      [](int variant, bool trans_a, double alpha, const Arr& A, const Arr& B, bool accumulate, py::array C) {
+        // For the tests: C = [C +] alpha op(A) B with one of the two builds (0 baseline, 1 AVX2/FMA)
+        if (A.ndim() != 2 || B.ndim() != 2 || C.ndim() != 2) throw py::value_error("gemm: 2-d arrays expected");
+        // C is written in place: refuse anything pybind11 would have to copy
+        if (!C.dtype().is(py::dtype::of<double>()) || !(C.flags() & py::array::c_style) || !C.writeable())
+          throw py::type_error("gemm: C must be a writeable C-contiguous float64 array");
+        const int M = (int)(trans_a ? A.shape(1) : A.shape(0)), K = (int)(trans_a ? A.shape(0) : A.shape(1));
+        const int N = (int)B.shape(1);
+        if (B.shape(0) != K || C.shape(0) != M || C.shape(1) != N) throw py::value_error("gemm: shapes do not match");
+        geoddp::gemm::gemm_variant(variant, trans_a, M, N, K, alpha, A.data(), (int)A.shape(1), B.data(), N,
+                                   accumulate, static_cast<double*>(C.mutable_data()), N);
+      },
+      py::arg("variant"), py::arg("trans_a"), py::arg("alpha"), py::arg("A"), py::arg("B"), py::arg("accumulate"),
+      py::arg("C"));
 
   m.def(
       "rollout",

@@ -1,6 +1,7 @@
 // The backward Riccati recursion (see riccati.hpp): Eigen products on the node's blocks instead of
 // numba's scalar loops; the Cholesky factor and its solves follow the numba kernel's arithmetic.
 #include "riccati.hpp"
+#include "riccati_blocks.hpp"
 #include "small_cholesky.hpp"
 
 #include <Eigen/Core>
@@ -31,19 +32,9 @@ int backward_pass(int H, int n, int m, const double* Phi, const double* B, const
   *d1 = 0.0;
   *d2 = 0.0;
   for (int k = H - 1; k >= 0; --k) {
-    CMat P(Phi + (size_t)k * n * n, n, n), Bk(B + (size_t)k * n * m, n, m);
-    VxxPhi.noalias() = Vxx * P;
-    VxxB.noalias() = Vxx * Bk;
-    Qx = CVec(lx + (size_t)k * n, n);
-    Qx.noalias() += P.transpose() * Vx;
-    Qu = CVec(lu + (size_t)k * m, m);
-    Qu.noalias() += Bk.transpose() * Vx;
-    Qxx = CMat(lxx + (size_t)k * n * n, n, n);
-    Qxx.noalias() += P.transpose() * VxxPhi;
-    Qux = CMat(lux + (size_t)k * m * n, m, n);
-    Qux.noalias() += Bk.transpose() * VxxPhi;
-    Quu = CMat(luu + (size_t)k * m * m, m, m);
-    Quu.noalias() += Bk.transpose() * VxxB;
+    q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
+             lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
+             Qxx, Qux, Quu);
     if (second_order) {
       // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta)
       const double* Th = Theta + (size_t)k * n * n * n;
@@ -80,7 +71,7 @@ int backward_pass(int H, int n, int m, const double* Phi, const double* B, const
     Vx = Qx;
     Vx.noalias() -= Qux.transpose() * kk;
     Vxx = Qxx;
-    Vxx.noalias() -= Qux.transpose() * KK;
+    add_xt_y_upper(-1.0, Qux, KK, Vxx);
     upper_to_full(Vxx);
   }
   *d1 = s1;
@@ -273,19 +264,9 @@ int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double*
   *d1 = 0.0;
   *d2 = 0.0;
   for (int k = H - 1; k >= 0; --k) {
-    CMat P(Phi + (size_t)k * n * n, n, n), Bk(B + (size_t)k * n * m, n, m);
-    VxxPhi.noalias() = Vxx * P;
-    VxxB.noalias() = Vxx * Bk;
-    Qx = CVec(lx + (size_t)k * n, n);
-    Qx.noalias() += P.transpose() * Vx;
-    Qu = CVec(lu + (size_t)k * m, m);
-    Qu.noalias() += Bk.transpose() * Vx;
-    Qxx = CMat(lxx + (size_t)k * n * n, n, n);
-    Qxx.noalias() += P.transpose() * VxxPhi;
-    Qux = CMat(lux + (size_t)k * m * n, m, n);
-    Qux.noalias() += Bk.transpose() * VxxPhi;
-    Quu = CMat(luu + (size_t)k * m * m, m, m);
-    Quu.noalias() += Bk.transpose() * VxxB;
+    q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
+             lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
+             Qxx, Qux, Quu);
     if (second) (*second)(k, Vx, Qxx, Qux, Quu);
     upper_to_full(Qxx);
     upper_to_full(Quu);
@@ -339,10 +320,9 @@ int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double*
     Vx.noalias() -= Qux.transpose() * kk;
     Vx.noalias() += KK.transpose() * QuuK;
     Vxx = Qxx;
-    Vxx.noalias() -= Qux.transpose() * KK;
-    Vxx.noalias() += KK.transpose() * QuuKK;
-    for (int i = 0; i < n; ++i)  // exactly symmetric (the two products round differently)
-      for (int j = i + 1; j < n; ++j) Vxx(i, j) = Vxx(j, i) = 0.5 * (Vxx(i, j) + Vxx(j, i));
+    add_xt_y_upper(-1.0, Qux, KK, Vxx);
+    add_xt_y_upper(1.0, KK, QuuKK, Vxx);
+    upper_to_full(Vxx);  // exactly symmetric
   }
   if (Vx0) Eigen::Map<Eigen::VectorXd>(Vx0, n) = Vx;
   if (Vxx0) Eigen::Map<RowMat>(Vxx0, n, n) = Vxx;
