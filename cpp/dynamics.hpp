@@ -95,14 +95,27 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
 //     structure constants, W_s the group's rows of the velocity increment's Jacobian).
 // An uninitialised float64 buffer: every entry is written before it is read, and zeroing
 // megabytes per linearisation (4 nv^3 per node) cost as much as filling them.
+// Its memory is recycled (buffer_take / buffer_give, dynamics.cpp): every exact linearisation
+// makes a new SecondOrderTerms of the same sizes, and fresh megabytes from the system cost page
+// faults and the kernel's zeroing (about 4 ms of Solo12's 15 ms expansion, measured), so a
+// released buffer waits in a small pool for the next request of its size.
+double* buffer_take(size_t n);
+void buffer_give(double* p, size_t n);
 struct Buffer {
-  std::unique_ptr<double[]> p;
+  double* p = nullptr;
   size_t n = 0;
+  Buffer() = default;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+  ~Buffer() { buffer_give(p, n); }
   void resize(size_t k) {
-    if (k != n) p.reset(k ? new double[k] : nullptr), n = k;
+    if (k == n) return;
+    buffer_give(p, n);
+    p = buffer_take(k);
+    n = k;
   }
-  double* data() { return p.get(); }
-  const double* data() const { return p.get(); }
+  double* data() { return p; }
+  const double* data() const { return p; }
   size_t size() const { return n; }
 };
 
