@@ -31,21 +31,21 @@ inline bool cholesky_inplace(RowMat& A) {
   return true;
 }
 
-// Solve (L L^T) x = b in place for each column of b (n, k).
+// Solve (L L^T) x = b in place for each column of b (n, k). Row operations over all columns at
+// once (b is row-major: contiguous, vectorised), in the scalar loop's order for each entry: start
+// from b(i, c), subtract L(i, p) b(p, c) for p ascending (descending rows in the back
+// substitution: p = i + 1 ..), divide by L(i, i); so the same result bit for bit as one column at
+// a time, which made the gains' solve (m x n) 70 % of the pass outside its products.
 template <typename M>
 inline void cholesky_solve(const RowMat& L, M& b) {
   const int n = (int)L.rows();
-  for (int c = 0; c < b.cols(); ++c) {
-    for (int i = 0; i < n; ++i) {
-      double s = b(i, c);
-      for (int p = 0; p < i; ++p) s -= L(i, p) * b(p, c);
-      b(i, c) = s / L(i, i);
-    }
-    for (int i = n - 1; i >= 0; --i) {
-      double s = b(i, c);
-      for (int p = i + 1; p < n; ++p) s -= L(p, i) * b(p, c);
-      b(i, c) = s / L(i, i);
-    }
+  for (int i = 0; i < n; ++i) {
+    for (int p = 0; p < i; ++p) b.row(i) -= L(i, p) * b.row(p);
+    b.row(i) /= L(i, i);
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    for (int p = i + 1; p < n; ++p) b.row(i) -= L(p, i) * b.row(p);
+    b.row(i) /= L(i, i);
   }
 }
 
