@@ -26,9 +26,12 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
   const int nv = t.nv, m = t.m, nz = t.nz();
   const double dt = t.dt;
   const size_t n3 = (size_t)nv * nv * nv;
+  // per-thread scratch: contract runs once per node in the sequential pass
+  thread_local Eigen::VectorXd c, mu, r;
+  thread_local RowMat R, Dl, Ml, DW;
   CVec lq(Vx, nv), lv(Vx + nv, nv);
   S.setZero(nz, nz);
-  Eigen::VectorXd c = lv;
+  c = lv;
   if (t.semi) {
     c.noalias() += dt * lq;
     const double* jr = t.Jr.data() + (size_t)k * t.gJ;
@@ -39,9 +42,9 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
       jr += d * d;
     }
   }
-  const Eigen::VectorXd mu = (-dt) * (CMat(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * c);
+  mu.noalias() = (-dt) * (CMat(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * c);
   // r[j + nv l] = sum_i mu_i X(i, j, l) for a column-major tensor X (nv, nv, nv)
-  Eigen::VectorXd r(nv * nv);
+  r.resize(nv * nv);
   r.noalias() = CColMat(t.Iqq.data() + k * n3, nv, nv * nv).transpose() * mu;
   for (int j = 0; j < nv; ++j)
     for (int l = 0; l < nv; ++l) S(j, l) = 0.5 * (r[j + nv * l] + r[l + nv * j]);
@@ -54,17 +57,17 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
       S(j, nv + l) = r[j + nv * l];
       S(nv + l, j) = r[j + nv * l];
     }
-  // Y(l, j) = sum_i mu_i dM(i, l, j); R = Y^T a_z on the q rows, and its transpose
+  // Y(l, j) = sum_i mu_i dM(i, l, j); R = Y^T a_z on the q rows, and its transpose. Y is
+  // column-major in r, so r read row-major is Y^T.
   r.noalias() = CColMat(t.dM.data() + k * n3, nv, nv * nv).transpose() * mu;
-  const CColMat Y(r.data(), nv, nv);
-  const RowMat R = Y.transpose() * CMat(t.az.data() + (size_t)k * nv * nz, nv, nz);
+  R.resize(nv, nz);
+  gemm::gemm(false, nv, nz, nv, 1.0, r.data(), nv, t.az.data() + (size_t)k * nv * nz, nz, false, R.data(), nz);
   S.topRows(nv) += R;
   S.leftCols(nv) += R.transpose();
   // reconstruction rows of the SO(3)/SE(3) groups
   const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
   const double* mrec = t.Mrec.data() + (size_t)k * t.gM;
-  const CMat F1(t.F1.data() + (size_t)k * nv * nz, nv, nz);
-  RowMat Dl, Ml, Ws, DW;
+  const double* F1 = t.F1.data() + (size_t)k * nv * nz;
   for (const dyn::JointGroup& g : t.groups) {
     const int o = g.idx_v, d = g.nv;
     Dl.setZero(d, d);
@@ -74,10 +77,11 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
       Dl += l * CMat(dsym + (size_t)p * d * d, d, d);
       Ml += l * CMat(mrec + (size_t)p * d * nz, d, nz);
     }
-    if (t.semi) {
-      Ws = F1.middleRows(o, d);
-      DW.noalias() = Dl * Ws;
-      S.noalias() += (dt * dt) * (Ws.transpose() * DW);
+    if (t.semi) {  // S += dt^2 Ws^T Dl Ws with Ws = F1's rows of the group
+      const double* Ws = F1 + (size_t)o * nz;
+      DW.resize(d, nz);
+      gemm::gemm(false, d, nz, d, 1.0, Dl.data(), d, Ws, nz, false, DW.data(), nz);
+      gemm::gemm(true, nz, nz, d, dt * dt, Ws, nz, DW.data(), nz, true, S.data(), nz);
     } else {  // W_s selects the group's v directions
       S.block(nv + o, nv + o, d, d) += (dt * dt) * Dl;
     }

@@ -166,6 +166,13 @@ def finite_array(x: Any, name: str, shape: tuple[int | None, ...] | None = None)
         InputError: ``x`` is not numeric (strings, booleans, None, ragged lists, complex),
             has the wrong shape, or contains NaN or +-inf.
     """
+    if type(x) is np.ndarray and x.dtype == np.float64:
+        # The solver's own arrays, many times per iteration: the same checks in fewer numpy calls
+        # (15.6 -> 6 us; the UR5 pose reach made 31 of these per solve). Anything that fails them
+        # falls through to the full checks, which name the problem.
+        if shape is None or (x.ndim == len(shape) and all(w is None or w == g for w, g in zip(shape, x.shape))):
+            if np.isfinite(x).all():
+                return x.copy()
     if isinstance(x, (str, bytes)) or x is None:
         raise InputError(name, f"expected a numeric array, got {_describe(x)}")
     try:
