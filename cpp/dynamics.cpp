@@ -24,7 +24,6 @@
 namespace geoddp {
 namespace dyn {
 
-
 std::vector<JointGroup> joint_groups(const Model& model) {
   std::vector<JointGroup> out;
   for (pinocchio::JointIndex j = 1; j < (pinocchio::JointIndex)model.njoints; ++j) {

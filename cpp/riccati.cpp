@@ -1,5 +1,6 @@
-// The backward Riccati recursion (see riccati.hpp): Eigen products on the node's blocks instead of
-// numba's scalar loops; the Cholesky factor and its solves follow the numba kernel's arithmetic.
+// The backward Riccati recursion (see riccati.hpp): the node's dense products through
+// riccati_blocks.hpp (small_gemm.hpp) instead of numba's scalar loops; the Cholesky factor and its
+// solves follow the numba kernel's arithmetic (small_cholesky.hpp).
 #include "riccati.hpp"
 #include "riccati_blocks.hpp"
 #include "small_cholesky.hpp"

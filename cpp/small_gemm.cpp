@@ -46,8 +46,13 @@ void gemm_variant(int variant, bool trans_a, int M, int N, int K, double alpha, 
 
 void gemm(bool trans_a, int M, int N, int K, double alpha, const double* A, int lda, const double* B, int ldb,
           bool accumulate, double* C, int ldc) {
-  static const int variant = has_avx2_fma() ? 1 : 0;
-  gemm_variant(variant, trans_a, M, N, K, alpha, A, lda, B, ldb, accumulate, C, ldc);
+  typedef void (*Kernel)(bool, int, int, int, double, const double*, int, const double*, int, bool, double*, int);
+#ifdef GEODDP_GEMM_HAS_AVX2_BUILD
+  static const Kernel kernel = has_avx2_fma() ? &avx2::gemm : &base::gemm;  // chosen once
+#else
+  static const Kernel kernel = &base::gemm;
+#endif
+  kernel(trans_a, M, N, K, alpha, A, lda, B, ldb, accumulate, C, ldc);
 }
 
 void gemm_upper(bool trans_a, int n, int K, double alpha, const double* A, int lda, const double* B, int ldb,
