@@ -2,16 +2,13 @@
 // contracted.hpp). Eigen only: no Pinocchio algorithm is instantiated here.
 #include "contracted.hpp"
 #include "riccati_blocks.hpp"
-#include "small_cholesky.hpp"
 
 #include <cmath>
 
 namespace geoddp {
 namespace ctr {
 
-typedef Eigen::Map<const RowMat> CMat;
 typedef Eigen::Map<const Eigen::MatrixXd> CColMat;
-typedef Eigen::Map<const Eigen::VectorXd> CVec;
 
 // S = sum_i Vx_i G2_i. With lq = Vx[:nv], lv = Vx[nv:]:
 // * velocity rows (v+ = v + dt a): G2 = dt a_zz with a_zz = -Minv T, T_i = ID_zz,i + P_i + P_i^T,
@@ -29,20 +26,20 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
   // per-thread scratch: contract runs once per node in the sequential pass
   thread_local Eigen::VectorXd c, mu, r;
   thread_local RowMat R, Dl, Ml, DW;
-  CVec lq(Vx, nv), lv(Vx + nv, nv);
+  CVecMap lq(Vx, nv), lv(Vx + nv, nv);
   S.setZero(nz, nz);
   c = lv;
   if (t.semi) {
     c.noalias() += dt * lq;
     const double* jr = t.Jr.data() + (size_t)k * t.gJ;
-    for (const dyn::JointGroup& g : t.groups) {
+    for (const JointGroup& g : t.groups) {
       const int o = g.idx_v, d = g.nv;
       c.segment(o, d) = lv.segment(o, d);
-      c.segment(o, d).noalias() += dt * (CMat(jr, d, d).transpose() * lq.segment(o, d));
+      c.segment(o, d).noalias() += dt * (CMatMap(jr, d, d).transpose() * lq.segment(o, d));
       jr += d * d;
     }
   }
-  mu.noalias() = (-dt) * (CMat(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * c);
+  mu.noalias() = (-dt) * (CMatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * c);
   // r[j + nv l] = sum_i mu_i X(i, j, l) for a column-major tensor X (nv, nv, nv)
   r.resize(nv * nv);
   r.noalias() = CColMat(t.Iqq.data() + k * n3, nv, nv * nv).transpose() * mu;
@@ -68,14 +65,14 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
   const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
   const double* mrec = t.Mrec.data() + (size_t)k * t.gM;
   const double* F1 = t.F1.data() + (size_t)k * nv * nz;
-  for (const dyn::JointGroup& g : t.groups) {
+  for (const JointGroup& g : t.groups) {
     const int o = g.idx_v, d = g.nv;
     Dl.setZero(d, d);
     Ml.setZero(d, nz);
     for (int p = 0; p < d; ++p) {
       const double l = lq[o + p];
-      Dl += l * CMat(dsym + (size_t)p * d * d, d, d);
-      Ml += l * CMat(mrec + (size_t)p * d * nz, d, nz);
+      Dl += l * CMatMap(dsym + (size_t)p * d * d, d, d);
+      Ml += l * CMatMap(mrec + (size_t)p * d * nz, d, nz);
     }
     if (t.semi) {  // S += dt^2 Ws^T Dl Ws with Ws = F1's rows of the group
       const double* Ws = F1 + (size_t)o * nz;
@@ -93,61 +90,20 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
   (void)m;
 }
 
-// The same factorisation and solves as riccati.cpp (numba's arithmetic): small_cholesky.hpp.
-using smallchol::cholesky_inplace;
-using smallchol::cholesky_solve;
-using smallchol::upper_to_full;
-using ric::add_xt_y_upper;
-using ric::q_blocks;
-
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
                              double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2) {
-  Eigen::VectorXd Vx = CVec(Vx_final, n), Qx(n), Qu(m), kk(m);
-  RowMat Vxx = CMat(Vxx_final, n, n);
-  RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n), S;
-  double s1 = 0.0, s2 = 0.0;
-  *d1 = 0.0;
-  *d2 = 0.0;
-  for (int k = H - 1; k >= 0; --k) {
-    q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
-             lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
-             Qxx, Qux, Quu);
-    // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted
+  RowMat S;
+  // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
+  const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
     contract(t, k, Vx.data(), S);
     Qxx += S.topLeftCorner(n, n);
     Qux += S.bottomLeftCorner(m, n);
     Quu += S.bottomRightCorner(m, m);
-    upper_to_full(Qxx);
-    upper_to_full(Quu);
-    L = Quu;
-    L.diagonal().array() += reg;
-    if (!cholesky_inplace(L)) {
-      *d1 = s1;
-      *d2 = s2;
-      return k;
-    }
-    double mn = L(0, 0) * L(0, 0);
-    for (int a = 1; a < m; ++a) mn = std::min(mn, L(a, a) * L(a, a));
-    quu_eig[k] = mn;
-    kk = Qu;
-    KK = Qux;
-    cholesky_solve(L, kk);
-    cholesky_solve(L, KK);
-    Eigen::Map<Eigen::VectorXd>(k_ff + (size_t)k * m, m) = kk;
-    Eigen::Map<RowMat>(K_fb + (size_t)k * m * n, m, n) = KK;
-    s1 += Qu.dot(kk);
-    s2 += kk.dot(Quu * kk);
-    Vx = Qx;
-    Vx.noalias() -= Qux.transpose() * kk;
-    Vxx = Qxx;
-    add_xt_y_upper(-1.0, Qux, KK, Vxx);
-    upper_to_full(Vxx);
-  }
-  *d1 = s1;
-  *d2 = s2;
-  return -1;
+  };
+  return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff, K_fb,
+                                 quu_eig, d1, d2);
 }
 
 }  // namespace ctr

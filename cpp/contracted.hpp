@@ -8,12 +8,12 @@
 
 #include <Eigen/Core>
 
+#include "arrays.hpp"
 #include "dynamics.hpp"
 
 namespace geoddp {
 namespace ctr {
 
-typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
 
 // S (nz, nz), symmetric, = sum_i Vx_i G2_i at node k; Vx (2 nv). S is resized and overwritten.
 void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S);

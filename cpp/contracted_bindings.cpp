@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "binding_checks.hpp"
 #include "contracted.hpp"
 #include "pin_model.hpp"
 
@@ -13,30 +14,8 @@ namespace py = pybind11;
 
 namespace geoddp {
 
-typedef py::array_t<double, py::array::c_style | py::array::forcecast> Arr;
+using bind::Arr;
 typedef py::array_t<double> Out;
-
-static void need(const Arr& a, std::initializer_list<long> shape, const char* name) {
-  bool ok = a.ndim() == (py::ssize_t)shape.size();
-  int i = 0;
-  for (long s : shape) {
-    if (ok && a.shape(i) != s) ok = false;
-    ++i;
-  }
-  if (!ok) throw py::value_error(std::string(name) + ": wrong shape");
-}
-
-static void need_out(const Out& a, std::initializer_list<long> shape, const char* name) {
-  if (!(a.flags() & py::array::c_style) || !a.writeable())
-    throw py::value_error(std::string(name) + ": expected a writeable C-contiguous float64 array");
-  bool ok = a.ndim() == (py::ssize_t)shape.size();
-  int i = 0;
-  for (long s : shape) {
-    if (ok && a.shape(i) != s) ok = false;
-    ++i;
-  }
-  if (!ok) throw py::value_error(std::string(name) + ": wrong shape");
-}
 
 void bind_contracted(py::module_& m) {
   using dyn::SecondOrderTerms;
@@ -54,8 +33,8 @@ void bind_contracted(py::module_& m) {
           "contract",
           [](const SecondOrderTerms& t, int k, const Arr& Vx) {
             if (k < 0 || k >= t.N) throw py::index_error("k: expected 0 <= k < N");
-            need(Vx, {2 * t.nv}, "Vx");
-            ctr::RowMat S;
+            bind::check_shape(Vx, {2 * t.nv}, "Vx");
+            RowMat S;
             ctr::contract(t, k, Vx.data(), S);
             Arr out({(py::ssize_t)S.rows(), (py::ssize_t)S.cols()});
             std::copy(S.data(), S.data() + S.size(), out.mutable_data());
@@ -72,9 +51,9 @@ void bind_contracted(py::module_& m) {
         if (H.ndim() != 2 || H.shape(0) != model.nv) throw py::value_error("actuation: wrong shape");
         if (integrator != 0 && integrator != 1) throw py::value_error("integrator: expected 0 (euler) or 1 (semi_implicit)");
         const int mm = (int)H.shape(1), N = (int)U.shape(0), nv = model.nv, n = 2 * nv;
-        need(Q, {N + 1, model.nq}, "Q");
-        need(V, {N + 1, nv}, "V");
-        need(U, {N, mm}, "U");
+        bind::check_shape(Q, {N + 1, model.nq}, "Q");
+        bind::check_shape(V, {N + 1, nv}, "V");
+        bind::check_shape(U, {N, mm}, "U");
         dyn::Setup s{&model, H.data(), mm, dt, (dyn::Integrator)integrator};
         Arr Phi({N, n, n}), B({N, n, mm});
         auto terms = std::make_shared<SecondOrderTerms>();
@@ -94,21 +73,10 @@ void bind_contracted(py::module_& m) {
       [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
          const Arr& Vx_final, const Arr& Vxx_final, const SecondOrderTerms& t, double reg, Out k_ff, Out K_fb,
          Out quu_eig) {
-        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
-        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
-        if (H != t.N || n != 2 * t.nv || mm != t.m) throw py::value_error("terms: sizes differ from Phi, B");
-        need(Phi, {H, n, n}, "Phi");
-        need(B, {H, n, mm}, "B");
-        need(lx, {H, n}, "lx");
-        need(lu, {H, mm}, "lu");
-        need(lxx, {H, n, n}, "lxx");
-        need(lux, {H, mm, n}, "lux");
-        need(luu, {H, mm, mm}, "luu");
-        need(Vx_final, {n}, "Vx_final");
-        need(Vxx_final, {n, n}, "Vxx_final");
-        need_out(k_ff, {H, mm}, "k_ff");
-        need_out(K_fb, {H, mm, n}, "K_fb");
-        need_out(quu_eig, {H}, "quu_eig");
+        const auto z = bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
+        if (z.H != t.N || z.n != 2 * t.nv || z.m != t.m) throw py::value_error("terms: sizes differ from Phi, B");
+        const long H = z.H, n = z.n, mm = z.m;
+        bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
         double d1 = 0.0, d2 = 0.0;
         int failed;
         {

@@ -79,7 +79,7 @@ namespace geoddp
       template<typename Mat>
       void add_sym(RowRef & lxx, Eigen::Index k, Eigen::Index nx, Eigen::Index i0, const Mat & S)
       {
-        Eigen::Map<RowMatrixXd> L(lxx.row(k).data(), nx, nx);
+        Eigen::Map<RowMat> L(lxx.row(k).data(), nx, nx);
         const Eigen::Index n = S.rows();
         L.block(i0, i0, n, n) += 0.5 * (S + S.transpose());
       }
@@ -303,37 +303,6 @@ namespace geoddp
     }
 
     // ------------------------------------------------------------------ state and control
-    std::vector<JointGroup> joint_groups(const pinocchio::Model & model)
-    {
-      std::vector<JointGroup> out;
-      for (pinocchio::JointIndex j = 1; j < (pinocchio::JointIndex)model.njoints; ++j)
-      {
-        const auto & jm = model.joints[j];
-        const std::string s = jm.shortname();
-        int kind;
-        if (
-          s == "JointModelRX" || s == "JointModelRY" || s == "JointModelRZ" || s == "JointModelPX"
-          || s == "JointModelPY" || s == "JointModelPZ" || s == "JointModelRevoluteUnaligned"
-          || s == "JointModelPrismaticUnaligned" || s == "JointModelTranslation"
-          || s == "JointModelSphericalZYX")
-          kind = 0;
-        else if (
-          s == "JointModelRUBX" || s == "JointModelRUBY" || s == "JointModelRUBZ"
-          || s == "JointModelRevoluteUnboundedUnaligned")
-          kind = 1;
-        else if (s == "JointModelSpherical")
-          kind = 2;
-        else if (s == "JointModelFreeFlyer")
-          kind = 3;
-        else
-          throw std::invalid_argument(
-            "joint '" + model.names[j] + "' of type " + s
-            + " is not supported (supported: revolute, continuous, prismatic, spherical, free-flyer)");
-        out.push_back({kind, jm.idx_q(), jm.idx_v(), jm.nv()});
-      }
-      return out;
-    }
-
     void state_regularisation(
       const pinocchio::Model & model,
       const ConstRowRef & Q,
@@ -387,7 +356,7 @@ namespace geoddp
         l[k] += 0.5 * r.dot(w);
         if (!derivatives)
           continue;
-        Eigen::Map<RowMatrixXd> L(lxx.row(k).data(), nx, nx);
+        Eigen::Map<RowMat> L(lxx.row(k).data(), nx, nx);
         lx.row(k).tail(nv) += w.tail(nv).transpose();
         L.bottomRightCorner(nv, nv) += Wm.bottomRightCorner(nv, nv);
         if (!weighs_q)
@@ -460,7 +429,7 @@ namespace geoddp
         if (!derivatives)
           continue;
         lu.row(k) += We.transpose();
-        Eigen::Map<RowMatrixXd>(luu.row(k).data(), m, m) += W;
+        Eigen::Map<RowMat>(luu.row(k).data(), m, m) += W;
       }
     }
 

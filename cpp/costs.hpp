@@ -17,13 +17,15 @@
 #include <string>
 #include <vector>
 
+#include "arrays.hpp"
+#include "joint_groups.hpp"
+
 namespace geoddp
 {
   namespace costs
   {
-    using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-    using ConstRowRef = Eigen::Ref<const RowMatrixXd>;
-    using RowRef = Eigen::Ref<RowMatrixXd>;
+    using ConstRowRef = Eigen::Ref<const RowMat>;
+    using RowRef = Eigen::Ref<RowMat>;
     using VecRef = Eigen::Ref<Eigen::VectorXd>;
     using Matrix3 = Eigen::Matrix3d;
     using Matrix6 = Eigen::Matrix<double, 6, 6>;
@@ -72,17 +74,6 @@ namespace geoddp
       RowRef lxx);
 
     // ------------------------------------------------------------------ state and control
-    /// Joint groups of the model in tangent order: kind 0 vector, 1 so2 (unbounded revolute),
-    /// 2 so3 (spherical), 3 se3 (free flyer); throws std::invalid_argument naming an unsupported
-    /// joint (planar, composite, mimic, ...), like geoddp.configuration.joint_groups.
-    struct JointGroup
-    {
-      int kind;
-      int idx_q;
-      int idx_v;
-      int nv;
-    };
-    std::vector<JointGroup> joint_groups(const pinocchio::Model & model);
 
     /// 1/2 r^T W r with r = (difference(q_ref, q), v - v_ref) (2 nv,): Q (N, nq), V (N, nv),
     /// q_ref (K, nq), v_ref (K', nv), W (2 nv, 2 nv).

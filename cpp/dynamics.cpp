@@ -24,28 +24,6 @@
 namespace geoddp {
 namespace dyn {
 
-std::vector<JointGroup> joint_groups(const Model& model) {
-  std::vector<JointGroup> out;
-  for (pinocchio::JointIndex j = 1; j < (pinocchio::JointIndex)model.njoints; ++j) {
-    const auto& jm = model.joints[j];
-    const std::string name = jm.shortname();
-    JointGroup g{VECTOR, jm.idx_v(), jm.nv(), jm.idx_q()};
-    if (name == "JointModelFreeFlyer") {
-      g.kind = SE3;
-    } else if (name == "JointModelSpherical") {
-      g.kind = SO3;
-    } else if (jm.nq() == 2 && jm.nv() == 1) {
-      g.kind = SO2;  // revolute unbounded: (cos, sin)
-    } else if (jm.nq() == jm.nv() && name != "JointModelComposite") {
-      g.kind = VECTOR;
-    } else {
-      throw std::invalid_argument("joint " + model.names[j] + " of type " + name + " is not supported");
-    }
-    out.push_back(g);
-  }
-  return out;
-}
-
 int default_threads() {
   // One worker per core, at most two: measured on 2 cores (benchmarks/core_dynamics.py), two
   // workers cut the second-order expansion by 1.3-1.9x on the built-in scenes.
@@ -399,6 +377,52 @@ void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* om
   }
 }
 
+// The reconstruction's structure constants: C3[p], C6[p] of so(3), se(3) (lie.hpp).
+struct GroupStructure {
+  lie::Mat3 C3[3];
+  lie::Mat6 C6[6];
+  GroupStructure() {
+    lie::so3_structure(C3);
+    lie::se3_structure(C6);
+  }
+};
+
+// The first-order blocks of node k (eta+ = A eta + Jr rho, rho = dt delta w; v+'s rows F1
+// (nv, nz)): W1 = d(delta w)/dz (F1 semi-implicit, the dv selector explicit), JW = Jr W1, and
+// Phi_k (n, n), B_k (n, m) from G1 = [A 0 + dt JW; F1] (G1 (n, nz) scratch).
+static void first_order_blocks(bool semi, double dt, const RowMat& F1, const RowMat& A, const RowMat& Jr,
+                               RowMat& W1, RowMat& JW, RowMat& G1, double* Phi_k, double* B_k) {
+  const int nv = (int)F1.rows(), n = 2 * nv, m = (int)F1.cols() - n;
+  if (semi) {
+    W1 = F1;
+  } else {
+    W1.setZero();
+    W1.middleCols(nv, nv).setIdentity();
+  }
+  JW.noalias() = Jr * W1;
+  G1.topRows(nv) = dt * JW;
+  G1.topLeftCorner(nv, nv) += A;
+  G1.bottomRows(nv) = F1;
+  MatMap(Phi_k, n, n) = G1.leftCols(n);
+  MatMap(B_k, n, m) = G1.rightCols(m);
+}
+
+// sym D[o+p, o+a, o+c] over (a, c) for the group at tangent offset o (Dt (nv, nv, nv) row-major,
+// the derivative of Jr from block_ad_jr): 1/2 dJr[rho] rho = rho^T Dsym_p rho.
+static inline double dsym_entry(const std::vector<double>& Dt, int nv, int o, int p, int a, int c) {
+  return 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] + Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
+}
+
+// 1/2 [A eta, Jr rho]_p = z^T Mz z on the (eta in the group, z) block: Mz = dt/2 As^T C_p JWs
+// (As the group's block of A, JWs its rows of JW; Cp, Ds scratch).
+template <typename ABlock, typename JWBlock>
+static void bracket_block(const GroupStructure& gs, const JointGroup& g, int p, double dt, const ABlock& As,
+                          const JWBlock& JWs, RowMat& Cp, RowMat& Ds, RowMat& Mz) {
+  if (g.kind == SO3) Cp = gs.C3[p]; else Cp = gs.C6[p];
+  Ds.noalias() = As.transpose().lazyProduct(Cp);
+  Mz.noalias() = (0.5 * dt) * Ds.lazyProduct(JWs);
+}
+
 void expansion(const Setup& s, const double* Q, const double* V, const double* U, int N, int order, int threads,
                double* Phi, double* B, double* Theta, double* Gamma, double* Xi) {
   const Model& model = *s.model;
@@ -422,17 +446,17 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
     });
     return;
   }
-  lie::Mat3 C3[3];
-  lie::Mat6 C6[6];
-  lie::so3_structure(C3);
-  lie::se3_structure(C6);
+  const GroupStructure gs;
   CMatMap Hm(s.H, nv, m);
   // the variational step: its own velocity derivatives (dense F2), the explicit-Euler reconstruction
   const std::unique_ptr<VariationalModel> vmod =
       s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
   parallel_for(N, threads, [&](int b0, int e0, int) {
-    NodeWork w(model, m);
+    // each worker builds the scratch of its integrator only (a Pinocchio Data and pair tables, or
+    // the variational step's)
+    const std::unique_ptr<NodeWork> ew = vmod ? nullptr : std::make_unique<NodeWork>(model, m);
     const std::unique_ptr<VariationalNodeWork> vw = vmod ? std::make_unique<VariationalNodeWork>(*vmod) : nullptr;
+    Eigen::VectorXd q(nq), v(nv);
     RowMat F2d(vw && order >= 2 ? nv : 0, (Eigen::Index)nz * nz);
     Eigen::VectorXd ynext(vw ? nv : 0);
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
@@ -442,31 +466,21 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
     std::vector<double> Dt(order >= 2 ? (size_t)nv * nv * nv : 0);
     Eigen::VectorXd omega(nv);
     for (int k = b0; k < e0; ++k) {
-      w.q = CVecMap(Q + (size_t)k * nq, nq);
-      w.v = CVecMap(V + (size_t)k * nv, nv);
-      w.tau = Hm * CVecMap(U + (size_t)k * m, m);
+      q = CVecMap(Q + (size_t)k * nq, nq);
+      v = CVecMap(V + (size_t)k * nv, nv);
       if (vw) {
         ynext = CVecMap(V + (size_t)(k + 1) * nv, nv);
-        variational_node(*vmod, *vw, w.q, w.v, ynext, F1.data(), order >= 2 ? F2d.data() : nullptr);
+        variational_node(*vmod, *vw, q, v, ynext, F1.data(), order >= 2 ? F2d.data() : nullptr);
       } else {
-        node_derivatives(s, w, F1.data(), order >= 2);
+        ew->q = q;
+        ew->v = v;
+        ew->tau = Hm * CVecMap(U + (size_t)k * m, m);
+        node_derivatives(s, *ew, F1.data(), order >= 2);
       }
       // reconstruction velocity w_bar: v_k (euler) or v_{k+1} (semi-implicit)
       omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), order >= 2 ? Dt.data() : nullptr);
-      // first-order part of delta w as a function of z: a selector (euler) or F1 (semi-implicit)
-      if (semi) {
-        W1 = F1;
-      } else {
-        W1.setZero();
-        W1.middleCols(nv, nv).setIdentity();
-      }
-      JW.noalias() = Jr * W1;
-      G1.topRows(nv) = dt * JW;
-      G1.topLeftCorner(nv, nv) += A;
-      G1.bottomRows(nv) = F1;
-      MatMap(Phi + (size_t)k * n * n, n, n) = G1.leftCols(n);
-      MatMap(B + (size_t)k * n * m, n, m) = G1.rightCols(m);
+      first_order_blocks(semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
       if (order < 2) continue;
       // eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
       // (geoddp.integrators' module docstring; per non-commutative joint group).
@@ -481,9 +495,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
         for (int p = 0; p < d; ++p) {
           // 1/2 dJr[rho] rho: dt^2 Ws^T Dsym_p Ws, Dsym_p(a, b) = sym D[p, a, b]
           for (int a = 0; a < d; ++a)
-            for (int c = 0; c < d; ++c)
-              Ds(a, c) = 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] +
-                                Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
+            for (int c = 0; c < d; ++c) Ds(a, c) = dsym_entry(Dt, nv, o, p, a, c);
           Eigen::Map<RowMat> G2p(G2.row(o + p).data(), nz, nz);
           // coefficient-based products: these are (nz, d) x (d, d) x (d, nz) with d <= 6, where
           // Eigen's blocked GEMM spends more on packing than on arithmetic
@@ -491,9 +503,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
           WDW.noalias() = Ws.transpose().lazyProduct(Mz);
           G2p += (dt * dt) * WDW;
           // 1/2 [A eta, Jr rho]_p = z^T Mz_p z, Mz_p = dt/2 A^T C_p JW on the (eta in s, z) block
-          if (g.kind == SO3) Cp = C3[p]; else Cp = C6[p];
-          Ds.noalias() = As.transpose().lazyProduct(Cp);
-          Mz.noalias() = (0.5 * dt) * Ds.lazyProduct(JWs);
+          bracket_block(gs, g, p, dt, As, JWs, Cp, Ds, Mz);
           G2p.middleRows(o, d) += Mz;
           G2p.middleCols(o, d) += Mz.transpose();
         }
@@ -504,16 +514,16 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
       if (vw) {  // the variational step's dense F2; its reconstruction is explicit Euler's
         for (int p = 0; p < nv; ++p) G2.row(nv + p) = F2d.row(p);
       }
-      const int np = vw ? 0 : w.pairs.count();
+      const int np = vw ? 0 : ew->pairs.count();
       if (semi) {
-        JF2u = dt * w.F2u;
+        JF2u = dt * ew->F2u;
         for (const JointGroup& g : groups)
           if (g.kind == SO3 || g.kind == SE3)
-            JF2u.middleRows(g.idx_v, g.nv).noalias() = dt * (Jr.block(g.idx_v, g.idx_v, g.nv, g.nv) * w.F2u.middleRows(g.idx_v, g.nv));
+            JF2u.middleRows(g.idx_v, g.nv).noalias() = dt * (Jr.block(g.idx_v, g.idx_v, g.nv, g.nv) * ew->F2u.middleRows(g.idx_v, g.nv));
       }
       for (int c = 0; c < np; ++c) {
-        const size_t ab = (size_t)w.pairs.a[c] * nz + w.pairs.b[c], ba = (size_t)w.pairs.b[c] * nz + w.pairs.a[c];
-        const double* f = w.F2u.data() + (size_t)nv * c;
+        const size_t ab = (size_t)ew->pairs.a[c] * nz + ew->pairs.b[c], ba = (size_t)ew->pairs.b[c] * nz + ew->pairs.a[c];
+        const double* f = ew->F2u.data() + (size_t)nv * c;
         for (int p = 0; p < nv; ++p) {
           double* row = G2.row(nv + p).data();
           row[ab] = f[p];
@@ -642,10 +652,7 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
   const bool semi = s.integrator == SEMI_IMPLICIT;
   t.resize(model, m, N, dt, semi);
   const std::vector<JointGroup> groups = joint_groups(model);
-  lie::Mat3 C3[3];
-  lie::Mat6 C6[6];
-  lie::so3_structure(C3);
-  lie::se3_structure(C6);
+  const GroupStructure gs;
   CMatMap Hm(s.H, nv, m);
   const size_t n3 = (size_t)nv * nv * nv;
   parallel_for(N, threads, [&](int b0, int e0, int) {
@@ -661,18 +668,7 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
       node_derivatives(s, w, F1.data(), false);
       omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
-      if (semi) {
-        W1 = F1;
-      } else {
-        W1.setZero();
-        W1.middleCols(nv, nv).setIdentity();
-      }
-      JW.noalias() = Jr * W1;
-      G1.topRows(nv) = dt * JW;
-      G1.topLeftCorner(nv, nv) += A;
-      G1.bottomRows(nv) = F1;
-      MatMap(Phi + (size_t)k * n * n, n, n) = G1.leftCols(n);
-      MatMap(B + (size_t)k * n * m, n, m) = G1.rightCols(m);
+      first_order_blocks(semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
       // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses them
       pinocchio::ComputeRNEASecondOrderDerivatives(model, w.data, w.q, w.v, w.a);
       std::copy(w.data.d2tau_dqdq.data(), w.data.d2tau_dqdq.data() + n3, t.Iqq.data() + k * n3);
@@ -698,12 +694,8 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
         const auto As = A.block(o, o, d, d);
         for (int p = 0; p < d; ++p) {
           for (int a = 0; a < d; ++a)
-            for (int c = 0; c < d; ++c)
-              dsym[(size_t)(p * d + a) * d + c] = 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] +
-                                                         Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
-          if (g.kind == SO3) Cp = C3[p]; else Cp = C6[p];
-          Ds.noalias() = As.transpose().lazyProduct(Cp);
-          Mz.noalias() = (0.5 * dt) * Ds.lazyProduct(JWs);
+            for (int c = 0; c < d; ++c) dsym[(size_t)(p * d + a) * d + c] = dsym_entry(Dt, nv, o, p, a, c);
+          bracket_block(gs, g, p, dt, As, JWs, Cp, Ds, Mz);
           MatMap(mrec + (size_t)p * d * nz, d, nz) = Mz;
         }
         dsym += d * d * d;

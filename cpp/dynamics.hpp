@@ -18,31 +18,19 @@
 #include <string>
 #include <vector>
 
+#include "arrays.hpp"
+#include "joint_groups.hpp"
+
 namespace geoddp {
 namespace dyn {
 
 typedef pinocchio::Model Model;
-typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
-typedef Eigen::Map<const Eigen::VectorXd> CVecMap;
-typedef Eigen::Map<Eigen::VectorXd> VecMap;
-typedef Eigen::Map<const RowMat> CMatMap;
-typedef Eigen::Map<RowMat> MatMap;
 
 // RK4: the Runge-Kutta-Munthe-Kaas step of cpp/rkmk4.hpp (rollout, forward pass, expansion; not
 // velocity_derivatives or the factored second order, which are the Euler schemes' structure).
 // VARIATIONAL: the forward variational Euler step of cpp/variational.hpp (rollout, forward pass and
 // expansion: its implicit velocity derivatives with the explicit-Euler reconstruction).
 enum Integrator { EULER = 0, SEMI_IMPLICIT = 1, RK4 = 2, VARIATIONAL = 3 };
-
-// One joint's Lie group (geoddp.configuration.JointGroup): kind 0 vector, 1 so2, 2 so3, 3 se3.
-struct JointGroup {
-  int kind, idx_v, nv, idx_q;
-};
-enum GroupKind { VECTOR = 0, SO2 = 1, SO3 = 2, SE3 = 3 };
-
-// The joint groups of a model in tangent order; throws std::invalid_argument on a joint whose
-// configuration space is none of R^k, SO(2), SO(3), SE(3) (e.g. planar).
-std::vector<JointGroup> joint_groups(const Model& model);
 
 // Inputs shared by every kernel. H: actuation (nv, m) row-major; dt: time step (s).
 struct Setup {

@@ -40,42 +40,44 @@ inline void blocks(const std::vector<JointGroup>& groups, const Eigen::VectorXd&
   }
 }
 
-// Mdj = dJr(theta)[.] y: Mdj(a, l) = sum_b d Jr(a, b) / d theta_l y_b, so that
-// d(Jr^-1 v) = Jr^-1 (dv - Mdj dtheta) (rkmk4's module docstring).
-inline void djr_apply(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta, const Eigen::VectorXd& y,
-               Eigen::MatrixXd& Mdj) {
-  Mdj.setZero();
+// Out(:, l) on each group's block = dJr(theta)/dtheta_l y, or with transpose its transpose times y
+// (out of the groups: zero). The two uses:
+// * Mdj = dJr(theta)[.] y: Mdj(a, l) = sum_b d Jr(a, b) / d theta_l y_b, so that
+//   d(Jr^-1 v) = Jr^-1 (dv - Mdj dtheta) (rkmk4's module docstring);
+// * N = dJr(theta)[.]^T s: N(i, l) = sum_j d Jr(j, i) / d theta_l s_j, so that
+//   d/dtheta [Jr(theta)^-T p] = -Jr^-T N with s = Jr^-T p (variational.py's _dKT).
+template <bool Transpose>
+inline void djr_columns(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta, const Eigen::VectorXd& y,
+                        Eigen::MatrixXd& out) {
+  out.setZero();
   for (const JointGroup& g : groups) {
     const int o = g.idx_v;
     if (g.kind == SO3) {
       lie::Mat3 Dl[3];
       lie::so3_djr(theta.segment<3>(o), Dl);
-      for (int l = 0; l < 3; ++l) Mdj.block<3, 1>(o, o + l) = Dl[l] * y.segment<3>(o);
+      for (int l = 0; l < 3; ++l) {
+        if constexpr (Transpose) out.block<3, 1>(o, o + l) = Dl[l].transpose() * y.segment<3>(o);
+        else out.block<3, 1>(o, o + l) = Dl[l] * y.segment<3>(o);
+      }
     } else if (g.kind == SE3) {
       lie::Mat6 Dl[6];
       lie::se3_djr(theta.segment<6>(o), Dl);
-      for (int l = 0; l < 6; ++l) Mdj.block<6, 1>(o, o + l) = Dl[l] * y.segment<6>(o);
+      for (int l = 0; l < 6; ++l) {
+        if constexpr (Transpose) out.block<6, 1>(o, o + l) = Dl[l].transpose() * y.segment<6>(o);
+        else out.block<6, 1>(o, o + l) = Dl[l] * y.segment<6>(o);
+      }
     }
   }
 }
 
-// N = dJr(theta)[.]^T s: N(i, l) = sum_j d Jr(j, i) / d theta_l s_j, so that
-// d/dtheta [Jr(theta)^-T p] = -Jr^-T N with s = Jr^-T p (variational.py's _dKT).
+inline void djr_apply(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta, const Eigen::VectorXd& y,
+                      Eigen::MatrixXd& Mdj) {
+  djr_columns<false>(groups, theta, y, Mdj);
+}
+
 inline void djr_transpose_apply(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta,
                                 const Eigen::VectorXd& s, Eigen::MatrixXd& N) {
-  N.setZero();
-  for (const JointGroup& g : groups) {
-    const int o = g.idx_v;
-    if (g.kind == SO3) {
-      lie::Mat3 Dl[3];
-      lie::so3_djr(theta.segment<3>(o), Dl);
-      for (int l = 0; l < 3; ++l) N.block<3, 1>(o, o + l) = Dl[l].transpose() * s.segment<3>(o);
-    } else if (g.kind == SE3) {
-      lie::Mat6 Dl[6];
-      lie::se3_djr(theta.segment<6>(o), Dl);
-      for (int l = 0; l < 6; ++l) N.block<6, 1>(o, o + l) = Dl[l].transpose() * s.segment<6>(o);
-    }
-  }
+  djr_columns<true>(groups, theta, s, N);
 }
 
 }  // namespace dyn

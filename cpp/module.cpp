@@ -10,12 +10,13 @@
 
 #include <string>
 
+#include "binding_checks.hpp"
 #include "contracted.hpp"
 #include "dynamics.hpp"
-#include "variational.hpp"
 #include "pin_model.hpp"
 #include "riccati.hpp"
 #include "small_gemm.hpp"
+#include "variational.hpp"
 
 namespace geoddp {
 void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
@@ -24,18 +25,8 @@ void bind_contracted(pybind11::module_& m);  // contracted_bindings.cpp
 
 namespace py = pybind11;
 using geoddp::dyn::Setup;
-typedef py::array_t<double, py::array::c_style | py::array::forcecast> Arr;
-
-static void check_shape(const Arr& a, std::initializer_list<long> shape, const char* name) {
-  bool ok = a.ndim() == (py::ssize_t)shape.size();
-  int i = 0;
-  for (long s : shape) {
-    if (!ok) break;
-    if (s >= 0 && a.shape(i) != s) ok = false;
-    ++i;
-  }
-  if (!ok) throw py::value_error(std::string(name) + ": wrong shape");
-}
+using geoddp::bind::Arr;
+using geoddp::bind::check_shape;
 
 static Setup make_setup(const pinocchio::Model& model, const Arr& H, double dt, int integrator) {
   check_shape(H, {model.nv, -1}, "actuation");
@@ -233,7 +224,7 @@ PYBIND11_MODULE(_core, m) {
         const pinocchio::Model& model = geoddp::model_from_python(pm);
         const int nv = model.nv;
         check_shape(omega, {nv}, "omega");
-        const auto groups = geoddp::dyn::joint_groups(model);
+        const auto groups = geoddp::joint_groups(model);
         Arr A = empty({nv, nv}), J = empty({nv, nv}), D = empty({nv, nv, nv});
         geoddp::dyn::block_ad_jr(groups, nv, omega.data(), A.mutable_data(), J.mutable_data(), D.mutable_data());
         return py::make_tuple(A, J, D);
@@ -247,27 +238,14 @@ PYBIND11_MODULE(_core, m) {
          const Arr& Vx_final, const Arr& Vxx_final, const Arr& Theta, const Arr& Gamma, const Arr& Xi,
          bool second_order, double reg, py::array_t<double> k_ff, py::array_t<double> K_fb,
          py::array_t<double> quu_eig) -> py::tuple {
-        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
-        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
-        check_shape(Phi, {H, n, n}, "Phi");
-        check_shape(B, {H, n, mm}, "B");
-        check_shape(lx, {H, n}, "lx");
-        check_shape(lu, {H, mm}, "lu");
-        check_shape(lxx, {H, n, n}, "lxx");
-        check_shape(lux, {H, mm, n}, "lux");
-        check_shape(luu, {H, mm, mm}, "luu");
-        check_shape(Vx_final, {n}, "Vx_final");
-        check_shape(Vxx_final, {n, n}, "Vxx_final");
+        const auto z = geoddp::bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
+        const long H = z.H, n = z.n, mm = z.m;
         if (second_order) {
           check_shape(Theta, {H, n, n, n}, "Theta");
           check_shape(Gamma, {H, n, n, mm}, "Gamma");
           check_shape(Xi, {H, n, mm, mm}, "Xi");
         }
-        for (auto* o : {&k_ff, &K_fb, &quu_eig})
-          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
-        if (k_ff.ndim() != 2 || k_ff.shape(0) != H || k_ff.shape(1) != mm) throw py::value_error("k_ff: wrong shape");
-        if (K_fb.ndim() != 3 || K_fb.shape(0) != H || K_fb.shape(1) != mm || K_fb.shape(2) != n) throw py::value_error("K_fb: wrong shape");
-        if (quu_eig.ndim() != 1 || quu_eig.shape(0) != H) throw py::value_error("quu_eig: wrong shape");
+        geoddp::bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
         double d1 = 0.0, d2 = 0.0;
         int failed;
         {
@@ -294,34 +272,15 @@ PYBIND11_MODULE(_core, m) {
          bool second_order, double reg, const Arr& u_bar, const Arr& lower, const Arr& upper,
          py::array_t<double> k_ff, py::array_t<double> K_fb, py::array_t<double> quu_eig,
          py::array_t<signed char> active, py::array_t<double> Vx0, py::array_t<double> Vxx0) -> py::tuple {
-        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
-        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
-        check_shape(Phi, {H, n, n}, "Phi");
-        check_shape(B, {H, n, mm}, "B");
-        check_shape(lx, {H, n}, "lx");
-        check_shape(lu, {H, mm}, "lu");
-        check_shape(lxx, {H, n, n}, "lxx");
-        check_shape(lux, {H, mm, n}, "lux");
-        check_shape(luu, {H, mm, mm}, "luu");
-        check_shape(Vx_final, {n}, "Vx_final");
-        check_shape(Vxx_final, {n, n}, "Vxx_final");
-        check_shape(u_bar, {H, mm}, "u_bar");
-        check_shape(lower, {H, mm}, "lower");
-        check_shape(upper, {H, mm}, "upper");
+        const auto z = geoddp::bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
+        const long H = z.H, n = z.n, mm = z.m;
         if (second_order) {
           check_shape(Theta, {H, n, n, n}, "Theta");
           check_shape(Gamma, {H, n, n, mm}, "Gamma");
           check_shape(Xi, {H, n, mm, mm}, "Xi");
         }
-        for (auto* o : {&k_ff, &K_fb, &quu_eig, &Vx0, &Vxx0})
-          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
-        if (!(active.flags() & py::array::c_style) || !active.writeable()) throw py::value_error("active: expected a writeable C-contiguous int8 array");
-        if (k_ff.ndim() != 2 || k_ff.shape(0) != H || k_ff.shape(1) != mm) throw py::value_error("k_ff: wrong shape");
-        if (K_fb.ndim() != 3 || K_fb.shape(0) != H || K_fb.shape(1) != mm || K_fb.shape(2) != n) throw py::value_error("K_fb: wrong shape");
-        if (quu_eig.ndim() != 1 || quu_eig.shape(0) != H) throw py::value_error("quu_eig: wrong shape");
-        if (active.ndim() != 2 || active.shape(0) != H || active.shape(1) != mm) throw py::value_error("active: wrong shape");
-        if (Vx0.ndim() != 1 || Vx0.shape(0) != n) throw py::value_error("Vx0: wrong shape");
-        if (Vxx0.ndim() != 2 || Vxx0.shape(0) != n || Vxx0.shape(1) != n) throw py::value_error("Vxx0: wrong shape");
+        geoddp::bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
+        geoddp::bind::check_box_arrays(u_bar, lower, upper, active, Vx0, Vxx0, z);
         double d1 = 0.0, d2 = 0.0;
         int failed;
         {
@@ -352,46 +311,27 @@ PYBIND11_MODULE(_core, m) {
          const Arr& u_bar, const Arr& lower, const Arr& upper, py::array_t<double> k_ff, py::array_t<double> K_fb,
          py::array_t<double> quu_eig, py::array_t<signed char> active, py::array_t<double> Vx0,
          py::array_t<double> Vxx0) -> py::tuple {
-        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
-        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
-        if (terms.N != H || 2 * terms.nv != n || terms.m != mm) throw py::value_error("terms: wrong sizes");
-        check_shape(Phi, {H, n, n}, "Phi");
-        check_shape(B, {H, n, mm}, "B");
-        check_shape(lx, {H, n}, "lx");
-        check_shape(lu, {H, mm}, "lu");
-        check_shape(lxx, {H, n, n}, "lxx");
-        check_shape(lux, {H, mm, n}, "lux");
-        check_shape(luu, {H, mm, mm}, "luu");
-        check_shape(Vx_final, {n}, "Vx_final");
-        check_shape(Vxx_final, {n, n}, "Vxx_final");
-        check_shape(u_bar, {H, mm}, "u_bar");
-        check_shape(lower, {H, mm}, "lower");
-        check_shape(upper, {H, mm}, "upper");
-        for (auto* o : {&k_ff, &K_fb, &quu_eig, &Vx0, &Vxx0})
-          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
-        if (!(active.flags() & py::array::c_style) || !active.writeable()) throw py::value_error("active: expected a writeable C-contiguous int8 array");
-        if (k_ff.ndim() != 2 || k_ff.shape(0) != H || k_ff.shape(1) != mm) throw py::value_error("k_ff: wrong shape");
-        if (K_fb.ndim() != 3 || K_fb.shape(0) != H || K_fb.shape(1) != mm || K_fb.shape(2) != n) throw py::value_error("K_fb: wrong shape");
-        if (quu_eig.ndim() != 1 || quu_eig.shape(0) != H) throw py::value_error("quu_eig: wrong shape");
-        if (active.ndim() != 2 || active.shape(0) != H || active.shape(1) != mm) throw py::value_error("active: wrong shape");
-        if (Vx0.ndim() != 1 || Vx0.shape(0) != n) throw py::value_error("Vx0: wrong shape");
-        if (Vxx0.ndim() != 2 || Vxx0.shape(0) != n || Vxx0.shape(1) != n) throw py::value_error("Vxx0: wrong shape");
+        const auto z = geoddp::bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
+        const long n = z.n, mm = z.m;
+        if (terms.N != z.H || 2 * terms.nv != n || terms.m != mm) throw py::value_error("terms: wrong sizes");
+        geoddp::bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
+        geoddp::bind::check_box_arrays(u_bar, lower, upper, active, Vx0, Vxx0, z);
         double d1 = 0.0, d2 = 0.0;
         int failed;
         {
           py::gil_scoped_release nogil;
           const int nn = (int)n, m_ = (int)mm;
-          geoddp::ctr::RowMat S;
+          geoddp::RowMat S;
           // S = sum_i V_x'_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] from the factors (ctr::contract)
-          const geoddp::ric::SecondOrderHook hook = [&](int k, const Eigen::VectorXd& Vx, geoddp::ric::BoxRowMat& Qxx,
-                                                        geoddp::ric::BoxRowMat& Qux, geoddp::ric::BoxRowMat& Quu) {
+          const geoddp::ric::SecondOrderHook hook = [&](int k, const Eigen::VectorXd& Vx, geoddp::RowMat& Qxx,
+                                                        geoddp::RowMat& Qux, geoddp::RowMat& Quu) {
             geoddp::ctr::contract(terms, k, Vx.data(), S);
             Qxx += S.topLeftCorner(nn, nn);
             Qux += S.bottomLeftCorner(m_, nn);
             Quu += S.bottomRightCorner(m_, m_);
           };
           failed = geoddp::ric::backward_pass_box_hook(
-              (int)H, nn, m_, Phi.data(), B.data(), lx.data(), lu.data(), lxx.data(), lux.data(), luu.data(),
+              (int)z.H, nn, m_, Phi.data(), B.data(), lx.data(), lu.data(), lxx.data(), lux.data(), luu.data(),
               Vx_final.data(), Vxx_final.data(), &hook, reg, u_bar.data(), lower.data(), upper.data(),
               k_ff.mutable_data(), K_fb.mutable_data(), quu_eig.mutable_data(), active.mutable_data(),
               Vx0.mutable_data(), Vxx0.mutable_data(), &d1, &d2);

@@ -13,9 +13,6 @@
 namespace geoddp {
 namespace ric {
 
-typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
-typedef Eigen::Map<const RowMat> CMat;
-typedef Eigen::Map<const Eigen::VectorXd> CVec;
 
 using smallchol::cholesky_inplace;
 using smallchol::cholesky_solve;
@@ -26,58 +23,11 @@ int backward_pass(int H, int n, int m, const double* Phi, const double* B, const
                   const double* Vxx_final, const double* Theta, const double* Gamma, const double* Xi,
                   bool second_order, double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                   double* d2) {
-  Eigen::VectorXd Vx = CVec(Vx_final, n), Qx(n), Qu(m), kk(m);
-  RowMat Vxx = CMat(Vxx_final, n, n);  // as given (the numba kernel reads all of it)
-  RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n);
-  double s1 = 0.0, s2 = 0.0;
-  *d1 = 0.0;
-  *d2 = 0.0;
-  for (int k = H - 1; k >= 0; --k) {
-    q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
-             lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
-             Qxx, Qux, Quu);
-    if (second_order) {
-      // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta)
-      const double* Th = Theta + (size_t)k * n * n * n;
-      const double* Ga = Gamma + (size_t)k * n * n * m;
-      const double* X = Xi + (size_t)k * n * m * m;
-      for (int i = 0; i < n; ++i) {
-        const double v = Vx[i];
-        if (v == 0.0) continue;
-        Qxx += v * CMat(Th + (size_t)i * n * n, n, n);
-        Qux += v * CMat(Ga + (size_t)i * n * m, n, m).transpose();
-        Quu += v * CMat(X + (size_t)i * m * m, m, m);
-      }
-    }
-    upper_to_full(Qxx);
-    upper_to_full(Quu);
-    L = Quu;
-    L.diagonal().array() += reg;
-    if (!cholesky_inplace(L)) {
-      *d1 = s1;
-      *d2 = s2;
-      return k;
-    }
-    double mn = L(0, 0) * L(0, 0);
-    for (int a = 1; a < m; ++a) mn = std::min(mn, L(a, a) * L(a, a));
-    quu_eig[k] = mn;
-    kk = Qu;
-    KK = Qux;
-    cholesky_solve(L, kk);
-    cholesky_solve(L, KK);
-    Eigen::Map<Eigen::VectorXd>(k_ff + (size_t)k * m, m) = kk;
-    Eigen::Map<RowMat>(K_fb + (size_t)k * m * n, m, n) = KK;
-    s1 += Qu.dot(kk);
-    s2 += kk.dot(Quu * kk);
-    Vx = Qx;
-    Vx.noalias() -= Qux.transpose() * kk;
-    Vxx = Qxx;
-    add_xt_y_upper(-1.0, Qux, KK, Vxx);
-    upper_to_full(Vxx);
-  }
-  *d1 = s1;
-  *d2 = s2;
-  return -1;
+  const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+    if (second_order) add_dense_second_order(n, m, Theta, Gamma, Xi, k, Vx, Qxx, Qux, Quu);
+  };
+  return unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff, K_fb,
+                            quu_eig, d1, d2);
 }
 
 // ------------------------------------------------------------------ box-constrained pass (issue 15)
@@ -214,8 +164,8 @@ int box_qp_impl(const RowMat& Hq, const Eigen::VectorXd& q, const double* lo, co
 
 int box_qp(int m, const double* Hq, const double* q, const double* lo, const double* hi, double* x,
            signed char* clamped) {
-  RowMat H = CMat(Hq, m, m);
-  Eigen::VectorXd qq = CVec(q, m), xx = Eigen::Map<Eigen::VectorXd>(x, m);
+  RowMat H = CMatMap(Hq, m, m);
+  Eigen::VectorXd qq = CVecMap(q, m), xx = Eigen::Map<Eigen::VectorXd>(x, m);
   BoxWork w;
   const int it = box_qp_impl(H, qq, lo, hi, xx, w);
   if (it < 0) return -1;
@@ -231,18 +181,8 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
                       double* k_ff, double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0,
                       double* d1, double* d2) {
   // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i from the dense tensors (Remark rem:theta)
-  const SecondOrderHook dense = [&](int k, const Eigen::VectorXd& Vx, BoxRowMat& Qxx, BoxRowMat& Qux,
-                                    BoxRowMat& Quu) {
-    const double* Th = Theta + (size_t)k * n * n * n;
-    const double* Ga = Gamma + (size_t)k * n * n * m;
-    const double* X = Xi + (size_t)k * n * m * m;
-    for (int i = 0; i < n; ++i) {
-      const double v = Vx[i];
-      if (v == 0.0) continue;
-      Qxx += v * CMat(Th + (size_t)i * n * n, n, n);
-      Qux += v * CMat(Ga + (size_t)i * n * m, n, m).transpose();
-      Quu += v * CMat(X + (size_t)i * m * m, m, m);
-    }
+  const SecondOrderHook dense = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+    add_dense_second_order(n, m, Theta, Gamma, Xi, k, Vx, Qxx, Qux, Quu);
   };
   return backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final,
                                 second_order ? &dense : nullptr, reg, u_bar, lower, upper, k_ff, K_fb, quu_eig,
@@ -256,8 +196,8 @@ int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double*
                            double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1,
                            double* d2) {
   // Q blocks as in backward_pass (kept separate so that the unconstrained pass stays untouched).
-  Eigen::VectorXd Vx = CVec(Vx_final, n), Qx(n), Qu(m), kk(m), QuuK(m), lo(m), hi(m);
-  RowMat Vxx = CMat(Vxx_final, n, n);
+  Eigen::VectorXd Vx = CVecMap(Vx_final, n), Qx(n), Qu(m), kk(m), QuuK(m), lo(m), hi(m);
+  RowMat Vxx = CMatMap(Vxx_final, n, n);
   RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), Hq(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n), QuuKK(m, n),
       KKf(m, n);
   BoxWork w;

@@ -6,10 +6,11 @@
 #include <Eigen/Core>
 #include <functional>
 
+#include "arrays.hpp"
+
 namespace geoddp {
 namespace ric {
 
-typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> BoxRowMat;
 
 // Shapes (row-major, float64): Phi (H, n, n), B (H, n, m), lx (H, n), lu (H, m), lxx (H, n, n),
 // lux (H, m, n), luu (H, m, m), Vx_final (n), Vxx_final (n, n), and if second_order Theta
@@ -45,7 +46,7 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
 // k it adds sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] (Vx = V_x' of node k + 1) into
 // Qxx (n, n), Qux (m, n; Gamma_i^T) and Quu (m, m), upper triangles at least. Lets a backend that
 // keeps the second order factored (a contraction with V_x') run the same box pass.
-typedef std::function<void(int k, const Eigen::VectorXd& Vx, BoxRowMat& Qxx, BoxRowMat& Qux, BoxRowMat& Quu)>
+typedef std::function<void(int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu)>
     SecondOrderHook;
 int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                            const double* lu, const double* lxx, const double* lux, const double* luu,

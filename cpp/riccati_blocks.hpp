@@ -5,14 +5,15 @@
 // completed by the caller (upper_to_full), as the passes always did.
 #pragma once
 
-#include "small_gemm.hpp"
-
 #include <Eigen/Core>
+#include <algorithm>
+
+#include "arrays.hpp"
+#include "small_cholesky.hpp"
+#include "small_gemm.hpp"
 
 namespace geoddp {
 namespace ric {
-
-typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> BlockMat;
 
 // Node k's blocks, Phi (n, n) and B (n, m) row-major, l* its cost derivatives (row-major, l_xx
 // and l_uu read in full): Qx = lx + Phi^T Vx, Qu = lu + B^T Vx, Qxx = lxx + Phi^T Vxx Phi (upper
@@ -20,29 +21,98 @@ typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> B
 // exact). VxxPhi (n, n) and VxxB (n, m) are scratch. Vxx must be full (both triangles).
 inline void q_blocks(int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
                      const double* lxx, const double* lux, const double* luu, const Eigen::VectorXd& Vx,
-                     const BlockMat& Vxx, BlockMat& VxxPhi, BlockMat& VxxB, Eigen::VectorXd& Qx,
-                     Eigen::VectorXd& Qu, BlockMat& Qxx, BlockMat& Qux, BlockMat& Quu) {
-  typedef Eigen::Map<const BlockMat> CMat;
-  typedef Eigen::Map<const Eigen::VectorXd> CVec;
-  const CMat P(Phi, n, n), Bk(B, n, m);
-  Qx = CVec(lx, n);
+                     const RowMat& Vxx, RowMat& VxxPhi, RowMat& VxxB, Eigen::VectorXd& Qx,
+                     Eigen::VectorXd& Qu, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+  const CMatMap P(Phi, n, n), Bk(B, n, m);
+  Qx = CVecMap(lx, n);
   Qx.noalias() += P.transpose() * Vx;
-  Qu = CVec(lu, m);
+  Qu = CVecMap(lu, m);
   Qu.noalias() += Bk.transpose() * Vx;
   gemm::gemm(false, n, n, n, 1.0, Vxx.data(), n, Phi, n, false, VxxPhi.data(), n);
   gemm::gemm(false, n, m, n, 1.0, Vxx.data(), n, B, m, false, VxxB.data(), m);
-  Qxx = CMat(lxx, n, n);
+  Qxx = CMatMap(lxx, n, n);
   gemm::gemm_upper(true, n, n, 1.0, Phi, n, VxxPhi.data(), n, true, Qxx.data(), n);
-  Qux = CMat(lux, m, n);
+  Qux = CMatMap(lux, m, n);
   gemm::gemm(true, m, n, n, 1.0, B, m, VxxPhi.data(), n, true, Qux.data(), n);
-  Quu = CMat(luu, m, m);
+  Quu = CMatMap(luu, m, m);
   gemm::gemm_upper(true, m, n, 1.0, B, m, VxxB.data(), m, true, Quu.data(), m);
 }
 
 // Vxx += alpha X^T Y on the upper triangle, X and Y (m, n) row-major (Vxx (n, n)).
-inline void add_xt_y_upper(double alpha, const BlockMat& X, const BlockMat& Y, BlockMat& Vxx) {
+inline void add_xt_y_upper(double alpha, const RowMat& X, const RowMat& Y, RowMat& Vxx) {
   const int n = (int)Vxx.rows(), m = (int)X.rows();
   gemm::gemm_upper(true, n, m, alpha, X.data(), n, Y.data(), n, true, Vxx.data(), n);
+}
+
+// Node k's second-order terms from the dense tensors Theta (H, n, n, n), Gamma (H, n, n, m), Xi
+// (H, n, m, m): Qxx += sum_i V_x'_i Theta_i, Qux += sum_i V_x'_i Gamma_i^T, Quu += sum_i V_x'_i Xi_i
+// (Remark rem:theta).
+inline void add_dense_second_order(int n, int m, const double* Theta, const double* Gamma, const double* Xi, int k,
+                                   const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+  const double* Th = Theta + (size_t)k * n * n * n;
+  const double* Ga = Gamma + (size_t)k * n * n * m;
+  const double* X = Xi + (size_t)k * n * m * m;
+  for (int i = 0; i < n; ++i) {
+    const double v = Vx[i];
+    if (v == 0.0) continue;
+    Qxx += v * CMatMap(Th + (size_t)i * n * n, n, n);
+    Qux += v * CMatMap(Ga + (size_t)i * n * m, n, m).transpose();
+    Quu += v * CMatMap(X + (size_t)i * m * m, m, m);
+  }
+}
+
+// The unconstrained recursion (paper eqs. Qfunctions, dustar, backv) with the inputs, outputs and
+// failure rule of riccati.hpp's backward_pass. add_second(k, Vx, Qxx, Qux, Quu) adds node k's
+// second-order terms contracted with V_x' (the dense tensors, or contracted.cpp's factors; a no-op
+// for first order) before the blocks are completed and factored.
+template <typename AddSecond>
+int unconstrained_pass(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
+                       const double* lxx, const double* lux, const double* luu, const double* Vx_final,
+                       const double* Vxx_final, AddSecond&& add_second, double reg, double* k_ff, double* K_fb,
+                       double* quu_eig, double* d1, double* d2) {
+  using smallchol::cholesky_inplace;
+  using smallchol::cholesky_solve;
+  using smallchol::upper_to_full;
+  Eigen::VectorXd Vx = CVecMap(Vx_final, n), Qx(n), Qu(m), kk(m);
+  RowMat Vxx = CMatMap(Vxx_final, n, n);  // as given (the numba kernel reads all of it)
+  RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n);
+  double s1 = 0.0, s2 = 0.0;
+  *d1 = 0.0;
+  *d2 = 0.0;
+  for (int k = H - 1; k >= 0; --k) {
+    q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
+             lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
+             Qxx, Qux, Quu);
+    add_second(k, Vx, Qxx, Qux, Quu);
+    upper_to_full(Qxx);
+    upper_to_full(Quu);
+    L = Quu;
+    L.diagonal().array() += reg;
+    if (!cholesky_inplace(L)) {
+      *d1 = s1;
+      *d2 = s2;
+      return k;
+    }
+    double mn = L(0, 0) * L(0, 0);
+    for (int a = 1; a < m; ++a) mn = std::min(mn, L(a, a) * L(a, a));
+    quu_eig[k] = mn;
+    kk = Qu;
+    KK = Qux;
+    cholesky_solve(L, kk);
+    cholesky_solve(L, KK);
+    Eigen::Map<Eigen::VectorXd>(k_ff + (size_t)k * m, m) = kk;
+    MatMap(K_fb + (size_t)k * m * n, m, n) = KK;
+    s1 += Qu.dot(kk);
+    s2 += kk.dot(Quu * kk);
+    Vx = Qx;
+    Vx.noalias() -= Qux.transpose() * kk;
+    Vxx = Qxx;
+    add_xt_y_upper(-1.0, Qux, KK, Vxx);
+    upper_to_full(Vxx);
+  }
+  *d1 = s1;
+  *d2 = s2;
+  return -1;
 }
 
 }  // namespace ric

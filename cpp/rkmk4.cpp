@@ -40,26 +40,38 @@ void rk4_step(const Model& model, pinocchio::Data& data, const std::vector<Joint
               const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& tau, double h,
               Eigen::VectorXd& q1, Eigen::VectorXd& v1) {
   const int nv = model.nv;
-  Eigen::VectorXd thSum = Eigen::VectorXd::Zero(nv), vSum = Eigen::VectorXd::Zero(nv);
-  Eigen::VectorXd theta(nv), vi(nv), kth(nv), kv(nv), qi(model.nq);
-  Eigen::MatrixXd Jr(nv, nv), Jinv(nv, nv);
+  // per-thread scratch, sized on first use for a model (a rollout makes one call per node)
+  struct Scratch {
+    Eigen::VectorXd thSum, vSum, theta, vi, kth, kv, qi, step;
+    Eigen::MatrixXd Jr, Jinv;
+  };
+  thread_local Scratch w;
+  if (w.theta.size() != nv || w.qi.size() != model.nq) {
+    for (Eigen::VectorXd* x : {&w.thSum, &w.vSum, &w.theta, &w.vi, &w.kth, &w.kv, &w.step}) x->resize(nv);
+    w.qi.resize(model.nq);
+    w.Jr.resize(nv, nv);
+    w.Jinv.resize(nv, nv);
+  }
+  w.thSum.setZero();
+  w.vSum.setZero();
   for (int i = 0; i < 4; ++i) {
     if (i == 0) {
-      theta.setZero();
-      vi = v;
+      w.theta.setZero();
+      w.vi = v;
     } else {
-      theta = (C_STAGE[i] * h) * kth;
-      vi = v + (C_STAGE[i] * h) * kv;
+      w.theta = (C_STAGE[i] * h) * w.kth;
+      w.vi = v + (C_STAGE[i] * h) * w.kv;
     }
-    blocks(groups, theta, nullptr, Jr, Jinv);
-    kth.noalias() = Jinv * vi;
-    pinocchio::integrate(model, q, theta, qi);
-    kv = pinocchio::aba(model, data, qi, vi, tau);
-    thSum += W_STAGE[i] * kth;
-    vSum += W_STAGE[i] * kv;
+    blocks(groups, w.theta, nullptr, w.Jr, w.Jinv);
+    w.kth.noalias() = w.Jinv * w.vi;
+    pinocchio::integrate(model, q, w.theta, w.qi);
+    w.kv = pinocchio::aba(model, data, w.qi, w.vi, tau);
+    w.thSum += W_STAGE[i] * w.kth;
+    w.vSum += W_STAGE[i] * w.kv;
   }
-  pinocchio::integrate(model, q, (h / 6.0) * thSum, q1);
-  v1 = v + (h / 6.0) * vSum;
+  w.step = (h / 6.0) * w.thSum;
+  pinocchio::integrate(model, q, w.step, q1);
+  v1 = v + (h / 6.0) * w.vSum;
 }
 
 void rk4_jacobian(const Setup& s, const std::vector<JointGroup>& groups, Rk4Work& w, const Eigen::VectorXd& q,

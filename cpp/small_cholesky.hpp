@@ -6,10 +6,11 @@
 #include <Eigen/Core>
 #include <cmath>
 
+#include "arrays.hpp"
+
 namespace geoddp {
 namespace smallchol {
 
-typedef Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> RowMat;
 
 // Lower Cholesky factor of a small SPD matrix in place (numba's _cholesky_inplace). False if not
 // positive definite (also on NaN).

@@ -77,7 +77,8 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
 void implicit_terms(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& qn,
                     const Eigen::VectorXd& y, Eigen::VectorXd& r, Eigen::MatrixXd& K1, Eigen::MatrixXd& D1) {
   const double dt = vm.dt;
-  Kmat(vm, w, -dt * y, K1);
+  w.x = -dt * y;
+  Kmat(vm, w, w.x, K1);
   Dmat(vm, w, qn, y, D1);
   w.tmp.noalias() = w.M1 * y;
   r.noalias() = K1.transpose() * w.tmp;
@@ -90,7 +91,8 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
                        const Eigen::MatrixXd& D1, const Eigen::VectorXd& y, Eigen::MatrixXd& out) {
   const double dt = vm.dt;
   w.tmp.noalias() = w.M1 * y;
-  dKT(vm, w, -dt * y, K1, w.tmp, w.S);
+  w.x = -dt * y;
+  dKT(vm, w, w.x, K1, w.tmp, w.S);
   out.noalias() = K1.transpose() * w.M1;
   out -= dt * w.S;
   out.noalias() -= dt * D1.transpose();
@@ -102,26 +104,27 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   const Model& model = *vm.model;
   const int nv = model.nv;
   const double dt = vm.dt;
-  const Eigen::VectorXd omega = dt * v;
-  pinocchio::integrate(model, q, omega, w.qn);
-  blocks(vm.groups, omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
-  Kmat(vm, w, -dt * y, w.K1);
+  w.omega = dt * v;
+  pinocchio::integrate(model, q, w.omega, w.qn);
+  blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
+  w.x = -dt * y;
+  Kmat(vm, w, w.x, w.K1);
   mass(vm, w, w.qn, w.M1);
   Dmat(vm, w, w.qn, y, w.D1);
   lagrangian_hessian(vm, w, w.qn, y);
-  Eigen::MatrixXd S = w.K1.transpose() * w.D1 - dt * w.Hk;  // dR/deta+
+  w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
+  w.Sq -= dt * w.Hk;
   mass(vm, w, q, w.M0);
   Dmat(vm, w, q, v, w.D0);
-  J.leftCols(nv).noalias() = S * w.A;
+  J.leftCols(nv).noalias() = w.Sq * w.A;
   J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
   w.tmp.noalias() = w.M0 * v;
-  dKT(vm, w, omega, w.K0, w.tmp, w.Kt);
-  J.middleCols(nv, nv).noalias() = dt * (S * w.Jv);
+  dKT(vm, w, w.omega, w.K0, w.tmp, w.Kt);
+  J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
   J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
   J.middleCols(nv, nv) -= dt * w.Kt;
-  Eigen::MatrixXd Ry(nv, nv);
-  velocity_jacobian(vm, w, w.K1, w.D1, y, Ry);
-  J.rightCols(nv) = Ry;
+  velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);
+  J.rightCols(nv) = w.Ry;
 }
 
 }  // namespace
@@ -133,61 +136,61 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {
   const int nv = vm.model->nv, nq = vm.model->nq;
-  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &T})
+  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &T, &Sq, &Ry, &Kx, &Dx})
     M->resize(nv, nv);
   J.resize(nv, 3 * nv);
   Jp.resize(nv, 3 * nv);
   zero = Eigen::VectorXd::Zero(nv);
-  for (Eigen::VectorXd* x : {&y, &r, &g1, &b, &tmp, &vd, &yd, &s}) x->resize(nv);
+  for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy}) v->resize(nv);
   qn.resize(nq);
-  qd.resize(nq);
+  lu = Eigen::PartialPivLU<Eigen::MatrixXd>(nv);
 }
 
 void variational_step(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                       const Eigen::VectorXd& v, const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1) {
   const Model& model = *vm.model;
-  const int nv = model.nv;
   const double dt = vm.dt;
-  Eigen::VectorXd qn(model.nq);
-  pinocchio::integrate(model, q, dt * v, qn);
+  w.omega = dt * v;
+  pinocchio::integrate(model, q, w.omega, w.qn);
   // b = K(dt v)^T M(q) v + dt tau: the y-independent part of R
-  Kmat(vm, w, dt * v, w.K0);
+  Kmat(vm, w, w.omega, w.K0);
   mass(vm, w, q, w.M0);
-  w.b.noalias() = w.K0.transpose() * (w.M0 * v);
+  w.tmp.noalias() = w.M0 * v;
+  w.b.noalias() = w.K0.transpose() * w.tmp;
   w.b += dt * tau;
-  mass(vm, w, qn, w.M1);
-  w.g1 = pinocchio::computeGeneralizedGravity(model, w.data, qn);
+  mass(vm, w, w.qn, w.M1);
+  w.g1 = pinocchio::computeGeneralizedGravity(model, w.data, w.qn);
   // Start from the better of v and the explicit (symplectic) Euler velocity; damped Newton
   // (backtracking on |R|) keeps stiff light links from throwing the iteration off.
-  Eigen::VectorXd y = v + dt * pinocchio::aba(model, w.data, qn, v, tau);
-  Eigen::VectorXd r(nv), r0(nv), rt(nv), yt(nv), dy(nv);
-  Eigen::MatrixXd K1(nv, nv), D1(nv, nv), Kx(nv, nv), Dx(nv, nv), Ry(nv, nv);
-  implicit_terms(vm, w, qn, y, r, K1, D1);
-  implicit_terms(vm, w, qn, v, r0, Kx, Dx);
-  if (!r.allFinite() || r0.norm() < r.norm()) {
+  Eigen::VectorXd& y = w.y;
+  y = v + dt * pinocchio::aba(model, w.data, w.qn, v, tau);
+  implicit_terms(vm, w, w.qn, y, w.r, w.K1, w.D1);
+  implicit_terms(vm, w, w.qn, v, w.r0, w.Kx, w.Dx);
+  if (!w.r.allFinite() || w.r0.norm() < w.r.norm()) {
     y = v;
-    r = r0;
-    K1 = Kx;
-    D1 = Dx;
+    w.r = w.r0;
+    w.K1 = w.Kx;
+    w.D1 = w.Dx;
   }
   for (int it = 0; it < NEWTON_MAX_ITER; ++it) {
-    velocity_jacobian(vm, w, K1, D1, y, Ry);
-    dy = Ry.partialPivLu().solve(r);
-    const double norm_r = r.norm(), tol = NEWTON_TOL * (1.0 + y.norm());
+    velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);
+    w.lu.compute(w.Ry);
+    w.dy = w.lu.solve(w.r);
+    const double norm_r = w.r.norm(), tol = NEWTON_TOL * (1.0 + y.norm());
     double alpha = 1.0;
     while (true) {
-      yt = y - alpha * dy;
-      implicit_terms(vm, w, qn, yt, rt, Kx, Dx);
-      if (rt.norm() < norm_r || alpha < 1e-6 || alpha * dy.norm() <= tol) break;
+      w.yt = y - alpha * w.dy;
+      implicit_terms(vm, w, w.qn, w.yt, w.rt, w.Kx, w.Dx);
+      if (w.rt.norm() < norm_r || alpha < 1e-6 || alpha * w.dy.norm() <= tol) break;
       alpha *= 0.5;
     }
-    y = yt;
-    r = rt;
-    K1 = Kx;
-    D1 = Dx;
+    y = w.yt;
+    w.r = w.rt;
+    w.K1 = w.Kx;
+    w.D1 = w.Dx;
     if (!y.allFinite()) break;
-    if (alpha == 1.0 && dy.norm() <= NEWTON_TOL * (1.0 + y.norm())) {
-      q1 = qn;
+    if (alpha == 1.0 && w.dy.norm() <= NEWTON_TOL * (1.0 + y.norm())) {
+      q1 = w.qn;
       v1 = y;
       return;
     }
@@ -201,6 +204,8 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   const int nq = vm.model->nq, nv = vm.model->nv, nz = 2 * nv + vm.m, nw = 3 * nv;
   qp.resize(nq);
   e.resize(nw);
+  vp.resize(nv);
+  yp.resize(nv);
   Rz.resize(nv, nz);
   F1k.resize(nv, nz);
   Jm.resize(nv, nw);
@@ -233,9 +238,14 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
-    residual_jacobian(vm, w, nw.qp, v + nw.e.segment(nv, nv), y + nw.e.tail(nv), w.Jp);
-    pinocchio::integrate(model, q, -nw.e.head(nv), nw.qp);
-    residual_jacobian(vm, w, nw.qp, v - nw.e.segment(nv, nv), y - nw.e.tail(nv), nw.Jm);
+    nw.vp = v + nw.e.segment(nv, nv);
+    nw.yp = y + nw.e.tail(nv);
+    residual_jacobian(vm, w, nw.qp, nw.vp, nw.yp, w.Jp);
+    nw.e = -nw.e;
+    pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
+    nw.vp = v + nw.e.segment(nv, nv);
+    nw.yp = y + nw.e.tail(nv);
+    residual_jacobian(vm, w, nw.qp, nw.vp, nw.yp, nw.Jm);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
   }

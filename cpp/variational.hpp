@@ -16,6 +16,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Core>
+#include <Eigen/LU>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -47,10 +48,13 @@ struct VariationalModel {
 };
 
 // Per-worker scratch.
+// Per-worker scratch: every matrix and vector a step or a Jacobian needs, sized once (no
+// allocation per call).
 struct VariationalWork {
   pinocchio::Data data, fdata;
-  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, J, Jp, T, Pw, PT;
-  Eigen::VectorXd zero, qn, y, r, g1, b, tmp, qd, vd, yd, s;
+  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, J, Jp, T, Sq, Ry, Kx, Dx;
+  Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   explicit VariationalWork(const VariationalModel& vm);
 };
 
@@ -61,7 +65,7 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
 // Scratch of variational_node beyond VariationalWork (the second order's buffers).
 struct VariationalNodeWork {
   VariationalWork w;
-  Eigen::VectorXd qp, e;
+  Eigen::VectorXd qp, e, vp, yp;
   Eigen::MatrixXd Rz, F1k, Jm, Tj, P, TP, PTP, stack, F2k;
   std::vector<Eigen::MatrixXd> T;
   explicit VariationalNodeWork(const VariationalModel& vm);
