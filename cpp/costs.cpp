@@ -333,6 +333,15 @@ namespace geoddp
       const Eigen::MatrixXd Wm = W;
       // no weight on dq (a velocity penalty): every dq term of the derivatives is exactly zero
       const bool weighs_q = !Wm.topRows(nv).isZero(0.0);
+      // per-coordinate weights (the usual case): J^T W J touches only the curved blocks, and
+      // every product with W is a scaling (the same values as the dense products, whose other
+      // terms are exact zeros)
+      const bool diagonal = Wm.isDiagonal(0.0);
+      const Eigen::VectorXd d = Wm.diagonal();
+      std::vector<char> on_curved(nv, 0);
+      for (const auto & g : curved)
+        for (int i = 0; i < g.nv; ++i)
+          on_curved[g.idx_v + i] = 1;
 
       Eigen::VectorXd q(model.nq), q0(model.nq), r(nx), w(nx), wq(nv);
       Eigen::MatrixXd JW(nv, nx), G(nv, nv);
@@ -352,13 +361,19 @@ namespace geoddp
             dq[g.idx_v] = std::atan2(c0 * s1 - s0 * c1, c0 * c1 + s0 * s1);
           }
         r.tail(nv) = V.row(k).transpose() - v_ref.row(pick(v_ref.rows(), k)).transpose();
-        w.noalias() = Wm.transpose() * r;  // r @ W, as the oracle
+        if (diagonal)
+          w = d.cwiseProduct(r);
+        else
+          w.noalias() = Wm.transpose() * r;  // r @ W, as the oracle
         l[k] += 0.5 * r.dot(w);
         if (!derivatives)
           continue;
         Eigen::Map<RowMat> L(lxx.row(k).data(), nx, nx);
         lx.row(k).tail(nv) += w.tail(nv).transpose();
-        L.bottomRightCorner(nv, nv) += Wm.bottomRightCorner(nv, nv);
+        if (diagonal)
+          L.diagonal().tail(nv) += d.tail(nv);
+        else
+          L.bottomRightCorner(nv, nv) += Wm.bottomRightCorner(nv, nv);
         if (!weighs_q)
           continue;
         // J = d difference / d dq: block-diagonal, Jr^-1 of the joint's difference on the curved
@@ -372,23 +387,45 @@ namespace geoddp
             Ji[c] = se3_right_jacobian_inv(dq.segment<6>(g.idx_v));
         }
         wq = w.head(nv);
-        JW = Wm.topRows(nv);
         for (size_t c = 0; c < curved.size(); ++c)
         {
           const JointGroup & g = curved[c];
           wq.segment(g.idx_v, g.nv) = Ji[c].transpose() * w.segment(g.idx_v, g.nv);
-          JW.middleRows(g.idx_v, g.nv) = Ji[c].transpose() * Wm.middleRows(g.idx_v, g.nv);
         }
         lx.row(k).head(nv) += wq.transpose();
-        G = JW.leftCols(nv);
-        for (size_t c = 0; c < curved.size(); ++c)
+        if (diagonal)
         {
-          const JointGroup & g = curved[c];
-          G.middleCols(g.idx_v, g.nv) = JW.middleCols(g.idx_v, g.nv) * Ji[c];
+          // L_qq += J^T diag(d_q) J (L_qv = 0): the diagonal off the curved blocks, and
+          // Ji^T diag(d_s) Ji on each curved block s
+          for (Eigen::Index i = 0; i < nv; ++i)
+            if (!on_curved[i])
+              L(i, i) += d[i];
+          for (size_t c = 0; c < curved.size(); ++c)
+          {
+            const JointGroup & g = curved[c];
+            const Eigen::MatrixXd JD = Ji[c].transpose() * d.segment(g.idx_v, g.nv).asDiagonal();
+            const Eigen::MatrixXd Gs = JD * Ji[c];
+            L.block(g.idx_v, g.idx_v, g.nv, g.nv) += 0.5 * (Gs + Gs.transpose());
+          }
         }
-        L.topLeftCorner(nv, nv) += 0.5 * (G + G.transpose());
-        L.topRightCorner(nv, nv) += JW.rightCols(nv);
-        L.bottomLeftCorner(nv, nv) += JW.rightCols(nv).transpose();
+        else
+        {
+          JW = Wm.topRows(nv);
+          for (size_t c = 0; c < curved.size(); ++c)
+          {
+            const JointGroup & g = curved[c];
+            JW.middleRows(g.idx_v, g.nv) = Ji[c].transpose() * Wm.middleRows(g.idx_v, g.nv);
+          }
+          G = JW.leftCols(nv);
+          for (size_t c = 0; c < curved.size(); ++c)
+          {
+            const JointGroup & g = curved[c];
+            G.middleCols(g.idx_v, g.nv) = JW.middleCols(g.idx_v, g.nv) * Ji[c];
+          }
+          L.topLeftCorner(nv, nv) += 0.5 * (G + G.transpose());
+          L.topRightCorner(nv, nv) += JW.rightCols(nv);
+          L.bottomLeftCorner(nv, nv) += JW.rightCols(nv).transpose();
+        }
         if (gauss_newton || w.head(nv).isZero(0.0))
           continue;
         for (size_t c = 0; c < curved.size(); ++c)

@@ -52,7 +52,8 @@ MODELS = {
     "all_joints": (_load("test_all_joints", pin.JointModelFreeFlyer()), "payload"),
     "satellite": (_load("satellite", pin.JointModelSpherical()), "bus"),
 }
-KINDS = ["placement", "rotation", "translation", "state", "control"]
+# "state_diagonal": per-coordinate weights, the compiled kernel's scaling path (some zero)
+KINDS = ["placement", "rotation", "translation", "state", "state_diagonal", "control"]
 
 
 def _random_q(model, rng, scale=1.5):
@@ -94,6 +95,10 @@ def _term(kind, model, frame, Q, rng, per_node, angle=1.2, gauss_newton=False):
         q_ref = one(np.array([_random_q(model, rng) for _ in nodes]))
         v_ref = one(rng.normal(size=(len(nodes), model.nv)))
         return StateRegularisation(model, q_ref, v_ref, _spd(2 * model.nv, rng), gauss_newton=gauss_newton)
+    if kind == "state_diagonal":
+        q_ref = one(np.array([_random_q(model, rng) for _ in nodes]))
+        W = rng.uniform(0.5, 2.0, size=2 * model.nv) * (rng.uniform(size=2 * model.nv) > 0.2)
+        return StateRegularisation(model, q_ref, None, np.diag(W), gauss_newton=gauss_newton)
     if kind == "control":
         return ControlRegularisation(one(rng.normal(size=(len(nodes), 3))), _spd(3, rng))
     raise AssertionError(kind)

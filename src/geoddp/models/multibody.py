@@ -163,6 +163,7 @@ class Multibody:
     groups: list = field(init=False, repr=False)
     _variational: variational.VariationalEuler | None = field(init=False, repr=False, default=None)
     _data: pin.Data | None = field(init=False, repr=False, default=None)
+    _urdf_record: tuple[str, str] | None = field(init=False, repr=False, default=None)  # (path, text), read at the first description
 
     def __post_init__(self) -> None:
         self.root = choice(self.root, "root", ROOTS)
@@ -308,8 +309,10 @@ class Multibody:
         out = {"kind": "multibody", "dt": self.dt, "integrator": self.integrator, "root": self.root,
                "nq": self.nq, "nv": self.nv}
         if self.urdf is not None:
-            urdf = Path(self.urdf).resolve()
-            out.update(urdf=str(urdf), urdf_xml=read_urdf_text(urdf))
+            if self._urdf_record is None:  # read once, at the first Result (not on every solve)
+                urdf = Path(self.urdf).resolve()
+                self._urdf_record = (str(urdf), read_urdf_text(urdf))
+            out.update(urdf=self._urdf_record[0], urdf_xml=self._urdf_record[1])
         if self.source_model is not None:
             out["pin_model"] = self.pin_model.saveToString()
             if self.visual_model is not None:
