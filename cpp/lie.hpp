@@ -210,9 +210,20 @@ inline void se3_djr(const Eigen::Matrix<double, 6, 1>& x, Mat6 D[6]) {
       D[l].topLeftCorner<3, 3>() = D3[l - 3];
       D[l].bottomRightCorner<3, 3>() = D3[l - 3];
     }
+    if (l < 3) {
+      // Q is linear in r (one hat(r) per term): its derivative along x_l = -r_l is Q(-e_l, p),
+      // which is also what the dual part computes, product for product
+      double r[3] = {0.0, 0.0, 0.0}, p[3];
+      r[l] = -1.0;
+      for (int i = 0; i < 3; ++i) p[i] = -x[3 + i];
+      const M3<double> Q = se3_coupling<double>(r, p);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) D[l](i, 3 + j) = Q.m[i][j];
+      continue;
+    }
     Dual r[3], p[3];
     for (int i = 0; i < 3; ++i) {
-      r[i] = Dual(-x[i], (l == i) ? -1.0 : 0.0);
+      r[i] = Dual(-x[i], 0.0);
       p[i] = Dual(-x[3 + i], (l == 3 + i) ? -1.0 : 0.0);
     }
     const M3<Dual> Q = se3_coupling<Dual>(r, p);
