@@ -391,8 +391,9 @@ struct GroupStructure {
 // The first-order blocks of node k (eta+ = A eta + Jr rho, rho = dt delta w; v+'s rows F1
 // (nv, nz)): W1 = d(delta w)/dz (F1 semi-implicit, the dv selector explicit), JW = Jr W1, and
 // Phi_k (n, n), B_k (n, m) from G1 = [A 0 + dt JW; F1] (G1 (n, nz) scratch).
-static void first_order_blocks(bool semi, double dt, const RowMat& F1, const RowMat& A, const RowMat& Jr,
-                               RowMat& W1, RowMat& JW, RowMat& G1, double* Phi_k, double* B_k) {
+static void first_order_blocks(const std::vector<JointGroup>& groups, bool semi, double dt, const RowMat& F1,
+                               const RowMat& A, const RowMat& Jr, RowMat& W1, RowMat& JW, RowMat& G1, double* Phi_k,
+                               double* B_k) {
   const int nv = (int)F1.rows(), n = 2 * nv, m = (int)F1.cols() - n;
   if (semi) {
     W1 = F1;
@@ -400,7 +401,12 @@ static void first_order_blocks(bool semi, double dt, const RowMat& F1, const Row
     W1.setZero();
     W1.middleCols(nv, nv).setIdentity();
   }
-  JW.noalias() = Jr * W1;
+  // Jr is the identity off the SO(3)/SE(3) blocks: only their rows of W1 are multiplied
+  JW = W1;
+  for (const JointGroup& g : groups)
+    if (g.kind == SO3 || g.kind == SE3)
+      JW.middleRows(g.idx_v, g.nv).noalias() =
+          Jr.block(g.idx_v, g.idx_v, g.nv, g.nv).lazyProduct(W1.middleRows(g.idx_v, g.nv));
   G1.topRows(nv) = dt * JW;
   G1.topLeftCorner(nv, nv) += A;
   G1.bottomRows(nv) = F1;
@@ -486,7 +492,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
       // reconstruction velocity w_bar: v_k (euler) or v_{k+1} (semi-implicit)
       omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), order >= 2 ? Dt.data() : nullptr);
-      first_order_blocks(semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
+      first_order_blocks(groups, semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
       if (order < 2) continue;
       // eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
       // (geoddp.integrators' module docstring; per non-commutative joint group).
@@ -674,7 +680,7 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
       node_derivatives(s, w, F1.data(), false);
       omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
-      first_order_blocks(semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
+      first_order_blocks(groups, semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
       // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses them
       pinocchio::ComputeRNEASecondOrderDerivatives(model, w.data, w.q, w.v, w.a);
       std::copy(w.data.d2tau_dqdq.data(), w.data.d2tau_dqdq.data() + n3, t.Iqq.data() + k * n3);
