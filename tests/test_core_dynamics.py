@@ -471,3 +471,40 @@ def test_variational_step_that_cannot_converge_raises_or_rejects_the_trial():
         Qb, Vb, Ub = np.tile(mb.neutral(), (4, 1)), np.zeros((4, mb.nv)), np.zeros((3, mb.nu))
         Qo, Vo, Uo = np.empty_like(Qb), np.empty_like(Vb), np.empty_like(Ub)
         assert not p.rollout_closed_loop(Qb, Vb, Ub, np.zeros((3, mb.nu)), np.zeros((3, mb.nu, mb.nx)), 1.0, Qo, Vo, Uo)
+
+
+def test_compiled_joint_classification_is_the_python_one():
+    """cpp/joint_groups.hpp and geoddp.lie.product.joint_groups accept and refuse the same joints:
+    thirteen joint types of pin, one per model on a fixed base (a structural rule, nq == nv means
+    R^k, would accept the helical and universal joints that the Python rule refuses)."""
+    makers = {
+        "RX": pin.JointModelRX, "PY": pin.JointModelPY, "RUBZ": pin.JointModelRUBZ,
+        "RevoluteUnaligned": lambda: pin.JointModelRevoluteUnaligned(np.array([0.0, 0.6, 0.8])),
+        "PrismaticUnaligned": lambda: pin.JointModelPrismaticUnaligned(np.array([0.6, 0.0, 0.8])),
+        "RevoluteUnboundedUnaligned": pin.JointModelRevoluteUnboundedUnaligned,
+        "Spherical": pin.JointModelSpherical, "SphericalZYX": pin.JointModelSphericalZYX,
+        "FreeFlyer": pin.JointModelFreeFlyer, "Translation": pin.JointModelTranslation,
+        "Planar": pin.JointModelPlanar, "HX": pin.JointModelHX,
+        "Universal": lambda: pin.JointModelUniversal(np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])),
+    }
+    accepted = set()
+    for name, make in makers.items():
+        model = pin.Model()
+        j = model.addJoint(0, make(), pin.SE3.Identity(), "j")
+        model.appendBodyToJoint(j, pin.Inertia.Random(), pin.SE3.Identity())
+        try:
+            cfg.joint_groups(model)
+            python_ok = True
+        except ValueError:
+            python_ok = False
+        try:
+            core.block_ad_jr(model, np.zeros(model.nv))
+            compiled_ok = True
+        except ValueError as exc:
+            assert "is not supported" in str(exc) and "'j'" in str(exc), str(exc)
+            compiled_ok = False
+        assert compiled_ok == python_ok, name
+        if python_ok:
+            accepted.add(name)
+    assert {"RX", "RUBZ", "Spherical", "FreeFlyer", "Translation"} <= accepted
+    assert not {"Planar", "HX", "Universal"} & accepted

@@ -81,3 +81,33 @@ def test_backward_pass_rejects_wrong_shapes():
     args[2] = args[2][:, :-1]  # lx (H, n-1)
     with pytest.raises(ValueError, match="lx"):
         _run(compiled._core.backward_pass, args, True, 0.0, H, n, m)
+
+
+def test_passes_refuse_bad_outputs_and_box_arrays():
+    """The bindings' checks (cpp/binding_checks.hpp): a wrong shape, a read-only or a Fortran-order
+    output, and the box pass's bounds and outputs are refused naming the array; the same call with
+    the right arrays runs and keeps the feedforward in its box."""
+    rng = np.random.default_rng(4)
+    H, n, m = 5, 12, 4
+    args = list(_problem(rng, H, n, m))
+    core = compiled._core
+    k, K, eig = np.zeros((H, m)), np.zeros((H, m, n)), np.zeros(H)
+    with pytest.raises(ValueError, match="K_fb"):
+        core.backward_pass(*args, True, 0.0, k, np.zeros((H, n, m)), eig)
+    read_only = np.zeros((H, m))
+    read_only.flags.writeable = False
+    with pytest.raises(ValueError, match="k_ff: expected a writeable C-contiguous"):
+        core.backward_pass(*args, True, 0.0, read_only, K, eig)
+    with pytest.raises(ValueError, match="k_ff: expected a writeable C-contiguous"):
+        core.backward_pass(*args, True, 0.0, np.zeros((m, H)).T, K, eig)  # Fortran order
+    U, lo, hi = np.zeros((H, m)), -np.ones((H, m)), np.ones((H, m))
+    act, Vx0, Vxx0 = np.zeros((H, m), np.int8), np.zeros(n), np.zeros((n, n))
+    with pytest.raises(ValueError, match="lower"):
+        core.backward_pass_box(*args, True, 0.0, U, lo[:, :-1], hi, k, K, eig, act, Vx0, Vxx0)
+    with pytest.raises(ValueError, match="active"):
+        core.backward_pass_box(*args, True, 0.0, U, lo, hi, k, K, eig, act[:-1], Vx0, Vxx0)
+    with pytest.raises(ValueError, match="Vxx0"):
+        core.backward_pass_box(*args, True, 0.0, U, lo, hi, k, K, eig, act, Vx0, np.zeros((n, n + 1)))
+    failed, _, _ = core.backward_pass_box(*args, True, 0.0, U, lo, hi, k, K, eig, act, Vx0, Vxx0)
+    # u = u_bar - k - K zeta in [lower, upper] at zeta = 0: -1 <= k <= 1
+    assert failed == -1 and np.all(np.abs(k) <= 1.0 + 1e-12) and np.all(np.isfinite(Vxx0))
