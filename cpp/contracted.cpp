@@ -90,6 +90,15 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
   (void)m;
 }
 
+void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
+                    RowMat& Qux, RowMat& Quu) {
+  const Eigen::Index n = Qxx.rows(), m = Quu.rows();
+  contract(t, k, Vx.data(), S);
+  Qxx += S.topLeftCorner(n, n);
+  Qux += S.bottomLeftCorner(m, n);
+  Quu += S.bottomRightCorner(m, m);
+}
+
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
@@ -97,10 +106,7 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
   RowMat S;
   // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
   const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
-    contract(t, k, Vx.data(), S);
-    Qxx += S.topLeftCorner(n, n);
-    Qux += S.bottomLeftCorner(m, n);
-    Quu += S.bottomRightCorner(m, m);
+    add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
   };
   return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff, K_fb,
                                  quu_eig, d1, d2);

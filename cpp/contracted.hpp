@@ -14,9 +14,14 @@
 namespace geoddp {
 namespace ctr {
 
-
 // S (nz, nz), symmetric, = sum_i Vx_i G2_i at node k; Vx (2 nv). S is resized and overwritten.
 void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S);
+
+// Node k's second-order terms for a backward pass: Qxx (n, n) += S_xx, Qux (m, n) += S_ux,
+// Quu (m, m) += S_uu with S = contract(t, k, Vx); S is the caller's scratch. The hook of both the
+// unconstrained and the box-constrained contracted passes.
+void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
+                    RowMat& Qux, RowMat& Quu);
 
 // The backward Riccati pass of ric::backward_pass (same inputs, outputs and arithmetic for the
 // first-order part) with the second-order terms contracted from `t` (H = t.N nodes).

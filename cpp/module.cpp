@@ -325,10 +325,7 @@ PYBIND11_MODULE(_core, m) {
           // S = sum_i V_x'_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] from the factors (ctr::contract)
           const geoddp::ric::SecondOrderHook hook = [&](int k, const Eigen::VectorXd& Vx, geoddp::RowMat& Qxx,
                                                         geoddp::RowMat& Qux, geoddp::RowMat& Quu) {
-            geoddp::ctr::contract(terms, k, Vx.data(), S);
-            Qxx += S.topLeftCorner(nn, nn);
-            Qux += S.bottomLeftCorner(m_, nn);
-            Quu += S.bottomRightCorner(m_, m_);
+            geoddp::ctr::add_contracted(terms, k, Vx, S, Qxx, Qux, Quu);
           };
           failed = geoddp::ric::backward_pass_box_hook(
               (int)z.H, nn, m_, Phi.data(), B.data(), lx.data(), lu.data(), lxx.data(), lux.data(), luu.data(),

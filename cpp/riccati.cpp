@@ -13,7 +13,6 @@
 namespace geoddp {
 namespace ric {
 
-
 using smallchol::cholesky_inplace;
 using smallchol::cholesky_solve;
 using smallchol::upper_to_full;
@@ -195,7 +194,8 @@ int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double*
                            double reg, const double* u_bar, const double* lower, const double* upper, double* k_ff,
                            double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1,
                            double* d2) {
-  // Q blocks as in backward_pass (kept separate so that the unconstrained pass stays untouched).
+  // Q blocks as in unconstrained_pass (riccati_blocks.hpp); the box QP and the full value update
+  // below are this pass's own.
   Eigen::VectorXd Vx = CVecMap(Vx_final, n), Qx(n), Qu(m), kk(m), QuuK(m), lo(m), hi(m);
   RowMat Vxx = CMatMap(Vxx_final, n, n);
   RowMat Qxx(n, n), Qux(m, n), Quu(m, m), L(m, m), Hq(m, m), VxxPhi(n, n), VxxB(n, m), KK(m, n), QuuKK(m, n),

@@ -11,7 +11,6 @@
 namespace geoddp {
 namespace ric {
 
-
 // Shapes (row-major, float64): Phi (H, n, n), B (H, n, m), lx (H, n), lu (H, m), lxx (H, n, n),
 // lux (H, m, n), luu (H, m, m), Vx_final (n), Vxx_final (n, n), and if second_order Theta
 // (H, n, n, n), Gamma (H, n, n, m), Xi (H, n, m, m). Writes k_ff (H, m), K_fb (H, m, n) and
