@@ -344,7 +344,7 @@ namespace geoddp
           on_curved[g.idx_v + i] = 1;
 
       Eigen::VectorXd q(model.nq), q0(model.nq), r(nx), w(nx), wq(nv);
-      Eigen::MatrixXd JW(nv, nx), G(nv, nv);
+      Eigen::MatrixXd JW(nv, nx), G(nv, nv), JD, Gs;  // JD, Gs: a curved block's (diagonal path)
       std::vector<Eigen::MatrixXd> Ji(curved.size());
       for (Eigen::Index k = 0; k < N; ++k)
       {
@@ -403,8 +403,8 @@ namespace geoddp
           for (size_t c = 0; c < curved.size(); ++c)
           {
             const JointGroup & g = curved[c];
-            const Eigen::MatrixXd JD = Ji[c].transpose() * d.segment(g.idx_v, g.nv).asDiagonal();
-            const Eigen::MatrixXd Gs = JD * Ji[c];
+            JD.noalias() = Ji[c].transpose() * d.segment(g.idx_v, g.nv).asDiagonal();
+            Gs.noalias() = JD * Ji[c];
             L.block(g.idx_v, g.idx_v, g.nv, g.nv) += 0.5 * (Gs + Gs.transpose());
           }
         }
