@@ -4,28 +4,31 @@
 #include "riccati_blocks.hpp"
 
 #include <cmath>
+#include <vector>
 
 namespace geoddp {
 namespace ctr {
 
 typedef Eigen::Map<const Eigen::MatrixXd> CColMat;
 
-// S = sum_i Vx_i G2_i. With lq = Vx[:nv], lv = Vx[nv:]:
+// S's upper triangle (the top-right n x m block is S_ux^T); the lower triangle is left as junk.
+// With lq = Vx[:nv], lv = Vx[nv:]:
 // * velocity rows (v+ = v + dt a): G2 = dt a_zz with a_zz = -Minv T, T_i = ID_zz,i + P_i + P_i^T,
 //   P_i(j, b) = sum_l dM(i, l, j) a_z(l, b) on the q rows j (dynamics.cpp, node_derivatives). The
 //   semi-implicit reconstruction adds dt Jr F2 to the q rows, so both contract with
 //   c = lv + [semi] dt Jr^T lq, and sum_p c_p F2_p = sum_i mu_i T_i with mu = -dt Minv c;
-//   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) are matrix-vector products over Pinocchio's
-//   column-major tensors;
+//   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) are mu^T times Pinocchio's column-major tensors;
 // * reconstruction rows of each SO(3)/SE(3) group s: dt^2 W_s^T (sum_p lq_p Dsym_p) W_s and
 //   (sum_p lq_p Mrec_p) on the group's q rows plus its transpose (dynamics.cpp, expansion).
-void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
-  const int nv = t.nv, m = t.m, nz = t.nz();
+// Why upper only: every consumer completes Qxx and Quu from their upper triangles, so the lower
+// half (and the symmetric half of each product) was work thrown away.
+static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
+  const int nv = t.nv, nz = t.nz(), nn = nv * nv;
   const double dt = t.dt;
-  const size_t n3 = (size_t)nv * nv * nv;
+  const size_t n3 = (size_t)nv * nn;
   // per-thread scratch: contract runs once per node in the sequential pass
-  thread_local Eigen::VectorXd c, mu, r;
-  thread_local RowMat R, Dl, Ml, DW;
+  thread_local Eigen::VectorXd c, mu;
+  thread_local std::vector<double> r4, R, ml, dl, DW;
   CVecMap lq(Vx, nv), lv(Vx + nv, nv);
   S.setZero(nz, nz);
   c = lv;
@@ -39,63 +42,99 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
       jr += d * d;
     }
   }
-  mu.noalias() = (-dt) * (CMatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * c);
-  // r[j + nv l] = sum_i mu_i X(i, j, l) for a column-major tensor X (nv, nv, nv)
-  r.resize(nv * nv);
-  r.noalias() = CColMat(t.Iqq.data() + k * n3, nv, nv * nv).transpose() * mu;
-  for (int j = 0; j < nv; ++j)
-    for (int l = 0; l < nv; ++l) S(j, l) = 0.5 * (r[j + nv * l] + r[l + nv * j]);
-  r.noalias() = CColMat(t.Ivv.data() + k * n3, nv, nv * nv).transpose() * mu;
-  for (int j = 0; j < nv; ++j)
-    for (int l = 0; l < nv; ++l) S(nv + j, nv + l) = 0.5 * (r[j + nv * l] + r[l + nv * j]);
-  r.noalias() = CColMat(t.Iqv.data() + k * n3, nv, nv * nv).transpose() * mu;
-  for (int j = 0; j < nv; ++j)
-    for (int l = 0; l < nv; ++l) {
-      S(j, nv + l) = r[j + nv * l];
-      S(nv + l, j) = r[j + nv * l];
+  mu.noalias() = (-dt) * (CMatMap(t.Minv.data() + (size_t)k * nn, nv, nv) * c);
+  // rX[j + nv l] = sum_i mu_i X(i, j, l) for the four column-major tensors X (nv, nv, nv), in one
+  // sweep (four independent sums per column; Eigen's four gemv calls cost more than their flops)
+  r4.resize(4 * (size_t)nn);
+  double *rqq = r4.data(), *rvv = rqq + nn, *rqv = rvv + nn, *rdm = rqv + nn;
+  {
+    const double *Xqq = t.Iqq.data() + k * n3, *Xvv = t.Ivv.data() + k * n3, *Xqv = t.Iqv.data() + k * n3,
+                 *Xdm = t.dM.data() + k * n3;
+    const double* w = mu.data();
+    for (int col = 0; col < nn; ++col) {
+      const size_t o = (size_t)col * nv;
+      double a = 0.0, b = 0.0, e = 0.0, f = 0.0;
+      for (int i = 0; i < nv; ++i) {
+        a += Xqq[o + i] * w[i];
+        b += Xvv[o + i] * w[i];
+        e += Xqv[o + i] * w[i];
+        f += Xdm[o + i] * w[i];
+      }
+      rqq[col] = a;
+      rvv[col] = b;
+      rqv[col] = e;
+      rdm[col] = f;
     }
-  // Y(l, j) = sum_i mu_i dM(i, l, j); R = Y^T a_z on the q rows, and its transpose. Y is
-  // column-major in r, so r read row-major is Y^T.
-  r.noalias() = CColMat(t.dM.data() + k * n3, nv, nv * nv).transpose() * mu;
-  R.resize(nv, nz);
-  gemm::gemm(false, nv, nz, nv, 1.0, r.data(), nv, t.az.data() + (size_t)k * nv * nz, nz, false, R.data(), nz);
-  S.topRows(nv) += R;
-  S.leftCols(nv) += R.transpose();
+  }
+  for (int j = 0; j < nv; ++j) {
+    double* Sj = S.data() + (size_t)j * nz;
+    double* Svj = S.data() + (size_t)(nv + j) * nz + nv;
+    for (int l = j; l < nv; ++l) {
+      Sj[l] = 0.5 * (rqq[j + nv * l] + rqq[l + nv * j]);
+      Svj[l] = 0.5 * (rvv[j + nv * l] + rvv[l + nv * j]);
+    }
+    for (int l = 0; l < nv; ++l) Sj[nv + l] = rqv[j + nv * l];
+  }
+  // Y(l, j) = sum_i mu_i dM(i, l, j); R = Y^T a_z (nv, nz) on the q rows, and its transpose on the
+  // q columns: upper entries S(j, b) += R(j, b) (b >= j) + R(b, j) (b < nv). rdm read row-major is Y^T.
+  R.resize((size_t)nv * nz);
+  gemm::gemm(false, nv, nz, nv, 1.0, rdm, nv, t.az.data() + (size_t)k * nv * nz, nz, false, R.data(), nz);
+  for (int j = 0; j < nv; ++j) {
+    double* Sj = S.data() + (size_t)j * nz;
+    const double* Rj = R.data() + (size_t)j * nz;
+    for (int b = j; b < nz; ++b) Sj[b] += Rj[b];
+    for (int b = j; b < nv; ++b) Sj[b] += R[(size_t)b * nz + j];
+  }
   // reconstruction rows of the SO(3)/SE(3) groups
   const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
   const double* mrec = t.Mrec.data() + (size_t)k * t.gM;
   const double* F1 = t.F1.data() + (size_t)k * nv * nz;
   for (const JointGroup& g : t.groups) {
-    const int o = g.idx_v, d = g.nv;
-    Dl.setZero(d, d);
-    Ml.setZero(d, nz);
+    const int o = g.idx_v, d = g.nv, dd = d * d, dn = d * nz;
+    dl.assign(dd, 0.0);
+    ml.assign(dn, 0.0);
     for (int p = 0; p < d; ++p) {
       const double l = lq[o + p];
-      Dl += l * CMatMap(dsym + (size_t)p * d * d, d, d);
-      Ml += l * CMatMap(mrec + (size_t)p * d * nz, d, nz);
+      const double* Dp = dsym + (size_t)p * dd;
+      const double* Mp = mrec + (size_t)p * dn;
+      for (int e = 0; e < dd; ++e) dl[e] += l * Dp[e];
+      for (int e = 0; e < dn; ++e) ml[e] += l * Mp[e];
     }
-    if (t.semi) {  // S += dt^2 Ws^T Dl Ws with Ws = F1's rows of the group
+    if (t.semi) {  // S += dt^2 Ws^T Dl Ws with Ws = F1's rows of the group: upper triangle only
       const double* Ws = F1 + (size_t)o * nz;
-      DW.resize(d, nz);
-      gemm::gemm(false, d, nz, d, 1.0, Dl.data(), d, Ws, nz, false, DW.data(), nz);
-      gemm::gemm(true, nz, nz, d, dt * dt, Ws, nz, DW.data(), nz, true, S.data(), nz);
+      DW.resize(dn);
+      gemm::gemm(false, d, nz, d, 1.0, dl.data(), d, Ws, nz, false, DW.data(), nz);
+      gemm::gemm_upper(true, nz, d, dt * dt, Ws, nz, DW.data(), nz, true, S.data(), nz);
     } else {  // W_s selects the group's v directions
-      S.block(nv + o, nv + o, d, d) += (dt * dt) * Dl;
+      for (int a = 0; a < d; ++a)
+        for (int b = a; b < d; ++b) S(nv + o + a, nv + o + b) += (dt * dt) * dl[(size_t)a * d + b];
     }
-    S.middleRows(o, d) += Ml;
-    S.middleCols(o, d) += Ml.transpose();
-    dsym += d * d * d;
-    mrec += d * d * nz;
+    // Ml on the group's q rows and Ml^T on its q columns, upper entries only
+    for (int p = 0; p < d; ++p) {
+      const int row = o + p;
+      double* Srow = S.data() + (size_t)row * nz;
+      const double* Mp = ml.data() + (size_t)p * nz;
+      for (int b = row; b < nz; ++b) Srow[b] += Mp[b];
+      for (int a = 0; a <= row; ++a) S(a, row) += Mp[a];
+    }
+    dsym += d * dd;
+    mrec += d * dn;
   }
-  (void)m;
+}
+
+void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
+  contract_upper(t, k, Vx, S);
+  for (Eigen::Index i = 1; i < S.rows(); ++i)
+    for (Eigen::Index j = 0; j < i; ++j) S(i, j) = S(j, i);
 }
 
 void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
                     RowMat& Qux, RowMat& Quu) {
   const Eigen::Index n = Qxx.rows(), m = Quu.rows();
-  contract(t, k, Vx.data(), S);
+  contract_upper(t, k, Vx.data(), S);
+  // Qxx and Quu are completed from their upper triangles by the pass: the junk below is harmless
   Qxx += S.topLeftCorner(n, n);
-  Qux += S.bottomLeftCorner(m, n);
+  Qux += S.topRightCorner(n, m).transpose();
   Quu += S.bottomRightCorner(m, m);
 }
 

@@ -2,6 +2,7 @@
 // and variational.cpp (core_algorithms.cpp), which holds every Pinocchio template instantiation
 // the core needs, to keep the compile time small.
 #include "dynamics.hpp"
+#include "aba_compiled.hpp"
 #include "small_gemm.hpp"
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
@@ -87,7 +88,7 @@ static void step(const Setup& s, pinocchio::Data& data, const std::vector<JointG
     variational_step(var->vm, var->w, q, v, tau, q1, v1);
     return;
   }
-  pinocchio::aba(model, data, q, v, tau);
+  geoddp::aba(model, data, q, v, tau);
   v1 = v + s.dt * data.ddq;
   const Eigen::VectorXd w = s.dt * (s.integrator == SEMI_IMPLICIT ? v1 : v);
   pinocchio::integrate(model, q, w, q1);

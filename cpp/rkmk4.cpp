@@ -1,5 +1,6 @@
 // RKMK4 step and derivatives (see rkmk4.hpp; twin of src/geoddp/rkmk4.py).
 #include "rkmk4.hpp"
+#include "aba_compiled.hpp"
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
@@ -65,7 +66,7 @@ void rk4_step(const Model& model, pinocchio::Data& data, const std::vector<Joint
     blocks(groups, w.theta, nullptr, w.Jr, w.Jinv);
     w.kth.noalias() = w.Jinv * w.vi;
     pinocchio::integrate(model, q, w.theta, w.qi);
-    w.kv = pinocchio::aba(model, data, w.qi, w.vi, tau);
+    w.kv = geoddp::aba(model, data, w.qi, w.vi, tau);
     w.thSum += W_STAGE[i] * w.kth;
     w.vSum += W_STAGE[i] * w.kv;
   }

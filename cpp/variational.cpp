@@ -1,6 +1,7 @@
 // Forward variational Euler step and derivatives (see variational.hpp; twin of
 // src/geoddp/variational.py, whose names and order of operations this follows).
 #include "variational.hpp"
+#include "aba_compiled.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
@@ -163,7 +164,7 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   // Start from the better of v and the explicit (symplectic) Euler velocity; damped Newton
   // (backtracking on |R|) keeps stiff light links from throwing the iteration off.
   Eigen::VectorXd& y = w.y;
-  y = v + dt * pinocchio::aba(model, w.data, w.qn, v, tau);
+  y = v + dt * geoddp::aba(model, w.data, w.qn, v, tau);
   implicit_terms(vm, w, w.qn, y, w.r, w.K1, w.D1);
   implicit_terms(vm, w, w.qn, v, w.r0, w.Kx, w.Dx);
   if (!w.r.allFinite() || w.r0.norm() < w.r.norm()) {
