@@ -389,6 +389,19 @@ struct GroupStructure {
   }
 };
 
+// out = alpha Jr X for the block-diagonal right Jacobian Jr (nv, nv) of the reconstruction, X and
+// out (nv, c), out not aliasing X. Jr is the identity off the SO(3)/SE(3) groups, so only those
+// groups' rows are multiplied; the others are copied, scaled.
+template <typename XMat, typename OutMat>
+static void jr_times(const std::vector<JointGroup>& groups, const RowMat& Jr, double alpha, const XMat& X,
+                     OutMat& out) {
+  out = alpha * X;
+  for (const JointGroup& g : groups)
+    if (g.kind == SO3 || g.kind == SE3)
+      out.middleRows(g.idx_v, g.nv).noalias() =
+          alpha * Jr.block(g.idx_v, g.idx_v, g.nv, g.nv).lazyProduct(X.middleRows(g.idx_v, g.nv));
+}
+
 // The first-order blocks of node k (eta+ = A eta + Jr rho, rho = dt delta w; v+'s rows F1
 // (nv, nz)): W1 = d(delta w)/dz (F1 semi-implicit, the dv selector explicit), JW = Jr W1, and
 // Phi_k (n, n), B_k (n, m) from G1 = [A 0 + dt JW; F1] (G1 (n, nz) scratch).
@@ -402,12 +415,7 @@ static void first_order_blocks(const std::vector<JointGroup>& groups, bool semi,
     W1.setZero();
     W1.middleCols(nv, nv).setIdentity();
   }
-  // Jr is the identity off the SO(3)/SE(3) blocks: only their rows of W1 are multiplied
-  JW = W1;
-  for (const JointGroup& g : groups)
-    if (g.kind == SO3 || g.kind == SE3)
-      JW.middleRows(g.idx_v, g.nv).noalias() =
-          Jr.block(g.idx_v, g.idx_v, g.nv, g.nv).lazyProduct(W1.middleRows(g.idx_v, g.nv));
+  jr_times(groups, Jr, 1.0, W1, JW);
   G1.topRows(nv) = dt * JW;
   G1.topLeftCorner(nv, nv) += A;
   G1.bottomRows(nv) = F1;
@@ -528,12 +536,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
         for (int p = 0; p < nv; ++p) G2.row(nv + p) = F2d.row(p);
       }
       const int np = vw ? 0 : ew->pairs.count();
-      if (semi) {
-        JF2u = dt * ew->F2u;
-        for (const JointGroup& g : groups)
-          if (g.kind == SO3 || g.kind == SE3)
-            JF2u.middleRows(g.idx_v, g.nv).noalias() = dt * (Jr.block(g.idx_v, g.idx_v, g.nv, g.nv) * ew->F2u.middleRows(g.idx_v, g.nv));
-      }
+      if (semi) jr_times(groups, Jr, dt, ew->F2u, JF2u);
       for (int c = 0; c < np; ++c) {
         const size_t ab = (size_t)ew->pairs.a[c] * nz + ew->pairs.b[c], ba = (size_t)ew->pairs.b[c] * nz + ew->pairs.a[c];
         const double* f = ew->F2u.data() + (size_t)nv * c;
