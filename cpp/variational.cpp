@@ -234,8 +234,8 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
   nw.F1k = -lu.solve(nw.Rz);
   Eigen::Map<RowMat>(F1, nv, nz) = nw.F1k;
   if (F2 == nullptr) return;
-  // R_ww by central differences of the analytic Jacobian along w = (eta, dv, y): T[i](a, j)
-  for (int j = 0; j < nww; ++j) {
+  // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a)
+  for (int j = 0; j < 2 * nv; ++j) {
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
@@ -249,6 +249,34 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
     residual_jacobian(vm, w, nw.qp, nw.vp, nw.yp, nw.Jm);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
+  }
+  // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y's columns need
+  // differencing: velocity_jacobian alone (one first-order RNEA derivative per point instead of
+  // residual_jacobian's two mass matrices, two RNEA derivatives, a second-order RNEA and the
+  // gravity derivatives). The (eta, dv) rows of a y-direction are the mixed partials d_y d_eta R,
+  // d_y d_dv R, already differenced along eta and dv: y is a flat coordinate of R, so they commute
+  // with it (only eta-eta does not: the right-trivialised base point moves), T[i](a, y) = T[i](y, a).
+  w.omega = dt * v;
+  pinocchio::integrate(model, q, w.omega, w.qn);
+  mass(vm, w, w.qn, w.M1);
+  auto Ry_at = [&](const Eigen::VectorXd& yy, Eigen::MatrixXd& out) {
+    w.x = -dt * yy;
+    Kmat(vm, w, w.x, w.K1);
+    Dmat(vm, w, w.qn, yy, w.D1);
+    velocity_jacobian(vm, w, w.K1, w.D1, yy, out);
+  };
+  Eigen::MatrixXd &Rp = w.Kx, &Rm = w.Dx;  // the step's scratch, free here
+  for (int l = 0; l < nv; ++l) {
+    const int j = 2 * nv + l;
+    nw.yp = y;
+    nw.yp[l] += h;
+    Ry_at(nw.yp, Rp);
+    nw.yp[l] = y[l] - h;
+    Ry_at(nw.yp, Rm);
+    for (int i = 0; i < nv; ++i) {
+      for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = (Rp(i, a) - Rm(i, a)) / (2.0 * h);
+      for (int a = 0; a < 2 * nv; ++a) nw.T[i](a, j) = nw.T[i](j, a);
+    }
   }
   // Differentiating the right-trivialised Jacobian along integrate(q, h e_j) adds an
   // antisymmetric bracket term to the eta-eta block: the symmetric part is the (0)-Hessian.
