@@ -223,7 +223,7 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
 void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
                       const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* F2) {
   const Model& model = *vm.model;
-  const int nv = model.nv, m = vm.m, nz = 2 * nv + m, nww = 3 * nv;
+  const int nv = model.nv, m = vm.m, nz = 2 * nv + m;
   const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
   CMatMap Hm(vm.H, nv, m);
   VariationalWork& w = nw.w;
