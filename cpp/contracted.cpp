@@ -9,8 +9,6 @@
 namespace geoddp {
 namespace ctr {
 
-typedef Eigen::Map<const Eigen::MatrixXd> CColMat;
-
 // S's upper triangle (the top-right n x m block is S_ux^T); the lower triangle is left as junk.
 // With lq = Vx[:nv], lv = Vx[nv:]:
 // * velocity rows (v+ = v + dt a): G2 = dt a_zz with a_zz = -Minv T, T_i = ID_zz,i + P_i + P_i^T,

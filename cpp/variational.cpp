@@ -204,7 +204,7 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
 VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   const int nq = vm.model->nq, nv = vm.model->nv, nz = 2 * nv + vm.m, nw = 3 * nv;
   qp.resize(nq);
-  e.resize(nw);
+  e.resize(2 * nv);  // a step along (eta, dv); y is differenced apart
   vp.resize(nv);
   yp.resize(nv);
   Rz.resize(nv, nz);
@@ -239,14 +239,12 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
-    nw.vp = v + nw.e.segment(nv, nv);
-    nw.yp = y + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, nw.yp, w.Jp);
+    nw.vp = v + nw.e.tail(nv);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
-    nw.vp = v + nw.e.segment(nv, nv);
-    nw.yp = y + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, nw.yp, nw.Jm);
+    nw.vp = v + nw.e.tail(nv);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
   }

@@ -50,7 +50,6 @@ struct VariationalModel {
   VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
 };
 
-// Per-worker scratch.
 // Per-worker scratch: every matrix and vector a step or a Jacobian needs, sized once (no
 // allocation per call).
 struct VariationalWork {
