@@ -190,17 +190,37 @@ namespace geoddp
       RowRef lx,
       RowRef lxx)
     {
+      pinocchio::Data data(model);
+      frame_term(model, data, frame_id, kind, Q, refs, W, gauss_newton, derivatives, l, lx, lxx);
+    }
+
+    void frame_term(
+      const pinocchio::Model & model,
+      pinocchio::Data & data,
+      pinocchio::FrameIndex frame_id,
+      FrameResidual kind,
+      const ConstRowRef & Q,
+      const ConstRowRef & refs,
+      const ConstRowRef & W,
+      bool gauss_newton,
+      bool derivatives,
+      VecRef l,
+      RowRef lx,
+      RowRef lxx)
+    {
       const Eigen::Index N = Q.rows(), nv = model.nv, nx = 2 * model.nv;
       const int nr = kind == FrameResidual::Placement ? 6 : 3;
       const int nref = kind == FrameResidual::Placement ? 16 : (kind == FrameResidual::Rotation ? 9 : 3);
       check(frame_id < model.frames.size(), "frame_id: not a frame of the model");
+      check(
+        data.oMf.size() == model.frames.size() && (int)data.joints.size() == model.njoints,
+        "data: expected a pinocchio::Data built for this model");
       check(Q.cols() == model.nq, "Q: expected shape (N, nq)");
       check(refs.cols() == nref && refs.rows() >= 1, "refs: expected shape (K, " + std::to_string(nref) + ")");
       check_stack(refs.rows(), N, "refs");
       check(W.rows() == nr && W.cols() == nr, "W: expected shape (nr, nr)");
       check_outputs(N, nx, derivatives, l, lx, lxx);
 
-      pinocchio::Data data(model);
       pinocchio::Data::Matrix6x J = pinocchio::Data::Matrix6x::Zero(6, nv);
       pinocchio::Data::Tensor3x H(6, nv, nv);
       Eigen::MatrixXd Jr(nr, nv);

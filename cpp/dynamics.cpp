@@ -28,9 +28,14 @@ namespace dyn {
 
 int default_threads() {
   // One worker per core, at most two: measured on 2 cores (benchmarks/core_dynamics.py), two
-  // workers cut the second-order expansion by 1.3-1.9x on the built-in scenes.
-  const unsigned hc = std::thread::hardware_concurrency();
-  return hc == 0 ? 1 : (int)std::min(hc, 2u);
+  // workers cut the second-order expansion by 1.3-1.9x on the built-in scenes. Read once:
+  // glibc's hardware_concurrency reads /sys/devices/system/cpu/online on every call (5 us, paid
+  // by every kernel call with threads <= 0).
+  static const int workers = []() {
+    const unsigned hc = std::thread::hardware_concurrency();
+    return hc == 0 ? 1 : (int)std::min(hc, 2u);
+  }();
+  return workers;
 }
 
 // The default for a pass: default_threads() workers of the persistent pool (cpp/pool.hpp), but at
@@ -43,10 +48,14 @@ static const int MIN_NODES_PER_WORKER = 16;
 // default above). The
 // chunks depend only on N and the worker count, and each node's arithmetic is the same on any
 // worker, so results do not depend on the number of threads (tested).
+int node_workers(int N, int threads) {
+  const int T = threads > 0 ? threads : std::min(default_threads(), std::max(1, N / MIN_NODES_PER_WORKER));
+  return std::max(1, std::min(T, N));
+}
+
 template <typename Fn>
 static void parallel_for(int N, int threads, Fn fn) {
-  int T = threads > 0 ? threads : std::min(default_threads(), std::max(1, N / MIN_NODES_PER_WORKER));
-  T = std::max(1, std::min(T, N));
+  const int T = node_workers(N, threads);
   if (T == 1) {
     fn(0, N, 0);
     return;
@@ -60,6 +69,10 @@ static void parallel_for(int N, int threads, Fn fn) {
 
 void parallel_nodes(int N, int threads, const std::function<void(int, int)>& fn) {
   parallel_for(N, threads, [&](int b, int e, int) { fn(b, e); });
+}
+
+void parallel_nodes_indexed(int N, int threads, const std::function<void(int, int, int)>& fn) {
+  parallel_for(N, threads, fn);
 }
 
 // The variational step's model and scratch, for a sequential pass (rollout, forward pass).

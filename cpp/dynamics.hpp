@@ -137,5 +137,10 @@ int default_threads();
 // count, so per-node results do not depend on the number of threads.
 void parallel_nodes(int N, int threads, const std::function<void(int, int)>& fn);
 
+// How many workers parallel_nodes uses for N nodes (per-worker scratch is sized by it), and
+// parallel_nodes with the worker's index 0 .. node_workers(N, threads) - 1 passed to fn.
+int node_workers(int N, int threads);
+void parallel_nodes_indexed(int N, int threads, const std::function<void(int, int, int)>& fn);
+
 }  // namespace dyn
 }  // namespace geoddp

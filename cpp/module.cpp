@@ -21,6 +21,7 @@
 namespace geoddp {
 void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
 void bind_contracted(pybind11::module_& m);  // contracted_bindings.cpp
+void bind_cost_sum(pybind11::module_& m);  // cost_sum.cpp
 }
 
 namespace py = pybind11;
@@ -364,5 +365,6 @@ PYBIND11_MODULE(_core, m) {
       "int8: -1 lower, +1 upper, 0 free, iterations or -1 if H is not positive definite on a free set).");
 
   geoddp::bind_costs(m);  // cost terms: cost_frame_term, cost_state_regularisation, ...
+  geoddp::bind_cost_sum(m);  // a whole cost sum in one call: cost_sum, CostWorkspace
   geoddp::bind_contracted(m);  // SecondOrderTerms, expansion_contracted, backward_pass_contracted
 }

@@ -402,3 +402,82 @@ def test_kernels_check_sizes_themselves():
                                        np.eye(3), False, True, **ok)
     with pytest.raises(TypeError, match="pinocchio.Model"):
         CORE.cost_frame_term("robot", fid, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, **ok)
+
+
+# --------------------------------------------------------------------------------------
+# the whole sum in one call (cpp/cost_sum.cpp)
+
+
+def _term_by_term(sum_):
+    """The same sum evaluated one kernel call per term (the path of sums with a Python term)."""
+    twin = MultibodyCostSum(sum_.terms, model=sum_.model, terminal=sum_.terminal, backend="compiled")
+    twin._workspace = None
+    return twin
+
+
+@needs_core
+@pytest.mark.parametrize("threads", [1, 2])
+def test_whole_sum_is_bitwise_the_term_by_term_kernels(threads):
+    model, frame = MODELS["all_joints"]
+    rng = np.random.default_rng(5)
+    N = 40  # two chunks of 20 nodes with two workers
+    Q, V, U = _nodes(model, rng, N)
+    terms = [_term(k, model, frame, Q, rng, per_node=(i % 2 == 0)) for i, k in enumerate(KINDS)]
+    terms += [_term("placement", model, frame, Q, rng, per_node=True, gauss_newton=True)]
+    cc = MultibodyCostSum(terms, model=model, backend="compiled")
+    cc.threads = threads
+    assert cc._workspace is not None
+    ref = _term_by_term(cc)
+    assert np.array_equal(cc.value(Q, V, U), ref.value(Q, V, U))
+    for gn in (False, True):
+        dc, dr = cc.derivatives(Q, V, U, gauss_newton=gn), ref.derivatives(Q, V, U, gauss_newton=gn)
+        for f in ("l", "lx", "lu", "lxx", "lux", "luu"):
+            assert np.array_equal(getattr(dc, f), getattr(dr, f)), (gn, f)
+    # a terminal sum of one node, and the same sum again (its pinocchio Data reused)
+    term = MultibodyCostSum([terms[1], terms[3]], model=model, terminal=True, backend="compiled")  # one reference each
+    for _ in range(2):
+        dt_, dr_ = term.derivatives(Q[-1:], V[-1:], None), _term_by_term(term).derivatives(Q[-1:], V[-1:], None)
+        assert np.array_equal(dt_.lxx, dr_.lxx) and np.array_equal(dt_.l, dr_.l)
+
+
+@needs_core
+def test_whole_sum_keeps_a_data_per_model_and_remakes_it_when_the_model_grows():
+    model, frame = MODELS["fixed"]
+    rng = np.random.default_rng(9)
+    Q, V, U = _nodes(model, rng, 20)
+    other = model.copy()  # the same structure, another pin.Model object: its own Data
+    terms = [_term("placement", model, frame, Q, rng, per_node=False),
+             _term("translation", other, frame, Q, rng, per_node=True)]
+    cc = MultibodyCostSum(terms, model=model, backend="compiled")
+    d1 = cc.derivatives(Q, V, None)
+    assert cc._workspace.models == 2
+    assert np.array_equal(d1.lxx, _term_by_term(cc).derivatives(Q, V, None).lxx)
+    # a frame added after the first call: the kept Data no longer fits and is remade
+    other.addFrame(pin.Frame("extra", 1, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))
+    d2 = cc.derivatives(Q, V, None)
+    assert np.array_equal(d2.lxx, d1.lxx) and np.array_equal(d2.lx, d1.lx)
+
+
+@needs_core
+def test_cost_sum_checks_sizes_itself():
+    """Direct calls with inconsistent sizes raise ValueError before any chunk runs: a stack of
+    20 references on 40 nodes must not pass as two chunks of 20."""
+    model, frame = MODELS["fixed"]
+    fid = model.getFrameId(frame)
+    N, nx = 40, 2 * model.nv
+    Q, V = np.tile(pin.neutral(model), (N, 1)), np.zeros((N, model.nv))
+    ws, e = CORE.CostWorkspace(), np.empty((0, 0))
+    out = dict(l=np.zeros(N), lx=np.zeros((N, nx)), lxx=np.zeros((N, nx * nx)), lu=e, luu=e)
+    term = (0, model, fid, 2, np.zeros((20, 3)), np.eye(3), False)
+    with pytest.raises(ValueError, match="refs: a per-node reference of 20 nodes"):
+        CORE.cost_sum(ws, [term], Q, V, e, True, False, 2, **out)
+    with pytest.raises(ValueError, match="lx, lxx"):
+        CORE.cost_sum(ws, [(0, model, fid, 2, np.zeros((1, 3)), np.eye(3), False)], Q, V, e, True, False, 2,
+                      out["l"], np.zeros((N, 3)), out["lxx"], e, e)
+    with pytest.raises(ValueError, match="term types"):
+        CORE.cost_sum(ws, [(7,)], Q, V, e, False, False, 1, **out)
+    with pytest.raises(ValueError, match="U"):
+        CORE.cost_sum(ws, [(2, np.zeros((1, 2)), np.eye(2))], Q, V, np.zeros((3, 2)), False, False, 1, **out)
+    with pytest.raises(TypeError, match="pinocchio.Model"):
+        CORE.cost_sum(ws, [(1, "robot", Q[:1], V[:1], np.eye(nx), False)], Q, V, e, False, False, 1, **out)
+    assert not out["l"].any()  # nothing was added by a refused call

@@ -51,7 +51,9 @@ and creates its own ``pin.Data`` once at construction; nothing allocates a Data 
 Backends. The classes here are the Python implementation and the oracle. A
 :class:`MultibodyCostSum` built with ``backend="compiled"`` (or ``"auto"``, the default, when the
 extension imports) evaluates the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp):
-one call per term for all N nodes, same values and gradients (to round-off), and EXACT
+one call for the whole sum on all N nodes when every term has a compiled twin (cpp/cost_sum.cpp:
+node chunks on the core's workers, a pinocchio Data per worker kept in the sum's workspace),
+else one call per term; same values and gradients (to round-off), and EXACT
 second-order parts (Pinocchio's kinematic Hessians and the exact derivative of the closed-form
 Jr, no differences), which agree with this module's differenced ones to their ~1e-8 relative
 error. ``gauss_newton`` and the frozen-W r rule (the second-order part is skipped, hence exactly
@@ -71,7 +73,7 @@ import pinocchio as pin
 from .lie import product as cfg
 from .costs import AttitudeChordal, AttitudeGeodesic, CostDerivatives
 from .lie import SE3, SO3
-from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix
+from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix, threads_from_environment
 
 __all__ = [
     "ControlRegularisation",
@@ -577,6 +579,16 @@ class MultibodyCostSum:
                              f"got: {compiled.IMPORT_ERROR or 'a build without them'}; use backend='python'")
         self._core = core
         self.backend = "python" if core is None else "compiled"
+        # every term compiled: the whole sum in one call (cost_sum), with the sum's own workspace
+        # (pinocchio Data per worker, made once); threads as Multibody's (GEODDP_THREADS or the
+        # core's default)
+        whole = core is not None and all(type(t) in _COMPILED_KINDS for t in self.terms)
+        self._workspace = core.CostWorkspace() if whole else None
+        self.threads = threads_from_environment()
+        # Waking the core's workers costs about as much as a value or the derivatives of state
+        # and control terms on a few hundred nodes (tens of us): only frame terms' derivatives
+        # (Jacobians and kinematic Hessians, 2-5 us a node) are worth splitting.
+        self._split_derivatives = any(type(t) in _FRAME_KINDS for t in self.terms)
 
     @property
     def nx(self) -> int:
@@ -601,9 +613,41 @@ class MultibodyCostSum:
             raise InputError("U", f"expected shape ({N}, m), got shape {U.shape}")
         return N
 
+    def _compiled_sum(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None, l: np.ndarray,
+                      d: CostDerivatives | None, gauss_newton: bool) -> None:
+        """Every term into l (N,) and, with d, its derivatives, in one call of the core (each
+        term's checks first, so bad input raises the oracle's InputError)."""
+        N = Q.shape[0]
+        spec = []
+        for t in self.terms:
+            kind = type(t)
+            if kind is ControlRegularisation:
+                t._check(U)
+                spec.append((2, t.u_ref, t.W))
+                continue
+            t._check_nodes(N)
+            if kind is StateRegularisation:
+                spec.append((1, t.model, t.q_ref, t.v_ref, t.W, t.gauss_newton))
+            else:
+                code, refs = _FRAME_KINDS[kind](t)
+                spec.append((0, t.model, t.frame_id, code, refs, t.W, t.gauss_newton))
+        empty = _EMPTY
+        Uc = empty if U is None else np.ascontiguousarray(U, dtype=float)
+        if d is None:
+            lx = lxx = lu = luu = empty
+        else:
+            lx, lxx = _rows(d.lx, N), _rows(d.lxx, N)
+            lu, luu = (empty, empty) if U is None else (_rows(d.lu, N), _rows(d.luu, N))
+        self._core.cost_sum(self._workspace, spec, np.ascontiguousarray(Q, dtype=float),
+                            np.ascontiguousarray(V, dtype=float), Uc, d is not None, gauss_newton,
+                            self.threads if d is not None and self._split_derivatives else 1, l, lx, lxx, lu, luu)
+
     def value(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> np.ndarray:
         """(N,) summed values."""
         out = np.zeros(self._check(Q, V, U))
+        if self._workspace is not None:
+            self._compiled_sum(Q, V, U, out, None, False)
+            return out
         for t in self.terms:
             if self._core is None or not _compiled_term(self._core, t, Q, V, U, out, None):
                 out += t.value(Q, V, U)
@@ -618,6 +662,9 @@ class MultibodyCostSum:
         Hessian J_r^T W J_r of a first-order (Gauss-Newton) iteration."""
         N = self._check(Q, V, U)
         d = CostDerivatives.zeros(N, 0 if U is None else U.shape[1], self.nx)
+        if self._workspace is not None:
+            self._compiled_sum(Q, V, U, d.l, d, gauss_newton)
+            return d
         for t in self.terms:
             if self._core is None or not _compiled_term(self._core, t, Q, V, U, d.l, d, gauss_newton):
                 if gauss_newton and isinstance(t, (_ResidualTerm, StateRegularisation)):
@@ -670,6 +717,9 @@ _FRAME_KINDS: dict[type, Callable[[Any], tuple[int, np.ndarray]]] = {
     FrameRotation: lambda t: (1, t.R_ref.reshape(t.R_ref.shape[0], 9)),
     FrameTranslation: lambda t: (2, t.p_ref),
 }
+# the term classes with a compiled twin (exact types: a subclass may change what it computes)
+_COMPILED_KINDS = frozenset((*_FRAME_KINDS, StateRegularisation, ControlRegularisation))
+_EMPTY = np.empty((0, 0))
 
 
 def tracking_costs(term_factory: Callable[[Any], MultibodyCostTerm], references: Sequence[Any]) -> MultibodyCostTerm:
