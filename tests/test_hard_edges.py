@@ -67,9 +67,14 @@ def test_huge_horizon_is_refused_with_the_estimate(monkeypatch):
 
     p = paper_problem()
     monkeypatch.setattr(loop, "_available_memory", lambda: 1000)
+    monkeypatch.setattr(loop, "_MEMORY_CHECK_FROM", 0)  # the paper's problem needs far less than 64 MiB
     with pytest.raises(InputError) as e:
         solve(p, SolverOptions(verbose=False))
     assert e.value.parameter == "horizon" and "GiB" in str(e.value)
+    # below the threshold the available memory is not read at all
+    monkeypatch.setattr(loop, "_MEMORY_CHECK_FROM", loop.memory_estimate(p.horizon, p.nx, p.nu) + 1)
+    monkeypatch.setattr(loop, "_available_memory", lambda: pytest.fail("read /proc/meminfo for a small problem"))
+    assert solve(p, SolverOptions(verbose=False)).converged
     # the estimate: Theta, Gamma, Xi dominate (H nx^3 + H nx^2 m + H nx m^2) * 8 bytes
     assert loop.memory_estimate(1000, 6, 3) >= 8 * 1000 * (216 + 108 + 54)
 
