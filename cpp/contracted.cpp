@@ -6,8 +6,30 @@
 #include <cmath>
 #include <vector>
 
+#include "lie.hpp"
+
 namespace geoddp {
 namespace ctr {
+
+// The structure constants C_p of so(3) and se(3) (lie.hpp), made once.
+struct Structure {
+  lie::Mat3 C3[3];
+  lie::Mat6 C6[6];
+  Structure() {
+    lie::so3_structure(C3);
+    lie::se3_structure(C6);
+  }
+};
+static const Structure STRUCTURE;
+
+// X = As^T (sum_p l_p C_p) for a group of dimension D (3: SO(3), 6: SE(3)); As row-major.
+template <int D>
+static void bracket_factor(const double* as, const double* l, const Eigen::Matrix<double, D, D>* C, double* X) {
+  Eigen::Matrix<double, D, D> Cl = l[0] * C[0];
+  for (int p = 1; p < D; ++p) Cl += l[p] * C[p];
+  Eigen::Map<Eigen::Matrix<double, D, D, Eigen::RowMajor>>(X).noalias() =
+      Eigen::Map<const Eigen::Matrix<double, D, D, Eigen::RowMajor>>(as).transpose() * Cl;
+}
 
 // S's upper triangle (the top-right n x m block is S_ux^T); the lower triangle is left as junk.
 // With lq = Vx[:nv], lv = Vx[nv:]:
@@ -17,7 +39,8 @@ namespace ctr {
 //   c = lv + [semi] dt Jr^T lq, and sum_p c_p F2_p = sum_i mu_i T_i with mu = -dt Minv c;
 //   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) are mu^T times Pinocchio's column-major tensors;
 // * reconstruction rows of each SO(3)/SE(3) group s: dt^2 W_s^T (sum_p lq_p Dsym_p) W_s and
-//   (sum_p lq_p Mrec_p) on the group's q rows plus its transpose (dynamics.cpp, expansion).
+//   Ml = dt/2 As^T (sum_p lq_p C_p) JWs on the group's q rows plus its transpose (dynamics.cpp,
+//   expansion: its Mrec_p = dt/2 As^T C_p JWs, summed here before the products).
 // Why upper only: every consumer completes Qxx and Quu from their upper triangles, so the lower
 // half (and the symmetric half of each product) was work thrown away.
 static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
@@ -26,7 +49,7 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   const size_t n3 = (size_t)nv * nn;
   // per-thread scratch: contract runs once per node in the sequential pass
   thread_local Eigen::VectorXd c, mu;
-  thread_local std::vector<double> r4, R, ml, dl, DW;
+  thread_local std::vector<double> r4, R, ml, dl, DW, X;
   CVecMap lq(Vx, nv), lv(Vx + nv, nv);
   S.setZero(nz, nz);
   c = lv;
@@ -85,19 +108,23 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   }
   // reconstruction rows of the SO(3)/SE(3) groups
   const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
-  const double* mrec = t.Mrec.data() + (size_t)k * t.gM;
+  const double* as = t.As.data() + (size_t)k * t.gJ;
+  const double* jw = t.JWs.data() + (size_t)k * t.gW;
   const double* F1 = t.F1.data() + (size_t)k * nv * nz;
   for (const JointGroup& g : t.groups) {
     const int o = g.idx_v, d = g.nv, dd = d * d, dn = d * nz;
     dl.assign(dd, 0.0);
-    ml.assign(dn, 0.0);
     for (int p = 0; p < d; ++p) {
       const double l = lq[o + p];
       const double* Dp = dsym + (size_t)p * dd;
-      const double* Mp = mrec + (size_t)p * dn;
       for (int e = 0; e < dd; ++e) dl[e] += l * Dp[e];
-      for (int e = 0; e < dn; ++e) ml[e] += l * Mp[e];
     }
+    // Ml = dt/2 As^T (sum_p lq_p C_p) JWs: a d x d factor, then one (d, d) x (d, nz) product
+    X.resize(dd);
+    if (g.kind == SO3) bracket_factor<3>(as, lq.data() + o, STRUCTURE.C3, X.data());
+    else bracket_factor<6>(as, lq.data() + o, STRUCTURE.C6, X.data());
+    ml.resize(dn);
+    gemm::gemm(false, d, nz, d, 0.5 * dt, X.data(), d, jw, nz, false, ml.data(), nz);
     if (t.semi) {  // S += dt^2 Ws^T Dl Ws with Ws = F1's rows of the group: upper triangle only
       const double* Ws = F1 + (size_t)o * nz;
       DW.resize(dn);
@@ -116,7 +143,8 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
       for (int a = 0; a <= row; ++a) S(a, row) += Mp[a];
     }
     dsym += d * dd;
-    mrec += d * dn;
+    as += dd;
+    jw += dn;
   }
 }
 

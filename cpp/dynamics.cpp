@@ -652,11 +652,11 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
   for (const JointGroup& g : joint_groups(model))
     if (g.kind == SO3 || g.kind == SE3) groups.push_back(g);
   const int nz = 2 * nv + m;
-  gJ = gD = gM = 0;
+  gJ = gD = gW = 0;
   for (const JointGroup& g : groups) {
     gJ += g.nv * g.nv;
     gD += g.nv * g.nv * g.nv;
-    gM += g.nv * g.nv * nz;
+    gW += g.nv * nz;
   }
   const size_t n3 = (size_t)N * nv * nv * nv;
   for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
@@ -665,7 +665,8 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
   F1.resize((size_t)N * nv * nz);
   Jr.resize((size_t)N * gJ);
   Dsym.resize((size_t)N * gD);
-  Mrec.resize((size_t)N * gM);
+  As.resize((size_t)N * gJ);
+  JWs.resize((size_t)N * gW);
 }
 
 // Per node: the first-order part exactly as expansion() computes it (same expressions, so Phi and
@@ -681,13 +682,12 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
   const bool semi = s.integrator == SEMI_IMPLICIT;
   t.resize(model, m, N, dt, semi);
   const std::vector<JointGroup> groups = joint_groups(model);
-  const GroupStructure gs;
   CMatMap Hm(s.H, nv, m);
   const size_t n3 = (size_t)nv * nv * nv;
   parallel_for(N, threads, [&](int b0, int e0, int) {
     NodeWork w(model, m);
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
-    RowMat A(nv, nv), Jr(nv, nv), Ds, Mz;
+    RowMat A(nv, nv), Jr(nv, nv);
     std::vector<double> Dt((size_t)nv * nv * nv);
     Eigen::VectorXd omega(nv);
     for (int k = b0; k < e0; ++k) {
@@ -712,23 +712,22 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
       MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
       // the reconstruction's group blocks
       double* jr = t.Jr.data() + (size_t)k * t.gJ;
+      double* as = t.As.data() + (size_t)k * t.gJ;
       double* dsym = t.Dsym.data() + (size_t)k * t.gD;
-      double* mrec = t.Mrec.data() + (size_t)k * t.gM;
+      double* jw = t.JWs.data() + (size_t)k * t.gW;
       for (const JointGroup& g : groups) {
         if (g.kind != SO3 && g.kind != SE3) continue;
         const int o = g.idx_v, d = g.nv;
         MatMap(jr, d, d) = Jr.block(o, o, d, d);
+        MatMap(as, d, d) = A.block(o, o, d, d);
+        MatMap(jw, d, nz) = JW.middleRows(o, d);
         jr += d * d;
-        const auto JWs = JW.middleRows(o, d);
-        const auto As = A.block(o, o, d, d);
-        for (int p = 0; p < d; ++p) {
+        as += d * d;
+        jw += d * nz;
+        for (int p = 0; p < d; ++p)
           for (int a = 0; a < d; ++a)
             for (int c = 0; c < d; ++c) dsym[(size_t)(p * d + a) * d + c] = dsym_entry(Dt, nv, o, p, a, c);
-          bracket_block(gs, g, p, dt, As, JWs, Ds, Mz);
-          MatMap(mrec + (size_t)p * d * nz, d, nz) = Mz;
-        }
         dsym += d * d * d;
-        mrec += d * d * nz;
       }
     }
   });

@@ -79,8 +79,10 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
 //   per SO(3)/SE(3) joint group g (offset o, dimension d), in the order of `groups`:
 //     Jr (d, d): the reconstruction's right Jacobian block at dt w_bar;
 //     Dsym (d, d, d): [p][a][c] = sym_(a,c) dJr[p, a] / d omega_c (the 1/2 dJr[rho] rho term);
-//     Mrec (d, d, nz): [p] = dt/2 A_s^T C_p Jr_s W_s (the 1/2 [A eta, Jr rho] term; C_p the
-//     structure constants, W_s the group's rows of the velocity increment's Jacobian).
+//     As (d, d) and JWs (d, nz): the group's blocks of Ad_exp(-dt w_bar) and of Jr W (W the
+//     velocity increment's Jacobian), the factors of the 1/2 [A eta, Jr rho] term, whose
+//     contraction sum_p lq_p dt/2 As^T C_p JWs (C_p the structure constants) the pass forms as
+//     dt/2 As^T (sum_p lq_p C_p) JWs: d^2 + d nz numbers per group instead of d^2 nz.
 // An uninitialised float64 buffer: every entry is written before it is read, and zeroing
 // megabytes per linearisation (4 nv^3 per node) cost as much as filling them.
 // Its memory is recycled (buffer_take / buffer_give, dynamics.cpp): every exact linearisation
@@ -112,8 +114,8 @@ struct SecondOrderTerms {
   double dt = 0.0;
   bool semi = false;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
-  int gJ = 0, gD = 0, gM = 0;      // per-node sizes of the group blocks
-  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, Mrec;
+  int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
+  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs;
   int nz() const { return 2 * nv + m; }
   void resize(const Model& model, int m_, int N_, double dt_, bool semi_);
 };
