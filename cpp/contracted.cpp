@@ -11,16 +11,8 @@
 namespace geoddp {
 namespace ctr {
 
-// The structure constants C_p of so(3) and se(3) (lie.hpp), made once.
-struct Structure {
-  lie::Mat3 C3[3];
-  lie::Mat6 C6[6];
-  Structure() {
-    lie::so3_structure(C3);
-    lie::se3_structure(C6);
-  }
-};
-static const Structure STRUCTURE;
+// The structure constants C_p of so(3) and se(3), made once.
+static const lie::GroupStructure STRUCTURE;
 
 // X = As^T (sum_p l_p C_p) for a group of dimension D (3: SO(3), 6: SE(3)); As row-major.
 template <int D>

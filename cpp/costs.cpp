@@ -179,23 +179,6 @@ namespace geoddp
     // ------------------------------------------------------------------ frame terms
     void frame_term(
       const pinocchio::Model & model,
-      pinocchio::FrameIndex frame_id,
-      FrameResidual kind,
-      const ConstRowRef & Q,
-      const ConstRowRef & refs,
-      const ConstRowRef & W,
-      bool gauss_newton,
-      bool derivatives,
-      VecRef l,
-      RowRef lx,
-      RowRef lxx)
-    {
-      pinocchio::Data data(model);
-      frame_term(model, data, frame_id, kind, Q, refs, W, gauss_newton, derivatives, l, lx, lxx);
-    }
-
-    void frame_term(
-      const pinocchio::Model & model,
       pinocchio::Data & data,
       pinocchio::FrameIndex frame_id,
       FrameResidual kind,

@@ -60,24 +60,11 @@ namespace geoddp
     /// 1/2 r^T W r of a frame residual on N nodes: Q (N, nq), W (nr, nr) symmetric PSD.
     /// With derivatives=false only l is touched (lx, lxx may be empty).
     /// gauss_newton=true drops the residual's second-order part from lxx.
-    /// The same with the caller's pinocchio::Data for `model` (cpp/cost_sum.cpp keeps one per
-    /// worker: building a Data costs more than a node's kinematics).
+    /// data: a pinocchio::Data built for `model`, the caller's (cost_sum.cpp keeps one per worker:
+    /// building a Data costs more than a node's kinematics).
     void frame_term(
       const pinocchio::Model & model,
       pinocchio::Data & data,
-      pinocchio::FrameIndex frame_id,
-      FrameResidual kind,
-      const ConstRowRef & Q,
-      const ConstRowRef & refs,
-      const ConstRowRef & W,
-      bool gauss_newton,
-      bool derivatives,
-      VecRef l,
-      RowRef lx,
-      RowRef lxx);
-
-    void frame_term(
-      const pinocchio::Model & model,
       pinocchio::FrameIndex frame_id,
       FrameResidual kind,
       const ConstRowRef & Q,

@@ -25,8 +25,9 @@ namespace geoddp
         if (frame_id < 0)
           throw std::invalid_argument("frame_id: expected a frame index");
         py::gil_scoped_release release;
+        pinocchio::Data data(mdl);
         frame_term(
-          mdl, (pinocchio::FrameIndex)frame_id, static_cast<FrameResidual>(kind), Q, refs, W, gauss_newton,
+          mdl, data, (pinocchio::FrameIndex)frame_id, static_cast<FrameResidual>(kind), Q, refs, W, gauss_newton,
           derivatives, l, lx, lxx);
       },
       py::arg("model"), py::arg("frame_id"), py::arg("kind"), py::arg("Q"), py::arg("refs"), py::arg("W"),

@@ -392,15 +392,7 @@ void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* om
   }
 }
 
-// The reconstruction's structure constants: C3[p], C6[p] of so(3), se(3) (lie.hpp).
-struct GroupStructure {
-  lie::Mat3 C3[3];
-  lie::Mat6 C6[6];
-  GroupStructure() {
-    lie::so3_structure(C3);
-    lie::se3_structure(C6);
-  }
-};
+using lie::GroupStructure;  // the reconstruction's structure constants C3[p], C6[p]
 
 // out = alpha Jr X for the block-diagonal right Jacobian Jr (nv, nv) of the reconstruction, X and
 // out (nv, c), out not aliasing X. Jr is the identity off the SO(3)/SE(3) groups, so only those

@@ -258,5 +258,15 @@ inline void se3_structure(Mat6 C[6]) {
   }
 }
 
+// The structure constants of so(3) and se(3), made once per user (dynamics.cpp, contracted.cpp).
+struct GroupStructure {
+  Mat3 C3[3];
+  Mat6 C6[6];
+  GroupStructure() {
+    so3_structure(C3);
+    se3_structure(C6);
+  }
+};
+
 }  // namespace lie
 }  // namespace geoddp
