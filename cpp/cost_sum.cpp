@@ -134,6 +134,7 @@ void bind_cost_sum(py::module_& m) {
             x.gauss_newton = t[5].cast<bool>();
             check_stack(view(x.a).rows(), N, "q_ref");
             check_stack(view(x.b).rows(), N, "v_ref");
+            if (V.rows() != N) throw py::value_error("V: expected shape (N, nv)");
           } else if (x.type == 2) {  // (2, u_ref (K, m), W)
             x.a = t[1].cast<Arr>();
             x.W = t[2].cast<Arr>();

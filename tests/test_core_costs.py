@@ -480,4 +480,6 @@ def test_cost_sum_checks_sizes_itself():
         CORE.cost_sum(ws, [(2, np.zeros((1, 2)), np.eye(2))], Q, V, np.zeros((3, 2)), False, False, 1, **out)
     with pytest.raises(TypeError, match="pinocchio.Model"):
         CORE.cost_sum(ws, [(1, "robot", Q[:1], V[:1], np.eye(nx), False)], Q, V, e, False, False, 1, **out)
+    with pytest.raises(ValueError, match="V: expected"):  # chunks of V must not run past its end
+        CORE.cost_sum(ws, [(1, model, Q[:1], V[:1], np.eye(nx), False)], Q, V[:20], e, False, False, 2, **out)
     assert not out["l"].any()  # nothing was added by a refused call
