@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "lie.hpp"
+#include "pool.hpp"
 
 namespace geoddp {
 namespace ctr {
@@ -167,6 +168,50 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
   };
   return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff, K_fb,
                                  quu_eig, d1, d2);
+}
+
+int regularised_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                           const double* lu, const double* lxx, const double* lux, const double* luu,
+                           const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
+                           double reg_increase, double reg_min, double reg_max, bool speculate, double* k_ff,
+                           double* K_fb, double* quu_eig, double* spare_k, double* spare_K, double* spare_eig,
+                           double* lam, double* d1, double* d2, int* restarts) {
+  const auto pass = [&](double reg, double* k, double* K, double* e, double* a, double* b) {
+    return backward_pass_contracted(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, t, reg, k, K, e,
+                                    a, b);
+  };
+  *restarts = 0;
+  int failed = pass(*lam, k_ff, K_fb, quu_eig, d1, d2);
+  while (failed >= 0) {
+    ++*restarts;
+    *lam = std::max(*lam * reg_increase, reg_min);
+    if (*lam > reg_max) break;
+    const double nxt = std::max(*lam * reg_increase, reg_min);
+    if (!speculate || nxt > reg_max) {
+      failed = pass(*lam, k_ff, K_fb, quu_eig, d1, d2);
+      continue;
+    }
+    int f2 = -1;
+    double e1 = 0.0, e2 = 0.0;
+    const double now = *lam;
+    const std::function<void(int)> both = [&](int w) {
+      if (w == 0) failed = pass(now, k_ff, K_fb, quu_eig, d1, d2);
+      else f2 = pass(nxt, spare_k, spare_K, spare_eig, &e1, &e2);
+    };
+    WorkerPool::get().run(2, both);
+    if (failed < 0) break;
+    // the pass at lam failed: the one at nxt is the next of the sequence; take what it wrote
+    ++*restarts;
+    *lam = nxt;
+    failed = f2;
+    *d1 = e1;
+    *d2 = e2;
+    const size_t lo = (size_t)(f2 + 1);
+    std::copy(spare_k + lo * m, spare_k + (size_t)H * m, k_ff + lo * m);
+    std::copy(spare_K + lo * m * n, spare_K + (size_t)H * m * n, K_fb + lo * m * n);
+    std::copy(spare_eig + lo, spare_eig + H, quu_eig + lo);
+  }
+  return failed;
 }
 
 }  // namespace ctr

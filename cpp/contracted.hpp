@@ -30,5 +30,20 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
                              double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2);
 
+// geoddp.solver.backward.regularised_backward for the contracted pass, in one call: the pass at
+// lam, then, while Q_uu + lam I is not positive definite at some node, lam <- max(reg_increase lam,
+// reg_min) and the pass again, until it factorises or lam > reg_max. With `speculate`, once a pass
+// has failed, the passes at the next two lambdas of the sequence run side by side on the pool's
+// two workers (the second into the spare_* buffers, copied over for the nodes it solved when it
+// is the one taken), exactly as the Python loop does: lambda, the gains, (d1, d2) and the restart
+// count are those of running the sequence one pass at a time. Returns the failed node of the last
+// pass (-1: it factorised); *lam, *d1, *d2 and *restarts as regularised_backward returns them.
+int regularised_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                           const double* lu, const double* lxx, const double* lux, const double* luu,
+                           const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
+                           double reg_increase, double reg_min, double reg_max, bool speculate, double* k_ff,
+                           double* K_fb, double* quu_eig, double* spare_k, double* spare_K, double* spare_eig,
+                           double* lam, double* d1, double* d2, int* restarts);
+
 }  // namespace ctr
 }  // namespace geoddp

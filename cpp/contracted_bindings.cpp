@@ -92,6 +92,39 @@ void bind_contracted(py::module_& m) {
       py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("terms"), py::arg("reg"), py::arg("k_ff").noconvert(),
       py::arg("K_fb").noconvert(), py::arg("quu_eig").noconvert(),
       "backward_pass with the second-order terms contracted from `terms`: (failed node or -1, d1, d2).");
+
+  m.def(
+      "regularised_contracted",
+      [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
+         const Arr& Vx_final, const Arr& Vxx_final, const SecondOrderTerms& t, double lam, double reg_increase,
+         double reg_min, double reg_max, bool speculate, Out k_ff, Out K_fb, Out quu_eig, Out spare_k, Out spare_K,
+         Out spare_eig) {
+        const auto z = bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
+        if (z.H != t.N || z.n != 2 * t.nv || z.m != t.m) throw py::value_error("terms: sizes differ from Phi, B");
+        if (!(reg_increase > 1.0)) throw py::value_error("reg_increase: expected a factor > 1");
+        bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
+        bind::check_gain_outputs(spare_k, spare_K, spare_eig, z);
+        double d1 = 0.0, d2 = 0.0;
+        int failed, restarts;
+        {
+          py::gil_scoped_release nogil;
+          failed = ctr::regularised_contracted((int)z.H, (int)z.n, (int)z.m, Phi.data(), B.data(), lx.data(),
+                                               lu.data(), lxx.data(), lux.data(), luu.data(), Vx_final.data(),
+                                               Vxx_final.data(), t, reg_increase, reg_min, reg_max, speculate,
+                                               k_ff.mutable_data(), K_fb.mutable_data(), quu_eig.mutable_data(),
+                                               spare_k.mutable_data(), spare_K.mutable_data(),
+                                               spare_eig.mutable_data(), &lam, &d1, &d2, &restarts);
+        }
+        return py::make_tuple(lam, failed, d1, d2, restarts);
+      },
+      py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lxx"), py::arg("lux"), py::arg("luu"),
+      py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("terms"), py::arg("lam"), py::arg("reg_increase"),
+      py::arg("reg_min"), py::arg("reg_max"), py::arg("speculate"), py::arg("k_ff").noconvert(),
+      py::arg("K_fb").noconvert(), py::arg("quu_eig").noconvert(), py::arg("spare_k").noconvert(),
+      py::arg("spare_K").noconvert(), py::arg("spare_eig").noconvert(),
+      "geoddp.solver.backward.regularised_backward's restarts around backward_pass_contracted in one call\n"
+      "(speculate: the next two lambdas side by side once a pass failed; spare_* their second pass's\n"
+      "buffers): (lambda, failed node of the last pass or -1, d1, d2, restarts).");
 }
 
 }  // namespace geoddp

@@ -197,11 +197,16 @@ def test_worker_pool_survives_fork():
     assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)  # the parent's pool still works
 
 
+@pytest.mark.parametrize("speculate", [True, False], ids=["side_by_side", "one_thread"])
 @pytest.mark.parametrize("contract", [True, False])
-def test_speculative_restarts_equal_one_pass_at_a_time(contract, monkeypatch):
-    """regularised_backward runs two lambdas of its sequence side by side after a failure; lambda,
+def test_speculative_restarts_equal_one_pass_at_a_time(contract, speculate, monkeypatch):
+    """regularised_backward runs two lambdas of its sequence side by side after a failure (in C++
+    for the contracted pass, _core.regularised_contracted; in Python for the tensor one); lambda,
     (d1, d2), the restart count and every written gain equal the sequential loop's exactly."""
     from geoddp.solver import backward as bw
+
+    if not speculate:
+        monkeypatch.setenv("GEODDP_THREADS", "1")
 
     mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=30)
     mb.contract = contract
@@ -234,7 +239,7 @@ def test_speculative_restarts_equal_one_pass_at_a_time(contract, monkeypatch):
         b = sequential(lin, wb, lam0, o)
         assert a == b and a[3] >= 2, (a, b)
         assert np.array_equal(wa.k, wb.k) and np.array_equal(wa.K, wb.K) and np.array_equal(wa.quu_eig, wb.quu_eig)
-    assert bw._speculation_pool(lin) is not None or core.default_threads() < 2
+    assert bw._can_speculate(lin) == (speculate and core.default_threads() >= 2)
 
 
 def test_linearisation_tensors_materialise_the_factored_terms():
