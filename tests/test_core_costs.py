@@ -408,11 +408,45 @@ def test_kernels_check_sizes_themselves():
 # the whole sum in one call (cpp/cost_sum.cpp)
 
 
-def _term_by_term(sum_):
-    """The same sum evaluated one kernel call per term (the path of sums with a Python term)."""
-    twin = MultibodyCostSum(sum_.terms, model=sum_.model, terminal=sum_.terminal, backend="compiled")
-    twin._workspace = None
-    return twin
+class _term_by_term:
+    """The same sum evaluated one per-term kernel call at a time (cost_frame_term,
+    cost_state_regularisation, cost_control_regularisation; a fresh pinocchio Data each), the
+    reference for cost_sum's one call."""
+
+    def __init__(self, sum_):
+        self.sum = sum_
+
+    def _add(self, Q, V, U, d, gauss_newton):
+        from geoddp.multibody_costs import _FRAME_KINDS
+
+        N, Q, V = Q.shape[0], np.ascontiguousarray(Q), np.ascontiguousarray(V)
+        e = np.empty((0, 0))
+        rows = (lambda A: A.reshape(N, -1)) if d is not None else (lambda A: e)
+        for t in self.sum.terms:
+            if type(t) is ControlRegularisation:
+                CORE.cost_control_regularisation(np.ascontiguousarray(U), t.u_ref, t.W, d is not None, d.l if d else
+                                                 self.l, rows(d.lu) if d else e, rows(d.luu) if d else e)
+            elif type(t) is StateRegularisation:
+                CORE.cost_state_regularisation(t.model, Q, V, t.q_ref, t.v_ref, t.W, t.gauss_newton or gauss_newton,
+                                               d is not None, d.l if d else self.l, rows(d.lx) if d else e,
+                                               rows(d.lxx) if d else e)
+            else:
+                code, refs = _FRAME_KINDS[type(t)](t)
+                CORE.cost_frame_term(t.model, t.frame_id, code, Q, refs, t.W, t.gauss_newton or gauss_newton,
+                                     d is not None, d.l if d else self.l, rows(d.lx) if d else e,
+                                     rows(d.lxx) if d else e)
+
+    def value(self, Q, V, U):
+        self.l = np.zeros(Q.shape[0])
+        self._add(Q, V, U, None, False)
+        return self.l
+
+    def derivatives(self, Q, V, U, gauss_newton=False):
+        from geoddp.costs import CostDerivatives
+
+        d = CostDerivatives.zeros(Q.shape[0], 0 if U is None else U.shape[1], self.sum.nx)
+        self._add(Q, V, U, d, gauss_newton)
+        return d
 
 
 @needs_core
@@ -426,7 +460,7 @@ def test_whole_sum_is_bitwise_the_term_by_term_kernels(threads):
     terms += [_term("placement", model, frame, Q, rng, per_node=True, gauss_newton=True)]
     cc = MultibodyCostSum(terms, model=model, backend="compiled")
     cc.threads = threads
-    assert cc._workspace is not None
+    assert cc._whole
     ref = _term_by_term(cc)
     assert np.array_equal(cc.value(Q, V, U), ref.value(Q, V, U))
     for gn in (False, True):

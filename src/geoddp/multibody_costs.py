@@ -53,7 +53,7 @@ Backends. The classes here are the Python implementation and the oracle. A
 extension imports) evaluates the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp):
 one call for the whole sum on all N nodes when every term has a compiled twin (cpp/cost_sum.cpp:
 node chunks on the core's workers, a pinocchio Data per worker kept in the sum's workspace),
-else one call per term; same values and gradients (to round-off), and EXACT
+else one such call per compiled term; same values and gradients (to round-off), and EXACT
 second-order parts (Pinocchio's kinematic Hessians and the exact derivative of the closed-form
 Jr, no differences), which agree with this module's differenced ones to their ~1e-8 relative
 error. ``gauss_newton`` and the frozen-W r rule (the second-order part is skipped, hence exactly
@@ -579,16 +579,12 @@ class MultibodyCostSum:
                              f"got: {compiled.IMPORT_ERROR or 'a build without them'}; use backend='python'")
         self._core = core
         self.backend = "python" if core is None else "compiled"
-        # every term compiled: the whole sum in one call (cost_sum), with the sum's own workspace
-        # (pinocchio Data per worker, made once); threads as Multibody's (GEODDP_THREADS or the
-        # core's default)
-        whole = core is not None and all(type(t) in _COMPILED_KINDS for t in self.terms)
-        self._workspace = core.CostWorkspace() if whole else None
+        # compiled terms run through cost_sum with the sum's own workspace (pinocchio Data per
+        # worker, made once); every term compiled: the whole sum in one call. Threads as
+        # Multibody's (GEODDP_THREADS or the core's default)
+        self._workspace = None if core is None else core.CostWorkspace()
+        self._whole = core is not None and all(type(t) in _COMPILED_KINDS for t in self.terms)
         self.threads = threads_from_environment()
-        # Waking the core's workers costs about as much as a value or the derivatives of state
-        # and control terms on a few hundred nodes (tens of us): only frame terms' derivatives
-        # (Jacobians and kinematic Hessians, 2-5 us a node) are worth splitting.
-        self._split_derivatives = any(type(t) in _FRAME_KINDS for t in self.terms)
 
     @property
     def nx(self) -> int:
@@ -613,24 +609,12 @@ class MultibodyCostSum:
             raise InputError("U", f"expected shape ({N}, m), got shape {U.shape}")
         return N
 
-    def _compiled_sum(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None, l: np.ndarray,
-                      d: CostDerivatives | None, gauss_newton: bool) -> None:
-        """Every term into l (N,) and, with d, its derivatives, in one call of the core (each
-        term's checks first, so bad input raises the oracle's InputError)."""
+    def _compiled(self, terms: Sequence[MultibodyCostTerm], Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,
+                  l: np.ndarray, d: CostDerivatives | None, gauss_newton: bool) -> None:
+        """Add compiled terms into l (N,) and, with d, their derivatives, in one call of the core
+        (each term's checks first, so bad input raises the oracle's InputError)."""
         N = Q.shape[0]
-        spec = []
-        for t in self.terms:
-            kind = type(t)
-            if kind is ControlRegularisation:
-                t._check(U)
-                spec.append((2, t.u_ref, t.W))
-                continue
-            t._check_nodes(N)
-            if kind is StateRegularisation:
-                spec.append((1, t.model, t.q_ref, t.v_ref, t.W, t.gauss_newton))
-            else:
-                code, refs = _FRAME_KINDS[kind](t)
-                spec.append((0, t.model, t.frame_id, code, refs, t.W, t.gauss_newton))
+        spec = [_spec(t, N, U) for t in terms]
         empty = _EMPTY
         Uc = empty if U is None else np.ascontiguousarray(U, dtype=float)
         if d is None:
@@ -638,18 +622,24 @@ class MultibodyCostSum:
         else:
             lx, lxx = _rows(d.lx, N), _rows(d.lxx, N)
             lu, luu = (empty, empty) if U is None else (_rows(d.lu, N), _rows(d.luu, N))
+        # Waking the core's workers costs about as much as a value or the derivatives of state
+        # and control terms on a few hundred nodes (tens of us): only frame terms' derivatives
+        # (Jacobians and kinematic Hessians, 2-5 us a node) are worth splitting.
+        split = d is not None and any(s[0] == 0 for s in spec)
         self._core.cost_sum(self._workspace, spec, np.ascontiguousarray(Q, dtype=float),
                             np.ascontiguousarray(V, dtype=float), Uc, d is not None, gauss_newton,
-                            self.threads if d is not None and self._split_derivatives else 1, l, lx, lxx, lu, luu)
+                            self.threads if split else 1, l, lx, lxx, lu, luu)
 
     def value(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> np.ndarray:
         """(N,) summed values."""
         out = np.zeros(self._check(Q, V, U))
-        if self._workspace is not None:
-            self._compiled_sum(Q, V, U, out, None, False)
+        if self._whole:
+            self._compiled(self.terms, Q, V, U, out, None, False)
             return out
         for t in self.terms:
-            if self._core is None or not _compiled_term(self._core, t, Q, V, U, out, None):
+            if self._core is not None and type(t) in _COMPILED_KINDS:
+                self._compiled([t], Q, V, U, out, None, False)
+            else:
                 out += t.value(Q, V, U)
         return out
 
@@ -662,15 +652,16 @@ class MultibodyCostSum:
         Hessian J_r^T W J_r of a first-order (Gauss-Newton) iteration."""
         N = self._check(Q, V, U)
         d = CostDerivatives.zeros(N, 0 if U is None else U.shape[1], self.nx)
-        if self._workspace is not None:
-            self._compiled_sum(Q, V, U, d.l, d, gauss_newton)
+        if self._whole:
+            self._compiled(self.terms, Q, V, U, d.l, d, gauss_newton)
             return d
         for t in self.terms:
-            if self._core is None or not _compiled_term(self._core, t, Q, V, U, d.l, d, gauss_newton):
-                if gauss_newton and isinstance(t, (_ResidualTerm, StateRegularisation)):
-                    t.accumulate(Q, V, U, d, gauss_newton=True)
-                else:
-                    t.accumulate(Q, V, U, d)
+            if self._core is not None and type(t) in _COMPILED_KINDS:
+                self._compiled([t], Q, V, U, d.l, d, gauss_newton)
+            elif gauss_newton and isinstance(t, (_ResidualTerm, StateRegularisation)):
+                t.accumulate(Q, V, U, d, gauss_newton=True)
+            else:
+                t.accumulate(Q, V, U, d)
         return d
 
 
@@ -681,34 +672,18 @@ def _rows(A: np.ndarray, N: int) -> np.ndarray:
     return A.reshape(N, -1)
 
 
-def _compiled_term(core: Any, t: MultibodyCostTerm, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,
-                   l: np.ndarray, d: CostDerivatives | None, gauss_newton: bool = False) -> bool:
-    """Add term t's value into l (N,) and, with d, its derivatives into d, through the compiled
-    kernels. Returns False (nothing added) for a term without a compiled twin: the caller runs
-    the Python code. Checks the nodes first, so bad input raises the oracle's InputError."""
-    N = Q.shape[0]
+def _spec(t: MultibodyCostTerm, N: int, U: np.ndarray | None) -> tuple:
+    """A compiled term as geoddp._core.cost_sum takes it, after the oracle's checks for N nodes
+    (bad input raises the same InputError as the Python code)."""
     kind = type(t)
     if kind is ControlRegularisation:
-        t._check(U)  # the oracle's checks (U given, shape, per-node reference count)
-        lu = np.empty((0, 0)) if d is None else _rows(d.lu, N)
-        luu = np.empty((0, 0)) if d is None else _rows(d.luu, N)
-        core.cost_control_regularisation(np.ascontiguousarray(U, dtype=float), t.u_ref, t.W, d is not None,
-                                         l, lu, luu)
-        return True
-    if kind not in _FRAME_KINDS and kind is not StateRegularisation:
-        return False
+        t._check(U)  # U given, its shape, the per-node reference count
+        return (2, t.u_ref, t.W)
     t._check_nodes(N)
-    Qc = np.ascontiguousarray(Q, dtype=float)
-    lx = np.empty((0, 0)) if d is None else _rows(d.lx, N)
-    lxx = np.empty((0, 0)) if d is None else _rows(d.lxx, N)
     if kind is StateRegularisation:
-        core.cost_state_regularisation(t.model, Qc, np.ascontiguousarray(V, dtype=float), t.q_ref, t.v_ref, t.W,
-                                       t.gauss_newton or gauss_newton, d is not None, l, lx, lxx)
-        return True
+        return (1, t.model, t.q_ref, t.v_ref, t.W, t.gauss_newton)
     code, refs = _FRAME_KINDS[kind](t)
-    core.cost_frame_term(t.model, t.frame_id, code, Qc, refs, t.W, t.gauss_newton or gauss_newton, d is not None,
-                         l, lx, lxx)
-    return True
+    return (0, t.model, t.frame_id, code, refs, t.W, t.gauss_newton)
 
 
 # frame term class -> (kernel code, its references as (K, 16 | 9 | 3) rows)
