@@ -24,6 +24,7 @@ namespace py = pybind11;
 namespace geoddp {
 namespace {
 
+using costs::check_stack;
 using costs::ConstRowRef;
 using costs::RowRef;
 using costs::VecRef;
@@ -40,7 +41,7 @@ struct ModelDatas {
   // Worker t's Data, made (or remade, if the model gained joints or frames since) on first use.
   pinocchio::Data& get(int t) {
     std::unique_ptr<pinocchio::Data>& d = per_worker[(size_t)t];
-    if (!d || (int)d->joints.size() != model->njoints || d->oMf.size() != model->frames.size())
+    if (!d || !costs::data_fits(*model, *d))
       d.reset(new pinocchio::Data(*model));
     return *d;
   }
@@ -84,12 +85,6 @@ CMap view(const Arr& x) {
 ConstRowRef rows_for(const CMap& refs, Eigen::Index N, Eigen::Index b, Eigen::Index n) {
   if (refs.rows() == N && N > 1) return ConstRowRef(refs.middleRows(b, n));
   return ConstRowRef(refs);
-}
-
-void check_stack(Eigen::Index K, Eigen::Index N, const char* name) {
-  if (!(K == 1 || K == N))
-    throw py::value_error(std::string(name) + ": a per-node reference of " + std::to_string(K) +
-                          " nodes cannot be evaluated on " + std::to_string(N) + " nodes");
 }
 
 }  // namespace
@@ -150,15 +145,9 @@ void bind_cost_sum(py::module_& m) {
           }
         }
         // the outputs are checked whole here, so that a chunk's checks cannot pass by accident
-        if (l.size() != N) throw py::value_error("l: expected N entries");
-        if (derivatives) {
-          if (nx >= 0 && (lx.rows() != N || lx.cols() != nx || lxx.rows() != N || lxx.cols() != nx * nx))
-            throw py::value_error("lx, lxx: expected shapes (N, nx) and (N, nx * nx)");
-          for (const Term& x : terms)
-            if (x.type == 2 && (lu.rows() != N || lu.cols() != U.cols() || luu.rows() != N ||
-                                luu.cols() != U.cols() * U.cols()))
-              throw py::value_error("lu, luu: expected shapes (N, m) and (N, m * m)");
-        }
+        costs::check_outputs(N, nx >= 0 ? nx : 0, derivatives && nx >= 0, l, lx, lxx);
+        for (const Term& x : terms)
+          if (x.type == 2) costs::check_outputs(N, U.cols(), derivatives, l, lu, luu);
         py::gil_scoped_release release;
         dyn::parallel_nodes_indexed((int)N, threads, [&](int b, int e, int t) {
           const Eigen::Index n = e - b;

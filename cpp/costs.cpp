@@ -56,25 +56,6 @@ namespace geoddp
         return K == 1 ? 0 : k;
       }
 
-      void check_stack(Eigen::Index K, Eigen::Index N, const char * name)
-      {
-        check(
-          K == 1 || K == N, std::string(name) + ": a per-node reference of " + std::to_string(K)
-                              + " nodes cannot be evaluated on " + std::to_string(N) + " nodes");
-      }
-
-      void check_outputs(
-        Eigen::Index N, Eigen::Index nx, bool derivatives, const VecRef & l, const RowRef & lx,
-        const RowRef & lxx)
-      {
-        check(l.size() == N, "l: expected N entries");
-        if (derivatives)
-        {
-          check(lx.rows() == N && lx.cols() == nx, "lx: expected shape (N, nx)");
-          check(lxx.rows() == N && lxx.cols() == nx * nx, "lxx: expected shape (N, nx * nx)");
-        }
-      }
-
       // lxx_k(0:n, 0:n) += (S + S^T) / 2 for the node's row-major (nx, nx) block.
       template<typename Mat>
       void add_sym(RowRef & lxx, Eigen::Index k, Eigen::Index nx, Eigen::Index i0, const Mat & S)
@@ -84,6 +65,26 @@ namespace geoddp
         L.block(i0, i0, n, n) += 0.5 * (S + S.transpose());
       }
     } // namespace
+
+    // Argument checks shared with cost_sum.cpp (costs.hpp).
+    void check_stack(Eigen::Index K, Eigen::Index N, const char * name)
+    {
+      check(
+        K == 1 || K == N, std::string(name) + ": a per-node reference of " + std::to_string(K)
+                    + " nodes cannot be evaluated on " + std::to_string(N) + " nodes");
+    }
+
+    void check_outputs(
+      Eigen::Index N, Eigen::Index nx, bool derivatives, const VecRef & l, const RowRef & lx,
+      const RowRef & lxx)
+    {
+      check(l.size() == N, "l: expected N entries");
+      if (derivatives)
+      {
+        check(lx.rows() == N && lx.cols() == nx, "lx: expected shape (N, nx)");
+        check(lxx.rows() == N && lxx.cols() == nx * nx, "lxx: expected shape (N, nx * nx)");
+      }
+    }
 
     // ------------------------------------------------------------------ closed forms
     // Jr and dJr come from lie.hpp (shared with the dynamics kernels); the inverses live here.
@@ -195,9 +196,7 @@ namespace geoddp
       const int nr = kind == FrameResidual::Placement ? 6 : 3;
       const int nref = kind == FrameResidual::Placement ? 16 : (kind == FrameResidual::Rotation ? 9 : 3);
       check(frame_id < model.frames.size(), "frame_id: not a frame of the model");
-      check(
-        data.oMf.size() == model.frames.size() && (int)data.joints.size() == model.njoints,
-        "data: expected a pinocchio::Data built for this model");
+      check(data_fits(model, data), "data: expected a pinocchio::Data built for this model");
       check(Q.cols() == model.nq, "Q: expected shape (N, nq)");
       check(refs.cols() == nref && refs.rows() >= 1, "refs: expected shape (K, " + std::to_string(nref) + ")");
       check_stack(refs.rows(), N, "refs");

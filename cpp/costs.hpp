@@ -49,6 +49,19 @@ namespace geoddp
     Eigen::VectorXd so3_jr_derivative(const Eigen::Vector3d & x);
     Eigen::VectorXd se3_jr_derivative(const Vector6 & x);
 
+    // ------------------------------------------------------------------ argument checks
+    // (std::invalid_argument, ValueError in Python)
+    /// A stack of K per-node references serves N nodes: K = 1 or K = N.
+    void check_stack(Eigen::Index K, Eigen::Index N, const char * name);
+    /// l (N,) and, with derivatives, lx (N, nx) and lxx (N, nx * nx).
+    void check_outputs(
+      Eigen::Index N, Eigen::Index nx, bool derivatives, const VecRef & l, const RowRef & lx, const RowRef & lxx);
+    /// Whether `data` was built for `model` (its joints and frames).
+    inline bool data_fits(const pinocchio::Model & model, const pinocchio::Data & data)
+    {
+      return (int)data.joints.size() == model.njoints && data.oMf.size() == model.frames.size();
+    }
+
     // ------------------------------------------------------------------ frame terms
     enum class FrameResidual
     {

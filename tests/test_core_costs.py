@@ -505,7 +505,7 @@ def test_cost_sum_checks_sizes_itself():
     term = (0, model, fid, 2, np.zeros((20, 3)), np.eye(3), False)
     with pytest.raises(ValueError, match="refs: a per-node reference of 20 nodes"):
         CORE.cost_sum(ws, [term], Q, V, e, True, False, 2, **out)
-    with pytest.raises(ValueError, match="lx, lxx"):
+    with pytest.raises(ValueError, match="lx: expected shape"):
         CORE.cost_sum(ws, [(0, model, fid, 2, np.zeros((1, 3)), np.eye(3), False)], Q, V, e, True, False, 2,
                       out["l"], np.zeros((N, 3)), out["lxx"], e, e)
     with pytest.raises(ValueError, match="term types"):
