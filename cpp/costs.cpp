@@ -44,7 +44,9 @@ namespace geoddp
       const double JRINV_C[7] = {1.0 / 12,        1.0 / 720,      1.0 / 30240,           1.0 / 1209600,
                                  1.0 / 47900160,  691.0 / 1307674368000.0, 1.0 / 74724249600.0};
 
-      void check(bool ok, const std::string & what)
+      // const char*: the messages are literals, and a std::string per check and call had been
+      // a heap allocation on the hot path (formatted messages are built only on failure)
+      void check(bool ok, const char * what)
       {
         if (!ok)
           throw std::invalid_argument(what);
@@ -69,9 +71,10 @@ namespace geoddp
     // Argument checks shared with cost_sum.cpp (costs.hpp).
     void check_stack(Eigen::Index K, Eigen::Index N, const char * name)
     {
-      check(
-        K == 1 || K == N, std::string(name) + ": a per-node reference of " + std::to_string(K)
-                    + " nodes cannot be evaluated on " + std::to_string(N) + " nodes");
+      if (!(K == 1 || K == N))
+        throw std::invalid_argument(
+          std::string(name) + ": a per-node reference of " + std::to_string(K)
+          + " nodes cannot be evaluated on " + std::to_string(N) + " nodes");
     }
 
     void check_outputs(
@@ -198,7 +201,8 @@ namespace geoddp
       check(frame_id < model.frames.size(), "frame_id: not a frame of the model");
       check(data_fits(model, data), "data: expected a pinocchio::Data built for this model");
       check(Q.cols() == model.nq, "Q: expected shape (N, nq)");
-      check(refs.cols() == nref && refs.rows() >= 1, "refs: expected shape (K, " + std::to_string(nref) + ")");
+      if (!(refs.cols() == nref && refs.rows() >= 1))
+        throw std::invalid_argument("refs: expected shape (K, " + std::to_string(nref) + ")");
       check_stack(refs.rows(), N, "refs");
       check(W.rows() == nr && W.cols() == nr, "W: expected shape (nr, nr)");
       check_outputs(N, nx, derivatives, l, lx, lxx);

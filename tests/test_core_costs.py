@@ -493,6 +493,29 @@ def test_whole_sum_keeps_a_data_per_model_and_remakes_it_when_the_model_grows():
 
 
 @needs_core
+def test_whole_sum_sees_rebound_terms_and_changed_arrays():
+    """The sum caches its compiled specs per (terms, N, U shape): a term attribute rebound after
+    a call, an array changed in place and another node count all give the oracle's values."""
+    model, frame = MODELS["fixed"]
+    rng = np.random.default_rng(21)
+    Q, V, U = _nodes(model, rng, 12)
+    terms = [_term("placement", model, frame, Q, rng, per_node=False), _term("state", model, frame, Q, rng, per_node=False),
+             _term("control", model, frame, Q, rng, per_node=False)]
+    py, cc = _both(terms, model)
+    assert cc._whole and np.array_equal(cc.value(Q, V, U), _term_by_term(cc).value(Q, V, U))
+    for change in (lambda: setattr(terms[0], "W", _spd(6, rng)),        # rebound
+                   lambda: terms[1].W.__imul__(2.0),                      # in place
+                   lambda: setattr(terms[2], "u_ref", rng.normal(size=(1, 3)))):
+        before = cc.value(Q, V, U)
+        change()
+        after = cc.value(Q, V, U)
+        assert not np.array_equal(after, before)
+        assert _rel(after, py.value(Q, V, U)) < VALUE_TOL
+        assert _rel(cc.derivatives(Q, V, U).lxx, py.derivatives(Q, V, U).lxx) < ORACLE_HESS_TOL
+    assert _rel(cc.value(Q[:5], V[:5], U[:5]), py.value(Q[:5], V[:5], U[:5])) < VALUE_TOL
+
+
+@needs_core
 def test_cost_sum_checks_sizes_itself():
     """Direct calls with inconsistent sizes raise ValueError before any chunk runs: a stack of
     20 references on 40 nodes must not pass as two chunks of 20."""

@@ -27,6 +27,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from geoddp.contract import Trajectory
 from geoddp import lie as cfg
 from urdfs import urdf as urdf_file
 from geoddp.lie import SE3
@@ -112,6 +113,10 @@ def test_closed_loop_rollout_equals_python(case, integrator):
         outs.append((Qo, Vo, Uo))
     for a, b in zip(outs[1], outs[0]):
         assert _rel(a, b) < 1e-12
+    # the solver's route (rollout_policy: checked=True, no Python checks) is bitwise the checked call
+    trial = _problem(cc, q0, v0, H).rollout_policy(Trajectory(Qbar, Vbar, Ubar), kff, K, 0.5)
+    for a, b in zip((trial.q, trial.v, trial.u), outs[1]):
+        assert np.array_equal(a, b)
     # the feedback really acted (zeta != 0 along the way), far above the agreement tolerance
     assert _rel(outs[1][2], Ubar - 0.5 * kff) > 1e-6
     # a non-finite state (the implicit step: a step whose Newton iteration does not converge)
@@ -225,6 +230,11 @@ def test_expansion_equals_python(case, integrator, monkeypatch):
     assert _rel(e1.Phi, ep1.Phi) < 1e-12 and _rel(e1.B, ep1.B) < 1e-12
     ec = cc.expansion(Q, V, U, order=2)
     assert np.array_equal(ec.Phi, e1.Phi) and np.array_equal(ec.B, e1.B)
+    # the problem's path (checked=True: no input checks, no copies) computes the very same arrays
+    for order in (1, 2):
+        trusted, full = cc.expansion(Q, V, U, order=order, checked=True), (e1 if order == 1 else ec)
+        for name in ("Phi", "B") + (("Theta", "Gamma", "Xi") if order == 2 else ()):
+            assert np.array_equal(getattr(trusted, name), getattr(full, name)), (order, name)
     ep = py.expansion(Q, V, U, order=2)
     for name in ("Theta", "Gamma", "Xi"):
         a, b = getattr(ec, name), getattr(ep, name)

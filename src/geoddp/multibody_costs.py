@@ -184,6 +184,9 @@ def _on_frames(term: Any, model: pin.Model | None, i: int) -> Any:
 # base classes
 
 
+_ASSIGNMENTS = [0]  # attribute assignments on MultibodyCostTerm instances so far
+
+
 class MultibodyCostTerm:
     """Base class: ``value`` and ``accumulate`` over N nodes of a multibody state.
 
@@ -194,6 +197,13 @@ class MultibodyCostTerm:
 
     uses_control = False
     model: pin.Model | None = None
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        # every assignment to any term (construction included) moves the counter that a cost
+        # sum's cached compiled specs are stamped with (MultibodyCostSum._specs): a term whose
+        # weight or reference is rebound is never evaluated with the old one
+        _ASSIGNMENTS[0] += 1
+        object.__setattr__(self, name, value)
 
     def value(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> np.ndarray:
         """(N,) cost values at Q (N, nq), V (N, nv), U (N, m) or None."""
@@ -583,6 +593,7 @@ class MultibodyCostSum:
         # worker, made once); every term compiled: the whole sum in one call. Threads as
         # Multibody's (GEODDP_THREADS or the core's default)
         self._workspace = None if core is None else core.CostWorkspace()
+        self._spec_cache: dict = {}
         self._whole = core is not None and all(type(t) in _COMPILED_KINDS for t in self.terms)
         self.threads = threads_from_environment()
 
@@ -614,7 +625,7 @@ class MultibodyCostSum:
         """Add compiled terms into l (N,) and, with d, their derivatives, in one call of the core
         (each term's checks first, so bad input raises the oracle's InputError)."""
         N = Q.shape[0]
-        spec = [_spec(t, N, U) for t in terms]
+        spec = self._specs(terms, N, U)
         empty = _EMPTY
         Uc = empty if U is None else np.ascontiguousarray(U, dtype=float)
         if d is None:
@@ -629,6 +640,21 @@ class MultibodyCostSum:
         self._core.cost_sum(self._workspace, spec, np.ascontiguousarray(Q, dtype=float),
                             np.ascontiguousarray(V, dtype=float), Uc, d is not None, gauss_newton,
                             self.threads if split else 1, l, lx, lxx, lu, luu)
+
+    def _specs(self, terms: Sequence[MultibodyCostTerm], N: int, U: np.ndarray | None) -> list:
+        """[_spec(t, N, U) for t in terms], cached: a solve asks for the same few (terms, N, U
+        shape) every call (building and checking them had been ~3 us of a 10-20 us call). The
+        key holds the terms' identities and the term-assignment counter, so a rebound attribute
+        or another term list builds afresh; in-place changes to a term's arrays need nothing (the
+        specs hold the arrays themselves)."""
+        key = (N, None if U is None else U.shape, _ASSIGNMENTS[0], tuple(map(id, terms)))
+        spec = self._spec_cache.get(key)
+        if spec is None:
+            spec = [_spec(t, N, U) for t in terms]  # the checks raise here, before caching
+            if len(self._spec_cache) >= 16:  # MPC windows of many lengths: keep it small
+                self._spec_cache.clear()
+            self._spec_cache[key] = spec
+        return spec
 
     def value(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> np.ndarray:
         """(N,) summed values."""

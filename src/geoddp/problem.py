@@ -30,6 +30,7 @@ from .costs import (
     CostDerivatives,
     CostSum,
 )
+from .models.multibody import Multibody
 from .models.satellite import Satellite, satellite_model
 from .multibody_costs import (ControlRegularisation, FramePlacement, FrameRotation, FrameTranslation, MultibodyCostSum,
                               StateRegularisation)
@@ -125,13 +126,21 @@ class Problem:
         """Total cost J of a trajectory (paper eq. J)."""
         return self.cost(traj.q, traj.v, traj.u)
 
+    def _trusted(self) -> dict:
+        """checked=True for a :class:`Multibody` model: the solver's trajectories and gains are
+        this problem's own arrays, which its input checks would only copy again (7 % of a UR5
+        linearisation). Other models take no such argument (the satellite's kernels check
+        nothing; a user's model keeps the signature of the contract)."""
+        return {"checked": True} if isinstance(self.model, Multibody) else {}
+
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         """Dynamics expansion (by the model's backend) and cost derivatives along ``traj``."""
+        trusted = self._trusted()
         if order == 2 and getattr(self.model, "contracts_second_order", False):
             # factored second order, contracted with V_x' in the backward pass (compiled multibody)
-            exp = self.model.expansion(traj.q, traj.v, traj.u, order=2, contracted=True)
+            exp = self.model.expansion(traj.q, traj.v, traj.u, order=2, contracted=True, **trusted)
         else:
-            exp = self.model.expansion(traj.q, traj.v, traj.u, order=order)
+            exp = self.model.expansion(traj.q, traj.v, traj.u, order=order, **trusted)
         # Order 1 is a Gauss-Newton model where the costs offer one (multibody residual terms):
         # the exact Hessian's residual-curvature part, sum_i (W r)_i Hess r_i, is indefinite far
         # from a target and made the first iterations regularise heavily (UR5 pose reach: 32
@@ -146,7 +155,7 @@ class Problem:
         """:meth:`rollout_closed_loop` around ``traj`` into new arrays; None if non-finite."""
         # fresh C-contiguous outputs (empty_like would copy a nominal's layout, e.g. a transposed guess)
         q, v, u = np.empty(traj.q.shape), np.empty(traj.v.shape), np.empty(traj.u.shape)
-        if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, q, v, u):
+        if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, q, v, u, trusted=True):
             return None
         return Trajectory(q, v, u)
 
@@ -184,19 +193,22 @@ class Problem:
 
     def rollout_closed_loop(
         self, q_bar: np.ndarray, v_bar: np.ndarray, u_bar: np.ndarray, k_ff: np.ndarray, K_fb: np.ndarray,
-        gamma: float, q_out: np.ndarray, v_out: np.ndarray, u_out: np.ndarray,
+        gamma: float, q_out: np.ndarray, v_out: np.ndarray, u_out: np.ndarray, trusted: bool = False,
     ) -> bool:
         """Forward pass of Algorithm 1: u_k = u_bar_k - gamma k_k - K_k zeta_k (eq. dustar) with
         zeta_k = difference(x_bar_k, x_k), from the initial state; gains k_ff (H, m), K_fb
         (H, m, nx); results into q_out, v_out, u_out. Returns False if the state became non-finite.
 
         With limits, u_k is clamped into [lower_k, upper_k] after the feedback law (the feasible
-        forward pass of issue 15): every control applied and stored lies in the box."""
+        forward pass of issue 15): every control applied and stored lies in the box.
+        ``trusted=True``: the arrays are the solver's own (float64, C-contiguous, these shapes;
+        :meth:`rollout_policy`), so a Multibody model skips its Python checks (:meth:`_trusted`)."""
+        kw = self._trusted() if trusted else {}
         if self._bounds is None:
             return self.model.rollout_closed_loop(self.q0, self.v0, q_bar, v_bar, u_bar, k_ff, K_fb, gamma,
-                                                  q_out, v_out, u_out)
+                                                  q_out, v_out, u_out, **kw)
         return self.model.rollout_closed_loop(self.q0, self.v0, q_bar, v_bar, u_bar, k_ff, K_fb, gamma,
-                                              q_out, v_out, u_out, lower=self._bounds[0], upper=self._bounds[1])
+                                              q_out, v_out, u_out, lower=self._bounds[0], upper=self._bounds[1], **kw)
 
     def expansion(self, q: np.ndarray, v: np.ndarray, controls: np.ndarray, order: int):
         """The model's expansion along a trajectory (Phi, B; Theta, Gamma, Xi at order 2)."""
