@@ -134,7 +134,9 @@ class Problem:
         return {"checked": True} if isinstance(self.model, Multibody) else {}
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
-        """Dynamics expansion (by the model's backend) and cost derivatives along ``traj``."""
+        """Dynamics expansion (by the model's backend) and cost derivatives along ``traj``, one
+        of this problem's own trajectories (:meth:`trajectory`, :meth:`rollout_policy`): a
+        Multibody model takes it without its Python input checks (:meth:`_trusted`)."""
         trusted = self._trusted()
         if order == 2 and getattr(self.model, "contracts_second_order", False):
             # factored second order, contracted with V_x' in the backward pass (compiled multibody)
