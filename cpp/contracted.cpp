@@ -32,8 +32,9 @@ static void bracket_factor(const double* as, const double* l, const Eigen::Matri
 //   c = lv + [semi] dt Jr^T lq, and sum_p c_p F2_p = sum_i mu_i T_i with mu = -dt Minv c;
 //   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) are mu^T times Pinocchio's column-major tensors;
 // * reconstruction rows of each SO(3)/SE(3) group s: dt^2 W_s^T (sum_p lq_p Dsym_p) W_s and
-//   Ml = dt/2 As^T (sum_p lq_p C_p) JWs on the group's q rows plus its transpose (dynamics.cpp,
-//   expansion: its Mrec_p = dt/2 As^T C_p JWs, summed here before the products).
+//   Ml = dt/2 As^T (sum_p lq_p C_p) JWs on the group's q rows plus its transpose (the dense
+//   expansion in dynamics.cpp adds each dt/2 As^T C_p JWs, bracket_block; here the sum over p is
+//   taken before the products).
 // Why upper only: every consumer completes Qxx and Quu from their upper triangles, so the lower
 // half (and the symmetric half of each product) was work thrown away.
 static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {

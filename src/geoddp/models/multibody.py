@@ -436,19 +436,20 @@ class Multibody:
         a problem's own nominal, gains and fresh outputs, :meth:`geoddp.problem.Problem.rollout_policy`);
         the Python checks are skipped (the core still checks every shape)."""
         H = np.shape(u_out)[0]  # the outputs are the caller's, sized to its horizon
-        if self.backend == "compiled" and checked:
-            return compiled._core.rollout_closed_loop(
+        if self.backend == "compiled":
+            if not checked:
+                nq, nv, m = self.nq, self.nv, self.nu
+                ca, co = compiled.check_array, compiled.check_output
+                Q_bar, V_bar = ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv))
+                u_bar, k_ff = ca(u_bar, "u_bar", (H, m)), ca(k_ff, "k_ff", (H, m))
+                K_fb = ca(K_fb, "K_fb", (H, m, 2 * nv))
+                Q_out, V_out = co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv))
+                u_out = co(u_out, "u_out", (H, m))
+                if lower is not None:
+                    lower, upper = ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m))
+            return compiled._core.rollout_closed_loop(  # False on a step that does not converge
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, Q_bar, V_bar,
                 u_bar, k_ff, K_fb, float(gamma), Q_out, V_out, u_out, *(() if lower is None else (lower, upper)))
-        if self.backend == "compiled":
-            nq, nv, m = self.nq, self.nv, self.nu
-            ca, co = compiled.check_array, compiled.check_output
-            return compiled._core.rollout_closed_loop(  # False on a step that does not converge
-                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0,
-                ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv)), ca(u_bar, "u_bar", (H, m)),
-                ca(k_ff, "k_ff", (H, m)), ca(K_fb, "K_fb", (H, m, 2 * nv)), float(gamma),
-                co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv)), co(u_out, "u_out", (H, m)),
-                *(() if lower is None else (ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m)))))
         data = self._data
         Q_out[0], V_out[0] = q0, v0
         for k in range(H):
