@@ -3,7 +3,11 @@
 #include "contracted.hpp"
 #include "riccati_blocks.hpp"
 
+#include <atomic>
 #include <cmath>
+#include <functional>
+#include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "lie.hpp"
@@ -148,20 +152,100 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
     for (Eigen::Index j = 0; j < i; ++j) S(i, j) = S(j, i);
 }
 
-void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
-                    RowMat& Qux, RowMat& Quu) {
+// Qxx, Qux, Quu += S's blocks (S from contract_upper; Qxx and Quu are completed from their upper
+// triangles by the pass: the junk below is harmless)
+static void add_upper(const RowMat& S, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
   const Eigen::Index n = Qxx.rows(), m = Quu.rows();
-  contract_upper(t, k, Vx.data(), S);
-  // Qxx and Quu are completed from their upper triangles by the pass: the junk below is harmless
   Qxx += S.topLeftCorner(n, n);
   Qux += S.topRightCorner(n, m).transpose();
   Quu += S.bottomRightCorner(m, m);
 }
 
+void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
+                    RowMat& Qux, RowMat& Quu) {
+  contract_upper(t, k, Vx.data(), S);
+  add_upper(S, Qxx, Qux, Quu);
+}
+
+// A short wait for the other worker of a two-worker pass: it hands over within microseconds, so
+// spin (with the CPU's pause hint) and only yield the core if it is late (descheduled).
+static inline void wait_a_little(int& spins) {
+  if (++spins < 4096) {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+  } else {
+    std::this_thread::yield();
+  }
+}
+
+// The pass on two workers. Node k's contraction needs only V_x' (the Vx of node k + 1), not Vxx,
+// so worker 1 contracts node k while worker 0 finishes node k + 1 (feedback gains, Vxx) and forms
+// node k's first-order blocks (q_blocks); worker 0 then adds S and factors. The arithmetic is the
+// one-worker pass's, operation for operation: the results are bitwise equal (tested); only where
+// contract_upper runs differs. One S and the pass's own Vx are shared without copies: worker 1
+// reads Vx and writes S only between node k's hand-over and its S being ready, and worker 0 reads
+// S and rewrites Vx only after that.
+static int two_worker_pass(int H, int n, int m, const double* Phi, const double* B, const double* lx,
+                           const double* lu, const double* lxx, const double* lux, const double* luu,
+                           const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
+                           double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2) {
+  RowMat S;
+  const double* vx = nullptr;
+  std::atomic<int> vx_ready{H}, s_ready{H};  // the node whose Vx is handed over / whose S is ready
+  std::atomic<bool> done{false}, helper_failed{false};
+  int failed = -1;
+  const std::function<void(int)> task = [&](int worker) {
+    if (worker == 1) {
+      try {
+        for (int k = H - 1; k >= 0; --k) {
+          int spins = 0;
+          while (vx_ready.load(std::memory_order_acquire) != k) {
+            if (done.load(std::memory_order_acquire)) return;  // the pass stopped at a failed node
+            wait_a_little(spins);
+          }
+          contract_upper(t, k, vx, S);
+          s_ready.store(k, std::memory_order_release);
+        }
+      } catch (...) {
+        helper_failed.store(true, std::memory_order_release);
+        throw;  // the pool rethrows it to the caller
+      }
+      return;
+    }
+    const auto hand_over = [&](int k, const Eigen::VectorXd& Vx) {
+      vx = Vx.data();
+      vx_ready.store(k, std::memory_order_release);
+    };
+    const auto add = [&](int k, const Eigen::VectorXd&, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+      int spins = 0;
+      while (s_ready.load(std::memory_order_acquire) != k) {
+        if (helper_failed.load(std::memory_order_acquire)) throw std::runtime_error("contraction failed");
+        wait_a_little(spins);
+      }
+      add_upper(S, Qxx, Qux, Quu);
+    };
+    try {
+      failed = ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
+                                       K_fb, quu_eig, d1, d2, hand_over);
+    } catch (...) {
+      done.store(true, std::memory_order_release);
+      throw;
+    }
+    done.store(true, std::memory_order_release);
+  };
+  WorkerPool::get().run(2, task);
+  return failed;
+}
+
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
-                             double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2) {
+                             double reg, bool two_workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
+                             double* d2) {
+  if (two_workers && H > 0)
+    return two_worker_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, t, reg, k_ff, K_fb,
+                           quu_eig, d1, d2);
   RowMat S;
   // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
   const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
@@ -177,27 +261,29 @@ int regularised_contracted(int H, int n, int m, const double* Phi, const double*
                            double reg_increase, double reg_min, double reg_max, bool speculate, double* k_ff,
                            double* K_fb, double* quu_eig, double* spare_k, double* spare_K, double* spare_eig,
                            double* lam, double* d1, double* d2, int* restarts) {
-  const auto pass = [&](double reg, double* k, double* K, double* e, double* a, double* b) {
-    return backward_pass_contracted(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, t, reg, k, K, e,
-                                    a, b);
+  // a pass alone gets both workers (with `speculate`, the permission to use two); two passes side
+  // by side get one each
+  const auto pass = [&](double reg, bool two, double* k, double* K, double* e, double* a, double* b) {
+    return backward_pass_contracted(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, t, reg, two, k, K,
+                                    e, a, b);
   };
   *restarts = 0;
-  int failed = pass(*lam, k_ff, K_fb, quu_eig, d1, d2);
+  int failed = pass(*lam, speculate, k_ff, K_fb, quu_eig, d1, d2);
   while (failed >= 0) {
     ++*restarts;
     *lam = std::max(*lam * reg_increase, reg_min);
     if (*lam > reg_max) break;
     const double nxt = std::max(*lam * reg_increase, reg_min);
     if (!speculate || nxt > reg_max) {
-      failed = pass(*lam, k_ff, K_fb, quu_eig, d1, d2);
+      failed = pass(*lam, speculate, k_ff, K_fb, quu_eig, d1, d2);
       continue;
     }
     int f2 = -1;
     double e1 = 0.0, e2 = 0.0;
     const double now = *lam;
     const std::function<void(int)> both = [&](int w) {
-      if (w == 0) failed = pass(now, k_ff, K_fb, quu_eig, d1, d2);
-      else f2 = pass(nxt, spare_k, spare_K, spare_eig, &e1, &e2);
+      if (w == 0) failed = pass(now, false, k_ff, K_fb, quu_eig, d1, d2);
+      else f2 = pass(nxt, false, spare_k, spare_K, spare_eig, &e1, &e2);
     };
     WorkerPool::get().run(2, both);
     if (failed < 0) break;

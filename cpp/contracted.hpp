@@ -24,11 +24,14 @@ void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd
                     RowMat& Qux, RowMat& Quu);
 
 // The backward Riccati pass of ric::backward_pass (same inputs, outputs and arithmetic for the
-// first-order part) with the second-order terms contracted from `t` (H = t.N nodes).
+// first-order part) with the second-order terms contracted from `t` (H = t.N nodes). two_workers:
+// each node's contraction runs on the pool's second worker beside the node's first-order blocks
+// (bitwise the same results; contracted.cpp, two_worker_pass).
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
-                             double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2);
+                             double reg, bool two_workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
+                             double* d2);
 
 // geoddp.solver.backward.regularised_backward for the contracted pass, in one call: the pass at
 // lam, then, while Q_uu + lam I is not positive definite at some node, lam <- max(reg_increase lam,

