@@ -2,6 +2,7 @@
 // contracted.hpp). Eigen only: no Pinocchio algorithm is instantiated here.
 #include "contracted.hpp"
 #include "riccati_blocks.hpp"
+#include "riccati.hpp"
 
 #include <atomic>
 #include <cmath>
@@ -161,8 +162,10 @@ static void add_upper(const RowMat& S, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
   Quu += S.bottomRightCorner(m, m);
 }
 
-void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
-                    RowMat& Qux, RowMat& Quu) {
+// Node k's second-order terms for a one-worker pass: Qxx (n, n) += S_xx, Qux (m, n) += S_ux, Quu
+// (m, m) += S_uu with S = contract(t, k, Vx) (S the caller's scratch).
+static void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
+                           RowMat& Qux, RowMat& Quu) {
   contract_upper(t, k, Vx.data(), S);
   add_upper(S, Qxx, Qux, Quu);
 }
@@ -179,17 +182,16 @@ static inline void wait_a_little(int& spins) {
   }
 }
 
-// The pass on two workers. Node k's contraction needs only V_x' (the Vx of node k + 1), not Vxx,
+// A pass on two workers. Node k's contraction needs only V_x' (the Vx of node k + 1), not Vxx,
 // so worker 1 contracts node k while worker 0 finishes node k + 1 (feedback gains, Vxx) and forms
 // node k's first-order blocks (q_blocks); worker 0 then adds S and factors. The arithmetic is the
 // one-worker pass's, operation for operation: the results are bitwise equal (tested); only where
 // contract_upper runs differs. One S and the pass's own Vx are shared without copies: worker 1
 // reads Vx and writes S only between node k's hand-over and its S being ready, and worker 0 reads
-// S and rewrites Vx only after that.
-static int two_worker_pass(int H, int n, int m, const double* Phi, const double* B, const double* lx,
-                           const double* lu, const double* lxx, const double* lux, const double* luu,
-                           const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
-                           double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1, double* d2) {
+// S and rewrites Vx only after that. run_pass(add, hand_over) runs the pass itself (unconstrained
+// or box) on worker 0 with those two hooks and returns its failed node.
+template <typename RunPass>
+static int on_two_workers(int H, const dyn::SecondOrderTerms& t, RunPass&& run_pass) {
   RowMat S;
   const double* vx = nullptr;
   std::atomic<int> vx_ready{H}, s_ready{H};  // the node whose Vx is handed over / whose S is ready
@@ -226,8 +228,7 @@ static int two_worker_pass(int H, int n, int m, const double* Phi, const double*
       add_upper(S, Qxx, Qux, Quu);
     };
     try {
-      failed = ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
-                                       K_fb, quu_eig, d1, d2, hand_over);
+      failed = run_pass(add, hand_over);
     } catch (...) {
       done.store(true, std::memory_order_release);
       throw;
@@ -244,8 +245,10 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
                              double reg, bool two_workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                              double* d2) {
   if (two_workers && H > 0)
-    return two_worker_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, t, reg, k_ff, K_fb,
-                           quu_eig, d1, d2);
+    return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
+      return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
+                                     K_fb, quu_eig, d1, d2, hand_over);
+    });
   RowMat S;
   // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
   const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
@@ -253,6 +256,27 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
   };
   return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff, K_fb,
                                  quu_eig, d1, d2);
+}
+
+int box_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
+                        const double* lxx, const double* lux, const double* luu, const double* Vx_final,
+                        const double* Vxx_final, const dyn::SecondOrderTerms& t, double reg, const double* u_bar,
+                        const double* lower, const double* upper, bool two_workers, double* k_ff, double* K_fb,
+                        double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1, double* d2) {
+  const auto run = [&](const ric::SecondOrderHook& add, const ric::HandOverHook* hand_over) {
+    return ric::backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, &add, reg, u_bar,
+                                       lower, upper, k_ff, K_fb, quu_eig, active, Vx0, Vxx0, d1, d2, hand_over);
+  };
+  if (two_workers && H > 0)
+    return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
+      const ric::HandOverHook h = hand_over;
+      return run(add, &h);
+    });
+  RowMat S;
+  const ric::SecondOrderHook add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+    add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
+  };
+  return run(add, nullptr);
 }
 
 int regularised_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,

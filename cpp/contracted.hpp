@@ -17,12 +17,6 @@ namespace ctr {
 // S (nz, nz), symmetric, = sum_i Vx_i G2_i at node k; Vx (2 nv). S is resized and overwritten.
 void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S);
 
-// Node k's second-order terms for a backward pass: Qxx (n, n) += S_xx, Qux (m, n) += S_ux,
-// Quu (m, m) += S_uu with S = contract(t, k, Vx); S is the caller's scratch. The hook of both the
-// unconstrained and the box-constrained contracted passes.
-void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::VectorXd& Vx, RowMat& S, RowMat& Qxx,
-                    RowMat& Qux, RowMat& Quu);
-
 // The backward Riccati pass of ric::backward_pass (same inputs, outputs and arithmetic for the
 // first-order part) with the second-order terms contracted from `t` (H = t.N nodes). two_workers:
 // each node's contraction runs on the pool's second worker beside the node's first-order blocks
@@ -32,6 +26,14 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
                              double reg, bool two_workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                              double* d2);
+
+// ric::backward_pass_box_hook (cpp/riccati.hpp: controls kept in [lower, upper]; same inputs,
+// outputs and arithmetic) with the second-order terms contracted from `t`; two_workers as above.
+int box_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
+                        const double* lxx, const double* lux, const double* luu, const double* Vx_final,
+                        const double* Vxx_final, const dyn::SecondOrderTerms& t, double reg, const double* u_bar,
+                        const double* lower, const double* upper, bool two_workers, double* k_ff, double* K_fb,
+                        double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1, double* d2);
 
 // geoddp.solver.backward.regularised_backward for the contracted pass, in one call: the pass at
 // lam, then, while Q_uu + lam I is not positive definite at some node, lam <- max(reg_increase lam,

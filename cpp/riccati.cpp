@@ -193,7 +193,7 @@ int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double*
                            const double* Vx_final, const double* Vxx_final, const SecondOrderHook* second,
                            double reg, const double* u_bar, const double* lower, const double* upper, double* k_ff,
                            double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1,
-                           double* d2) {
+                           double* d2, const HandOverHook* vx_final) {
   // Q blocks as in unconstrained_pass (riccati_blocks.hpp); the box QP and the full value update
   // below are this pass's own.
   Eigen::VectorXd Vx = CVecMap(Vx_final, n), Qx(n), Qu(m), kk(m), QuuK(m), lo(m), hi(m);
@@ -204,6 +204,7 @@ int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double*
   double s1 = 0.0, s2 = 0.0;
   *d1 = 0.0;
   *d2 = 0.0;
+  if (vx_final && H > 0) (*vx_final)(H - 1, Vx);
   for (int k = H - 1; k >= 0; --k) {
     q_blocks(n, m, Phi + (size_t)k * n * n, B + (size_t)k * n * m, lx + (size_t)k * n, lu + (size_t)k * m,
              lxx + (size_t)k * n * n, lux + (size_t)k * m * n, luu + (size_t)k * m * m, Vx, Vxx, VxxPhi, VxxB, Qx, Qu,
@@ -260,6 +261,7 @@ int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double*
     Vx = Qx;
     Vx.noalias() -= Qux.transpose() * kk;
     Vx.noalias() += KK.transpose() * QuuK;
+    if (vx_final && k > 0) (*vx_final)(k - 1, Vx);
     Vxx = Qxx;
     add_xt_y_upper(-1.0, Qux, KK, Vxx);
     add_xt_y_upper(1.0, KK, QuuKK, Vxx);

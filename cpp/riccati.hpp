@@ -45,14 +45,17 @@ int backward_pass_box(int H, int n, int m, const double* Phi, const double* B, c
 // k it adds sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] (Vx = V_x' of node k + 1) into
 // Qxx (n, n), Qux (m, n; Gamma_i^T) and Quu (m, m), upper triangles at least. Lets a backend that
 // keeps the second order factored (a contraction with V_x') run the same box pass.
+// vx_final (may be null) is called as unconstrained_pass's is (riccati_blocks.hpp): with node k's
+// V_x' as soon as it is known, before the rest of node k + 1's work.
 typedef std::function<void(int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu)>
     SecondOrderHook;
+typedef std::function<void(int k, const Eigen::VectorXd& Vx)> HandOverHook;
 int backward_pass_box_hook(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                            const double* lu, const double* lxx, const double* lux, const double* luu,
                            const double* Vx_final, const double* Vxx_final, const SecondOrderHook* second,
                            double reg, const double* u_bar, const double* lower, const double* upper, double* k_ff,
                            double* K_fb, double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1,
-                           double* d2);
+                           double* d2, const HandOverHook* vx_final = nullptr);
 
 // One box QP: min_x 1/2 x^T Hq x - q^T x over lo <= x <= hi (m,), Hq (m, m) symmetric positive
 // definite, by projected Newton from x (in: warm start, clipped into the box; out: the

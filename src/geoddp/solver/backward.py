@@ -110,7 +110,7 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
     if second and lin.second_order is not None:  # factored second order: contracted with V_x' in the box pass
         out = _core.backward_pass_box_contracted(
             lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx, lin.second_order,
-            reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0)
+            reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0, _can_speculate(lin))
     else:
         out = _core.backward_pass_box(
             lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
