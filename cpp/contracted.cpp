@@ -153,13 +153,23 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
     for (Eigen::Index j = 0; j < i; ++j) S(i, j) = S(j, i);
 }
 
-// Qxx, Qux, Quu += S's blocks (S from contract_upper; Qxx and Quu are completed from their upper
-// triangles by the pass: the junk below is harmless)
+// Qxx, Qux, Quu += S's blocks, reading S's upper triangle only (S from contract_upper): the passes
+// complete Qxx and Quu from their upper triangles, so their lower halves need no sum. In the
+// two-worker pass S is written on the other core, and every cache line of it read here crosses
+// between cores; the lower half was 40 % of those lines.
 static void add_upper(const RowMat& S, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
-  const Eigen::Index n = Qxx.rows(), m = Quu.rows();
-  Qxx += S.topLeftCorner(n, n);
-  Qux += S.topRightCorner(n, m).transpose();
-  Quu += S.bottomRightCorner(m, m);
+  const int n = (int)Qxx.rows(), m = (int)Quu.rows(), nz = n + m;
+  for (int j = 0; j < n; ++j) {
+    const double* Sj = S.data() + (size_t)j * nz;
+    double* q = Qxx.data() + (size_t)j * n;
+    for (int l = j; l < n; ++l) q[l] += Sj[l];
+    for (int a = 0; a < m; ++a) Qux(a, j) += Sj[n + a];
+  }
+  for (int a = 0; a < m; ++a) {
+    const double* Sa = S.data() + (size_t)(n + a) * nz + n;
+    double* q = Quu.data() + (size_t)a * m;
+    for (int b = a; b < m; ++b) q[b] += Sa[b];
+  }
 }
 
 // Node k's second-order terms for a one-worker pass: Qxx (n, n) += S_xx, Qux (m, n) += S_ux, Quu
