@@ -4,7 +4,12 @@
 #include "riccati_blocks.hpp"
 #include "riccati.hpp"
 
+#include <unistd.h>
+
 #include <atomic>
+#include <chrono>
+#include <map>
+#include <mutex>
 #include <cmath>
 #include <functional>
 #include <stdexcept>
@@ -181,9 +186,11 @@ static void add_contracted(const dyn::SecondOrderTerms& t, int k, const Eigen::V
 }
 
 // A short wait for the other worker of a two-worker pass: it hands over within microseconds, so
-// spin (with the CPU's pause hint) and only yield the core if it is late (descheduled).
+// spin (with the CPU's pause hint), and after a few microseconds yield the core at every check:
+// if both workers share one core (a CPU quota, an oversubscribed machine), the other one runs
+// then instead of after a scheduler slice (which had made the pass 36x slower under taskset).
 static inline void wait_a_little(int& spins) {
-  if (++spins < 4096) {
+  if (++spins < 256) {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();
 #endif
@@ -249,44 +256,107 @@ static int on_two_workers(int H, const dyn::SecondOrderTerms& t, RunPass&& run_p
   return failed;
 }
 
+// workers = 0 ("auto"): which way a pass of this size runs faster here, learnt from the passes
+// themselves. The two-worker pass hands data between the cores once per node, and on a shared
+// virtual machine that round trip was measured at 70-230 ns most of a day and at 460-900 ns for
+// stretches of it, when the two-worker pass ran 1.0-1.2x the one-worker time instead of
+// 0.55-0.8x. Both ways give bitwise the same results, so choosing by time changes nothing else.
+// Per (n, m): a moving average of each way's time per node; the faster runs, and every 16th pass
+// runs the other to follow the machine's changes.
+namespace {
+class WorkersChoice {
+ public:
+  // The process's (a forked child makes its own: the parent's mutex may have been held at the
+  // fork, as cpp/pool.hpp does for the pool); never destroyed (passes may run at exit).
+  static WorkersChoice& get() {
+    static std::mutex guard;
+    static WorkersChoice* c = nullptr;
+    std::lock_guard<std::mutex> lk(guard);
+    if (c == nullptr || c->pid_ != getpid()) c = new WorkersChoice;  // the parent's is abandoned
+    return *c;
+  }
+  int choose(int n, int m) {
+    std::lock_guard<std::mutex> lk(mutex_);
+    Entry& e = entries_[{n, m}];
+    ++e.passes;
+    if (e.ns_per_node[1] == 0.0) return 2;  // measure each way once first
+    if (e.ns_per_node[0] == 0.0) return 1;
+    const int faster = e.ns_per_node[1] <= e.ns_per_node[0] ? 2 : 1;
+    return e.passes % 16 == 0 ? 3 - faster : faster;
+  }
+  void record(int n, int m, int workers, double ns_per_node) {
+    std::lock_guard<std::mutex> lk(mutex_);
+    double& x = entries_[{n, m}].ns_per_node[workers - 1];
+    x = x == 0.0 ? ns_per_node : 0.5 * (x + ns_per_node);
+  }
+
+ private:
+  struct Entry {
+    double ns_per_node[2] = {0.0, 0.0};  // one worker, two workers (0: not yet measured)
+    unsigned passes = 0;
+  };
+  WorkersChoice() : pid_(getpid()) {}
+  pid_t pid_;
+  std::mutex mutex_;
+  std::map<std::pair<int, int>, Entry> entries_;
+};
+
+// run(workers) with workers 1 or 2; for 0 the choice above, timed and recorded (per node passed
+// through: a pass that fails at node f has worked on nodes H - 1 .. f).
+template <typename Run>
+int with_workers(int workers, int H, int n, int m, Run&& run) {
+  if (workers == 1 || workers == 2 || H <= 0) return run(workers == 2 && H > 0 ? 2 : 1);
+  const int w = WorkersChoice::get().choose(n, m);
+  const auto t0 = std::chrono::steady_clock::now();
+  const int failed = run(w);
+  const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
+  WorkersChoice::get().record(n, m, w, ns / (failed < 0 ? H : H - failed));
+  return failed;
+}
+}  // namespace
+
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
-                             double reg, bool two_workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
+                             double reg, int workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                              double* d2) {
-  if (two_workers && H > 0)
-    return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
-      return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
-                                     K_fb, quu_eig, d1, d2, hand_over);
-    });
-  RowMat S;
-  // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
-  const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
-    add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
-  };
-  return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff, K_fb,
-                                 quu_eig, d1, d2);
+  return with_workers(workers, H, n, m, [&](int w) {
+    if (w == 2)
+      return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
+        return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
+                                       K_fb, quu_eig, d1, d2, hand_over);
+      });
+    RowMat S;
+    // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
+    const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+      add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
+    };
+    return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
+                                   K_fb, quu_eig, d1, d2);
+  });
 }
 
 int box_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
                         const double* lxx, const double* lux, const double* luu, const double* Vx_final,
                         const double* Vxx_final, const dyn::SecondOrderTerms& t, double reg, const double* u_bar,
-                        const double* lower, const double* upper, bool two_workers, double* k_ff, double* K_fb,
+                        const double* lower, const double* upper, int workers, double* k_ff, double* K_fb,
                         double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1, double* d2) {
   const auto run = [&](const ric::SecondOrderHook& add, const ric::HandOverHook* hand_over) {
     return ric::backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, &add, reg, u_bar,
                                        lower, upper, k_ff, K_fb, quu_eig, active, Vx0, Vxx0, d1, d2, hand_over);
   };
-  if (two_workers && H > 0)
-    return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
-      const ric::HandOverHook h = hand_over;
-      return run(add, &h);
-    });
-  RowMat S;
-  const ric::SecondOrderHook add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
-    add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
-  };
-  return run(add, nullptr);
+  return with_workers(workers, H, n, m, [&](int w) {
+    if (w == 2)
+      return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
+        const ric::HandOverHook h = hand_over;
+        return run(add, &h);
+      });
+    RowMat S;
+    const ric::SecondOrderHook add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+      add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
+    };
+    return run(add, nullptr);
+  });
 }
 
 int regularised_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
@@ -295,29 +365,30 @@ int regularised_contracted(int H, int n, int m, const double* Phi, const double*
                            double reg_increase, double reg_min, double reg_max, bool speculate, double* k_ff,
                            double* K_fb, double* quu_eig, double* spare_k, double* spare_K, double* spare_eig,
                            double* lam, double* d1, double* d2, int* restarts) {
-  // a pass alone gets both workers (with `speculate`, the permission to use two); two passes side
-  // by side get one each
-  const auto pass = [&](double reg, bool two, double* k, double* K, double* e, double* a, double* b) {
-    return backward_pass_contracted(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, t, reg, two, k, K,
-                                    e, a, b);
+  // a pass alone may use both workers (with `speculate`, the permission to use two; whether it does
+  // is workers = 0's choice); two passes side by side get one each
+  const int alone = speculate ? 0 : 1;
+  const auto pass = [&](double reg, int workers, double* k, double* K, double* e, double* a, double* b) {
+    return backward_pass_contracted(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, t, reg, workers, k,
+                                    K, e, a, b);
   };
   *restarts = 0;
-  int failed = pass(*lam, speculate, k_ff, K_fb, quu_eig, d1, d2);
+  int failed = pass(*lam, alone, k_ff, K_fb, quu_eig, d1, d2);
   while (failed >= 0) {
     ++*restarts;
     *lam = std::max(*lam * reg_increase, reg_min);
     if (*lam > reg_max) break;
     const double nxt = std::max(*lam * reg_increase, reg_min);
     if (!speculate || nxt > reg_max) {
-      failed = pass(*lam, speculate, k_ff, K_fb, quu_eig, d1, d2);
+      failed = pass(*lam, alone, k_ff, K_fb, quu_eig, d1, d2);
       continue;
     }
     int f2 = -1;
     double e1 = 0.0, e2 = 0.0;
     const double now = *lam;
     const std::function<void(int)> both = [&](int w) {
-      if (w == 0) failed = pass(now, false, k_ff, K_fb, quu_eig, d1, d2);
-      else f2 = pass(nxt, false, spare_k, spare_K, spare_eig, &e1, &e2);
+      if (w == 0) failed = pass(now, 1, k_ff, K_fb, quu_eig, d1, d2);
+      else f2 = pass(nxt, 1, spare_k, spare_K, spare_eig, &e1, &e2);
     };
     WorkerPool::get().run(2, both);
     if (failed < 0) break;

@@ -18,21 +18,22 @@ namespace ctr {
 void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S);
 
 // The backward Riccati pass of ric::backward_pass (same inputs, outputs and arithmetic for the
-// first-order part) with the second-order terms contracted from `t` (H = t.N nodes). two_workers:
-// each node's contraction runs on the pool's second worker beside the node's first-order blocks
-// (bitwise the same results; contracted.cpp, two_worker_pass).
+// first-order part) with the second-order terms contracted from `t` (H = t.N nodes). workers: 1,
+// or 2 (each node's contraction on the pool's second worker beside the node's first-order blocks;
+// contracted.cpp, on_two_workers), or 0 (whichever of the two has been faster here for passes of
+// this size: contracted.cpp, WorkersChoice). Every choice gives bitwise the same results.
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
-                             double reg, bool two_workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
+                             double reg, int workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                              double* d2);
 
 // ric::backward_pass_box_hook (cpp/riccati.hpp: controls kept in [lower, upper]; same inputs,
-// outputs and arithmetic) with the second-order terms contracted from `t`; two_workers as above.
+// outputs and arithmetic) with the second-order terms contracted from `t`; workers as above.
 int box_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
                         const double* lxx, const double* lux, const double* luu, const double* Vx_final,
                         const double* Vxx_final, const dyn::SecondOrderTerms& t, double reg, const double* u_bar,
-                        const double* lower, const double* upper, bool two_workers, double* k_ff, double* K_fb,
+                        const double* lower, const double* upper, int workers, double* k_ff, double* K_fb,
                         double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1, double* d2);
 
 // geoddp.solver.backward.regularised_backward for the contracted pass, in one call: the pass at

@@ -72,9 +72,10 @@ void bind_contracted(py::module_& m) {
       "backward_pass_contracted",
       [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
          const Arr& Vx_final, const Arr& Vxx_final, const SecondOrderTerms& t, double reg, Out k_ff, Out K_fb,
-         Out quu_eig, bool two_workers) {
+         Out quu_eig, int workers) {
         const auto z = bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
         if (z.H != t.N || z.n != 2 * t.nv || z.m != t.m) throw py::value_error("terms: sizes differ from Phi, B");
+        if (workers < 0 || workers > 2) throw py::value_error("workers: expected 0 (choose), 1 or 2");
         const long H = z.H, n = z.n, mm = z.m;
         bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
         double d1 = 0.0, d2 = 0.0;
@@ -83,7 +84,7 @@ void bind_contracted(py::module_& m) {
           py::gil_scoped_release nogil;
           failed = ctr::backward_pass_contracted((int)H, (int)n, (int)mm, Phi.data(), B.data(), lx.data(), lu.data(),
                                                  lxx.data(), lux.data(), luu.data(), Vx_final.data(),
-                                                 Vxx_final.data(), t, reg, two_workers, k_ff.mutable_data(),
+                                                 Vxx_final.data(), t, reg, workers, k_ff.mutable_data(),
                                                  K_fb.mutable_data(),
                                                  quu_eig.mutable_data(), &d1, &d2);
         }
@@ -91,9 +92,10 @@ void bind_contracted(py::module_& m) {
       },
       py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lxx"), py::arg("lux"), py::arg("luu"),
       py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("terms"), py::arg("reg"), py::arg("k_ff").noconvert(),
-      py::arg("K_fb").noconvert(), py::arg("quu_eig").noconvert(), py::arg("two_workers") = false,
+      py::arg("K_fb").noconvert(), py::arg("quu_eig").noconvert(), py::arg("workers") = 1,
       "backward_pass with the second-order terms contracted from `terms`: (failed node or -1, d1, d2).\n"
-      "two_workers: each node's contraction on the core's second worker (bitwise the same results).");
+      "workers: 1, 2 (each node's contraction on the core's second worker) or 0 (whichever has been faster\n"
+      "here for passes of this size); bitwise the same results.");
 
   m.def(
       "regularised_contracted",

@@ -23,6 +23,10 @@
 #include "rkmk4.hpp"
 #include "variational.hpp"
 
+#ifdef __linux__
+#include <sched.h>
+#endif
+
 namespace geoddp {
 namespace dyn {
 
@@ -31,9 +35,18 @@ int default_threads() {
   // workers cut the second-order expansion by 1.3-1.9x on the built-in scenes. Read once:
   // glibc's hardware_concurrency reads /sys/devices/system/cpu/online on every call (5 us, paid
   // by every kernel call with threads <= 0).
+  // Cores this process may run on: its affinity mask (taskset, a container's cpuset), not the
+  // machine's count (hardware_concurrency): two workers on one allowed core time-slice, and the
+  // two-worker backward pass (contracted.cpp) then waits a scheduler slice per node.
   static const int workers = []() {
-    const unsigned hc = std::thread::hardware_concurrency();
-    return hc == 0 ? 1 : (int)std::min(hc, 2u);
+    int n = 0;
+#ifdef __linux__
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    if (sched_getaffinity(0, sizeof(set), &set) == 0) n = CPU_COUNT(&set);
+#endif
+    if (n <= 0) n = (int)std::thread::hardware_concurrency();
+    return n <= 0 ? 1 : std::min(n, 2);
   }();
   return workers;
 }

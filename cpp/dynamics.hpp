@@ -130,8 +130,8 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
 void block_ad_jr(const std::vector<JointGroup>& groups, int nv, const double* omega, double* A, double* Jr,
                  double* D);
 
-// Worker threads of a pass when threads <= 0 ("default"): min(cores, 2), and at least 16 nodes
-// per worker (workers come from a persistent pool, cpp/pool.hpp).
+// Worker threads of a pass when threads <= 0 ("default"): min(2, cores in the process's affinity
+// mask), and at least 16 nodes per worker (workers come from a persistent pool, cpp/pool.hpp).
 int default_threads();
 
 // Runs fn(begin, end) on contiguous chunks of [0, N) with `threads` workers (<= 0: the default,

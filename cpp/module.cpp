@@ -311,10 +311,11 @@ PYBIND11_MODULE(_core, m) {
          const Arr& Vx_final, const Arr& Vxx_final, const geoddp::dyn::SecondOrderTerms& terms, double reg,
          const Arr& u_bar, const Arr& lower, const Arr& upper, py::array_t<double> k_ff, py::array_t<double> K_fb,
          py::array_t<double> quu_eig, py::array_t<signed char> active, py::array_t<double> Vx0,
-         py::array_t<double> Vxx0, bool two_workers) -> py::tuple {
+         py::array_t<double> Vxx0, int workers) -> py::tuple {
         const auto z = geoddp::bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
         const long n = z.n, mm = z.m;
         if (terms.N != z.H || 2 * terms.nv != n || terms.m != mm) throw py::value_error("terms: wrong sizes");
+        if (workers < 0 || workers > 2) throw py::value_error("workers: expected 0 (choose), 1 or 2");
         geoddp::bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
         geoddp::bind::check_box_arrays(u_bar, lower, upper, active, Vx0, Vxx0, z);
         double d1 = 0.0, d2 = 0.0;
@@ -324,7 +325,7 @@ PYBIND11_MODULE(_core, m) {
           failed = geoddp::ctr::box_pass_contracted(
               (int)z.H, (int)n, (int)mm, Phi.data(), B.data(), lx.data(), lu.data(), lxx.data(), lux.data(),
               luu.data(), Vx_final.data(), Vxx_final.data(), terms, reg, u_bar.data(), lower.data(), upper.data(),
-              two_workers, k_ff.mutable_data(), K_fb.mutable_data(), quu_eig.mutable_data(), active.mutable_data(),
+              workers, k_ff.mutable_data(), K_fb.mutable_data(), quu_eig.mutable_data(), active.mutable_data(),
               Vx0.mutable_data(), Vxx0.mutable_data(), &d1, &d2);
         }
         return py::make_tuple(failed, d1, d2);
@@ -333,9 +334,9 @@ PYBIND11_MODULE(_core, m) {
       py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("terms"), py::arg("reg"), py::arg("u_bar"),
       py::arg("lower"), py::arg("upper"), py::arg("k_ff").noconvert(), py::arg("K_fb").noconvert(),
       py::arg("quu_eig").noconvert(), py::arg("active").noconvert(), py::arg("Vx0").noconvert(),
-      py::arg("Vxx0").noconvert(), py::arg("two_workers") = false,
+      py::arg("Vxx0").noconvert(), py::arg("workers") = 1,
       "backward_pass_box with the second order factored (SecondOrderTerms, contracted with V_x' at each node, "
-      "as backward_pass_contracted does, two_workers too); same outputs.");
+      "as backward_pass_contracted does, workers too); same outputs.");
 
   m.def(
       "box_qp",

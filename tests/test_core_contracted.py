@@ -120,10 +120,11 @@ def test_contracted_backward_pass_equals_tensor_pass(case, integrator):
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_two_worker_pass_equals_one_worker_pass(case, integrator):
-    """The pass with each node's contraction on the core's second worker (two_workers=True, what
-    the solver runs when two cores may be used) gives bitwise the one-worker pass's results: the
-    failed node, (d1, d2) and every written gain, also when it stops at a failed node (the worker
-    must then stop too: the repeated calls would hang otherwise). H = 1 has no hand-over at all."""
+    """The pass with each node's contraction on the core's second worker (workers=2) gives bitwise
+    the one-worker pass's results: the failed node, (d1, d2) and every written gain, also when it
+    stops at a failed node (the worker must then stop too: the repeated calls would hang
+    otherwise). workers=0, what the solver runs when two cores may be used, picks one of the two
+    by their measured times (its first two calls for a size run each once). H = 1 has no hand-over."""
     for H in (1, 30):
         mb, Q, V, U, rng = _setup(case, integrator, H=H)
         _, lc = _linearisations(mb, Q, V, U, rng)
@@ -133,15 +134,15 @@ def test_two_worker_pass_equals_one_worker_pass(case, integrator):
         for l_uu in (lc.l_uu, indefinite):
             for reg in (0.0, 1e-3, 1e2):
                 out = {}
-                for two in (False, True, True, True):  # repeated: a race would show as a difference
+                for workers in (1, 2, 2, 2, 0, 0, 0):  # repeated: a race would show as a difference
                     w = Workspace(H, m, n)
                     w.k[:], w.K[:], w.quu_eig[:] = 7.0, -3.0, 5.0  # same stale contents before the call
                     r = core.backward_pass_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, l_uu,
                                                       lc.lf_x, lc.lf_xx, lc.second_order, reg, w.k, w.K,
-                                                      w.quu_eig, two)
+                                                      w.quu_eig, workers)
                     got = (r, w.k.copy(), w.K.copy(), w.quu_eig.copy())
                     ref = out.setdefault("ref", got)
-                    assert got[0] == ref[0], (two, got[0], ref[0])
+                    assert got[0] == ref[0], (workers, got[0], ref[0])
                     assert all(np.array_equal(a, b) for a, b in zip(got[1:], ref[1:]))
                 if l_uu is indefinite and reg == 0.0:
                     assert out["ref"][0][0] == H - 1  # the failure path was exercised
@@ -158,6 +159,9 @@ def test_contracted_pass_rejects_wrong_shapes():
     with pytest.raises(ValueError, match="k_ff"):
         core.backward_pass_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, lc.l_uu, lc.lf_x, lc.lf_xx,
                                       lc.second_order, 0.0, ws.k[1:], ws.K, ws.quu_eig)
+    with pytest.raises(ValueError, match="workers"):
+        core.backward_pass_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, lc.l_uu, lc.lf_x, lc.lf_xx,
+                                      lc.second_order, 0.0, ws.k, ws.K, ws.quu_eig, 3)
     with pytest.raises(IndexError):
         lc.second_order.contract(4, np.zeros(mb.nx))
     with pytest.raises(ValueError, match="Vx"):

@@ -518,3 +518,21 @@ def test_compiled_joint_classification_is_the_python_one():
             accepted.add(name)
     assert {"RX", "RUBZ", "Spherical", "FreeFlyer", "Translation"} <= accepted
     assert not {"Planar", "HX", "Universal"} & accepted
+
+
+def test_default_threads_counts_the_cores_this_process_may_use():
+    """default_threads() is min(2, cores in the process's affinity mask), not the machine's core
+    count: under `taskset -c 0` two workers would time-slice one core (the two-worker backward
+    pass had run 36x slower so). A child pinned to one core must see 1; this process, min(2, its
+    mask)."""
+    import os
+    import subprocess
+    import sys
+
+    allowed = os.sched_getaffinity(0)
+    assert compiled._core.default_threads() == min(2, len(allowed))
+    one = min(allowed)
+    code = ("import os; os.sched_setaffinity(0, {%d}); from geoddp.models import compiled; "
+            "print(compiled._core.default_threads())" % one)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "1"

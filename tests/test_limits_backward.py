@@ -246,7 +246,7 @@ def test_contracted_box_pass_equals_the_dense_one():
     Theta, Gamma, Xi = lin.tensors()
     H, m, n = q.horizon, 4, q.nx
     lo, hi = p.control_bounds()
-    def run(dense, reg, two_workers=False):
+    def run(dense, reg, workers=1):
         k, K, e, act = np.zeros((H, m)), np.zeros((H, m, n)), np.zeros(H), np.zeros((H, m), np.int8)
         Vx0, Vxx0 = np.zeros(n), np.zeros((n, n))
         args = (lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx)
@@ -254,18 +254,19 @@ def test_contracted_box_pass_equals_the_dense_one():
             f = _core.backward_pass_box(*args, Theta, Gamma, Xi, True, reg, U, lo, hi, k, K, e, act, Vx0, Vxx0)
         else:
             f = _core.backward_pass_box_contracted(*args, lin.second_order, reg, U, lo, hi, k, K, e, act, Vx0, Vxx0,
-                                                   two_workers)
+                                                   workers)
         return f, k, K, act, Vx0, Vxx0
 
     # the same failed node at small lambda (Q_uu indefinite there), the same gains where both factorise
     assert run(False, 0.0)[0][0] == run(True, 0.0)[0][0]
     reg = next(r for r in 10.0 ** np.arange(0, 9) if run(True, r)[0][0] < 0)
-    # each node's contraction on the core's second worker: bitwise the one-worker pass, also where it
-    # fails (0.0) and on repeated calls (a race would show as a difference)
+    # each node's contraction on the core's second worker (workers=2), or the faster of the two ways
+    # (0): bitwise the one-worker pass, also where it fails (0.0) and on repeated calls (a race would
+    # show as a difference)
     for r in (0.0, reg):
         one = run(False, r)
-        for _ in range(3):
-            two = run(False, r, two_workers=True)
+        for workers in (2, 2, 2, 0, 0, 0):
+            two = run(False, r, workers=workers)
             assert two[0] == one[0] and all(np.array_equal(a, b) for a, b in zip(two[1:], one[1:]))
     outs = [run(False, reg)[:5], run(True, reg)[:5]]
     (f1, k1, K1, a1, v1), (f2, k2, K2, a2, v2) = outs

@@ -68,7 +68,7 @@ THREADS_ENV = "GEODDP_THREADS"
 
 def threads_from_environment() -> int:
     """Threads per process for the compiled passes, from the environment variable GEODDP_THREADS;
-    0 when it is unset or empty (the core's default: min(cores, 2)).
+    0 when it is unset or empty (the core's default: min(2, cores in the process's affinity mask)).
 
     A sweep's local workers get it set (cores / workers), so that two worker processes on two
     cores do not each start two threads; set it on the workers of any cluster for the same reason.

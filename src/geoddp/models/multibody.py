@@ -138,8 +138,9 @@ class Multibody:
             resolved choice after construction.
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
             environment variable GEODDP_THREADS if set (:func:`geoddp.validate.threads_from_environment`),
-            else the core's default: ``geoddp._core.default_threads()`` (min(cores, 2)) workers of a
-            persistent pool, at least 16 nodes each, for first- and second-order passes alike.
+            else the core's default: ``geoddp._core.default_threads()`` (min(2, cores in the affinity
+            mask)) workers of a persistent pool, at least 16 nodes each, for first- and second-order
+            passes alike.
         contract: with the compiled backend, keep the second-order terms of a solve's expansion
             factored and contract them with V_x' inside the backward pass (True, the default:
             :meth:`expansion` with ``contracted=True``) instead of forming Theta, Gamma, Xi;

@@ -110,7 +110,7 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
     if second and lin.second_order is not None:  # factored second order: contracted with V_x' in the box pass
         out = _core.backward_pass_box_contracted(
             lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx, lin.second_order,
-            reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0, _can_speculate(lin))
+            reg, u_bar, lower, upper, ws.k, ws.K, ws.quu_eig, ws.active, ws.Vx0, ws.Vxx0, _pass_workers(lin))
     else:
         out = _core.backward_pass_box(
             lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
@@ -127,7 +127,7 @@ def _unconstrained(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, 
     if second and lin.second_order is not None:  # factored terms: contracted with V_x' in the pass
         return _core.backward_pass_contracted(
             lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
-            lin.second_order, reg, ws.k, ws.K, ws.quu_eig, _can_speculate(lin))
+            lin.second_order, reg, ws.k, ws.K, ws.quu_eig, _pass_workers(lin))
     return _pass(lin.Phi.shape[1])(
         lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
         lin.Theta if second else ws.empty_theta,
@@ -148,7 +148,7 @@ _SPECULATION: dict = {"pid": None, "pool": None}
 
 def _can_speculate(lin: Linearisation) -> bool:
     """Whether a pass may use two workers: two passes side by side after a failure, or, for the
-    contracted pass, each node's contraction on the second worker (``two_workers``; bitwise the
+    contracted pass, each node's contraction on the second worker (``workers``; bitwise the
     same results). Only the compiled passes release the GIL (numba's do not), and only with two
     or more cores and GEODDP_THREADS not set to 1 (a sweep's worker on a core of its own)."""
     if _core is None or _core.default_threads() < 2:
@@ -156,6 +156,12 @@ def _can_speculate(lin: Linearisation) -> bool:
     if lin.second_order is None and lin.Phi.shape[1] < COMPILED_MIN_NX:
         return False
     return threads_from_environment() != 1  # read after the structure: numba's passes never look
+
+
+def _pass_workers(lin: Linearisation) -> int:
+    """The contracted passes' ``workers``: 0 (the core picks one or two workers, whichever has been
+    faster here for passes of this size; bitwise the same results) where two may be used, else 1."""
+    return 0 if _can_speculate(lin) else 1
 
 
 def _speculation_pool(lin: Linearisation):
@@ -192,8 +198,9 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
     For the unconstrained contracted pass (compiled multibody models) the whole loop runs in C++
     (geoddp._core.regularised_contracted, on the core's two workers): a restart there costs no
     Python call and no thread hand-off, which had been 3-5 % of a second-order solve. A pass that
-    runs alone there puts each node's contraction on the second worker, beside the node's
-    first-order blocks (0.55-0.78x the one-worker pass's time on the seven benchmark cases).
+    runs alone there may put each node's contraction on the second worker, beside the node's
+    first-order blocks (0.55-0.79x the one-worker pass's time on the seven benchmark cases, idle);
+    the core runs whichever way has been faster for passes of that size (:func:`_pass_workers`).
     """
     if lin.order == 2 and lin.second_order is not None and ws.bounds is None:
         # the contracted pass: the same loop in C++ (no Python, no thread hand-off per restart)
