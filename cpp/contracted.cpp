@@ -6,6 +6,7 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <map>
@@ -261,8 +262,10 @@ static int on_two_workers(int H, const dyn::SecondOrderTerms& t, RunPass&& run_p
 // virtual machine that round trip was measured at 70-230 ns most of a day and at 460-900 ns for
 // stretches of it, when the two-worker pass ran 1.0-1.2x the one-worker time instead of
 // 0.55-0.8x. Both ways give bitwise the same results, so choosing by time changes nothing else.
-// Per (n, m): a moving average of each way's time per node; the faster runs, and every 16th pass
-// runs the other to follow the machine's changes.
+// Per problem shape (n, m, H and the size of the reconstruction's group blocks): a moving average
+// of each way's time per node over whole passes (a pass that fails after a few nodes mostly
+// measures the hand-over's start); the faster runs, and every 16th pass runs the other to follow
+// the machine's changes.
 namespace {
 class WorkersChoice {
  public:
@@ -275,18 +278,19 @@ class WorkersChoice {
     if (c == nullptr || c->pid_ != getpid()) c = new WorkersChoice;  // the parent's is abandoned
     return *c;
   }
-  int choose(int n, int m) {
+  typedef std::array<int, 4> Shape;  // n, m, H, group block size
+  int choose(const Shape& shape) {
     std::lock_guard<std::mutex> lk(mutex_);
-    Entry& e = entries_[{n, m}];
+    Entry& e = entries_[shape];
     ++e.passes;
     if (e.ns_per_node[1] == 0.0) return 2;  // measure each way once first
     if (e.ns_per_node[0] == 0.0) return 1;
     const int faster = e.ns_per_node[1] <= e.ns_per_node[0] ? 2 : 1;
     return e.passes % 16 == 0 ? 3 - faster : faster;
   }
-  void record(int n, int m, int workers, double ns_per_node) {
+  void record(const Shape& shape, int workers, double ns_per_node) {
     std::lock_guard<std::mutex> lk(mutex_);
-    double& x = entries_[{n, m}].ns_per_node[workers - 1];
+    double& x = entries_[shape].ns_per_node[workers - 1];
     x = x == 0.0 ? ns_per_node : 0.5 * (x + ns_per_node);
   }
 
@@ -298,19 +302,20 @@ class WorkersChoice {
   WorkersChoice() : pid_(getpid()) {}
   pid_t pid_;
   std::mutex mutex_;
-  std::map<std::pair<int, int>, Entry> entries_;
+  std::map<Shape, Entry> entries_;
 };
 
-// run(workers) with workers 1 or 2; for 0 the choice above, timed and recorded (per node passed
-// through: a pass that fails at node f has worked on nodes H - 1 .. f).
+// run(workers) with workers 1 or 2; for 0 the choice above, timed and, if the pass went through
+// all H nodes, recorded.
 template <typename Run>
-int with_workers(int workers, int H, int n, int m, Run&& run) {
+int with_workers(int workers, int H, int n, int m, const dyn::SecondOrderTerms& t, Run&& run) {
   if (workers == 1 || workers == 2 || H <= 0) return run(workers == 2 && H > 0 ? 2 : 1);
-  const int w = WorkersChoice::get().choose(n, m);
+  const WorkersChoice::Shape shape{n, m, H, t.gD};
+  const int w = WorkersChoice::get().choose(shape);
   const auto t0 = std::chrono::steady_clock::now();
   const int failed = run(w);
   const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
-  WorkersChoice::get().record(n, m, w, ns / (failed < 0 ? H : H - failed));
+  if (failed < 0) WorkersChoice::get().record(shape, w, ns / H);
   return failed;
 }
 }  // namespace
@@ -320,7 +325,7 @@ int backward_pass_contracted(int H, int n, int m, const double* Phi, const doubl
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
                              double reg, int workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                              double* d2) {
-  return with_workers(workers, H, n, m, [&](int w) {
+  return with_workers(workers, H, n, m, t, [&](int w) {
     if (w == 2)
       return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
         return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
@@ -345,7 +350,7 @@ int box_pass_contracted(int H, int n, int m, const double* Phi, const double* B,
     return ric::backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, &add, reg, u_bar,
                                        lower, upper, k_ff, K_fb, quu_eig, active, Vx0, Vxx0, d1, d2, hand_over);
   };
-  return with_workers(workers, H, n, m, [&](int w) {
+  return with_workers(workers, H, n, m, t, [&](int w) {
     if (w == 2)
       return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
         const ric::HandOverHook h = hand_over;

@@ -95,7 +95,7 @@ void bind_contracted(py::module_& m) {
       py::arg("K_fb").noconvert(), py::arg("quu_eig").noconvert(), py::arg("workers") = 1,
       "backward_pass with the second-order terms contracted from `terms`: (failed node or -1, d1, d2).\n"
       "workers: 1, 2 (each node's contraction on the core's second worker) or 0 (whichever has been faster\n"
-      "here for passes of this size); bitwise the same results.");
+      "here for passes of this shape); bitwise the same results.");
 
   m.def(
       "regularised_contracted",

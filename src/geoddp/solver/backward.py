@@ -160,7 +160,7 @@ def _can_speculate(lin: Linearisation) -> bool:
 
 def _pass_workers(lin: Linearisation) -> int:
     """The contracted passes' ``workers``: 0 (the core picks one or two workers, whichever has been
-    faster here for passes of this size; bitwise the same results) where two may be used, else 1."""
+    faster here for passes of this shape; bitwise the same results) where two may be used, else 1."""
     return 0 if _can_speculate(lin) else 1
 
 
@@ -200,7 +200,7 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
     Python call and no thread hand-off, which had been 3-5 % of a second-order solve. A pass that
     runs alone there may put each node's contraction on the second worker, beside the node's
     first-order blocks (0.55-0.79x the one-worker pass's time on the seven benchmark cases, idle);
-    the core runs whichever way has been faster for passes of that size (:func:`_pass_workers`).
+    the core runs whichever way has been faster for passes of that shape (:func:`_pass_workers`).
     """
     if lin.order == 2 and lin.second_order is not None and ws.bounds is None:
         # the contracted pass: the same loop in C++ (no Python, no thread hand-off per restart)
