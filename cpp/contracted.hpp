@@ -21,7 +21,7 @@ void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S
 // first-order part) with the second-order terms contracted from `t` (H = t.N nodes). workers: 1,
 // or 2 (each node's contraction on the pool's second worker beside the node's first-order blocks;
 // contracted.cpp, on_two_workers), or 0 (whichever of the two has been faster here for passes of
-// this size: contracted.cpp, WorkersChoice). Every choice gives bitwise the same results.
+// this shape: contracted.cpp, WorkersChoice). Every choice gives bitwise the same results.
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
