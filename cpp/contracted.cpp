@@ -257,7 +257,7 @@ static int on_two_workers(int H, const dyn::SecondOrderTerms& t, RunPass&& run_p
   return failed;
 }
 
-// workers = 0 ("auto"): which way a pass of this size runs faster here, learnt from the passes
+// workers = 0 ("auto"): which way a pass of this shape runs faster here, learnt from the passes
 // themselves. The two-worker pass hands data between the cores once per node, and on a shared
 // virtual machine that round trip was measured at 70-230 ns most of a day and at 460-900 ns for
 // stretches of it, when the two-worker pass ran 1.0-1.2x the one-worker time instead of
