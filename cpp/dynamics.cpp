@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "lie.hpp"
+#include "one_body.hpp"
 #include "pool.hpp"
 #include "rkmk4.hpp"
 #include "variational.hpp"
@@ -238,6 +239,8 @@ struct NodeWork {
   Eigen::VectorXd q, v, tau, a;
   PairIndex pairs;
   std::vector<int> pair_of;  // (a, b) -> packed column or -1 (inactive), both orders
+  // RNEA's second-order tensors without Pinocchio's per-node call, for a one-body model (one_body.hpp)
+  const OneBodySecondOrder* one_body = nullptr;
   explicit NodeWork(const Model& model, int m)
       : data(model), Minv(model.nv, model.nv), aq(model.nv, model.nv), av(model.nv, model.nv),
         au(model.nv, m), az(model.nv, 2 * model.nv + m), Pj(model.nv, 2 * model.nv + m), q(model.nq),
@@ -288,7 +291,11 @@ static void node_derivatives(const Setup& s, NodeWork& w, double* F1, bool secon
   F1m.rightCols(m) = dt * w.au;
   if (!second) return;
 
-  pinocchio::ComputeRNEASecondOrderDerivatives(model, data, w.q, w.v, w.a);
+  if (w.one_body)
+    w.one_body->at(w.q.data(), data.d2tau_dqdq.data(), data.d2tau_dvdv.data(), data.d2tau_dqdv.data(),
+                   data.d2tau_dadq.data());
+  else
+    pinocchio::ComputeRNEASecondOrderDerivatives(model, data, w.q, w.v, w.a);
   const auto& Iqq = data.d2tau_dqdq;
   const auto& Ivv = data.d2tau_dvdv;
   const auto& Iqv = data.d2tau_dqdv;
@@ -348,6 +355,32 @@ static void unpack_pairs(const NodeWork& w, int rows, const Eigen::MatrixXd& Xu,
   }
 }
 
+// The one-body shortcut for RNEA's second-order tensors when `model` is one body on a free-flyer or
+// spherical root and the second order is wanted, else null.
+static std::unique_ptr<OneBodySecondOrder> one_body_for(const Model& model, bool second) {
+  return second && OneBodySecondOrder::applies(model) ? std::make_unique<OneBodySecondOrder>(model) : nullptr;
+}
+
+bool one_body_applies(const Model& model) { return OneBodySecondOrder::applies(model); }
+
+void rnea_second_order(const Model& model, const double* q, const double* v, const double* a, bool one_body,
+                       double* Iqq, double* Ivv, double* Iqv, double* dM) {
+  const size_t n3 = (size_t)model.nv * model.nv * model.nv;
+  if (one_body) {
+    if (!OneBodySecondOrder::applies(model))
+      throw std::invalid_argument("model: the one-body shortcut needs one free-flyer or spherical joint");
+    OneBodySecondOrder(model).at(q, Iqq, Ivv, Iqv, dM);
+    return;
+  }
+  pinocchio::Data data(model);
+  pinocchio::ComputeRNEASecondOrderDerivatives(model, data, CVecMap(q, model.nq), CVecMap(v, model.nv),
+                                               CVecMap(a, model.nv));
+  std::copy(data.d2tau_dqdq.data(), data.d2tau_dqdq.data() + n3, Iqq);
+  std::copy(data.d2tau_dvdv.data(), data.d2tau_dvdv.data() + n3, Ivv);
+  std::copy(data.d2tau_dqdv.data(), data.d2tau_dqdv.data() + n3, Iqv);
+  std::copy(data.d2tau_dadq.data(), data.d2tau_dadq.data() + n3, dM);
+}
+
 static void node_velocity_derivatives(const Setup& s, NodeWork& w, double* F1, double* F2) {
   node_derivatives(s, w, F1, F2 != nullptr);
   if (F2 != nullptr) unpack_pairs(w, s.model->nv, w.F2u, 2 * s.model->nv + s.m, F2);
@@ -358,8 +391,10 @@ void velocity_derivatives(const Setup& s, const double* Q, const double* V, cons
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, nz = 2 * nv + m;
   CMatMap Hm(s.H, nv, m);
+  const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, order >= 2);
   parallel_for(N, threads, [&](int b, int e, int) {
     NodeWork w(model, m);
+    w.one_body = one_body.get();
     for (int k = b; k < e; ++k) {
       w.q = CVecMap(Q + (size_t)k * nq, nq);
       w.v = CVecMap(V + (size_t)k * nv, nv);
@@ -490,10 +525,12 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   // the variational step: its own velocity derivatives (dense F2), the explicit-Euler reconstruction
   const std::unique_ptr<VariationalModel> vmod =
       s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
+  const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, order >= 2 && !vmod);
   parallel_for(N, threads, [&](int b0, int e0, int) {
     // each worker builds the scratch of its integrator only (a Pinocchio Data and pair tables, or
     // the variational step's)
     const std::unique_ptr<NodeWork> ew = vmod ? nullptr : std::make_unique<NodeWork>(model, m);
+    if (ew) ew->one_body = one_body.get();
     const std::unique_ptr<VariationalNodeWork> vw = vmod ? std::make_unique<VariationalNodeWork>(*vmod) : nullptr;
     Eigen::VectorXd q(nq), v(nv);
     RowMat F2d(vw && order >= 2 ? nv : 0, (Eigen::Index)nz * nz);
@@ -689,6 +726,7 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
   const std::vector<JointGroup> groups = joint_groups(model);
   CMatMap Hm(s.H, nv, m);
   const size_t n3 = (size_t)nv * nv * nv;
+  const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, true);
   parallel_for(N, threads, [&](int b0, int e0, int) {
     NodeWork w(model, m);
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
@@ -704,11 +742,17 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
       first_order_blocks(groups, semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
       // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses them
-      pinocchio::ComputeRNEASecondOrderDerivatives(model, w.data, w.q, w.v, w.a);
-      std::copy(w.data.d2tau_dqdq.data(), w.data.d2tau_dqdq.data() + n3, t.Iqq.data() + k * n3);
-      std::copy(w.data.d2tau_dvdv.data(), w.data.d2tau_dvdv.data() + n3, t.Ivv.data() + k * n3);
-      std::copy(w.data.d2tau_dqdv.data(), w.data.d2tau_dqdv.data() + n3, t.Iqv.data() + k * n3);
-      std::copy(w.data.d2tau_dadq.data(), w.data.d2tau_dadq.data() + n3, t.dM.data() + k * n3);
+      // (the one-body shortcut writes them in place)
+      if (one_body) {
+        one_body->at(w.q.data(), t.Iqq.data() + k * n3, t.Ivv.data() + k * n3, t.Iqv.data() + k * n3,
+                     t.dM.data() + k * n3);
+      } else {
+        pinocchio::ComputeRNEASecondOrderDerivatives(model, w.data, w.q, w.v, w.a);
+        std::copy(w.data.d2tau_dqdq.data(), w.data.d2tau_dqdq.data() + n3, t.Iqq.data() + k * n3);
+        std::copy(w.data.d2tau_dvdv.data(), w.data.d2tau_dvdv.data() + n3, t.Ivv.data() + k * n3);
+        std::copy(w.data.d2tau_dqdv.data(), w.data.d2tau_dqdv.data() + n3, t.Iqv.data() + k * n3);
+        std::copy(w.data.d2tau_dadq.data(), w.data.d2tau_dadq.data() + n3, t.dM.data() + k * n3);
+      }
       MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
       MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);
       azk.leftCols(nv) = w.aq;

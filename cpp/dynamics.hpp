@@ -69,6 +69,15 @@ void velocity_derivatives(const Setup& s, const double* Q, const double* V, cons
 void expansion(const Setup& s, const double* Q, const double* V, const double* U, int N, int order,
                int threads, double* Phi, double* B, double* Theta, double* Gamma, double* Xi);
 
+// Pinocchio's second-order RNEA tensors at (q (nq), v (nv), a (nv)): d2tau_dqdq, d2tau_dvdv,
+// d2tau_dqdv, d2tau_dadq, nv^3 each, column-major as Pinocchio stores them ((i, j, k) at
+// i + nv (j + nv k)). With one_body, from the one-body shortcut the expansions use (one_body.hpp;
+// std::invalid_argument if the model is not one body on a free-flyer or spherical root). For the tests.
+void rnea_second_order(const Model& model, const double* q, const double* v, const double* a, bool one_body,
+                       double* Iqq, double* Ivv, double* Iqv, double* dM);
+// Whether the expansions take RNEA's second-order tensors from the one-body shortcut for `model`.
+bool one_body_applies(const Model& model);
+
 // The second-order terms of the expansion kept in factored form, for contraction with V_x' in the
 // backward pass (cpp/contracted.hpp) instead of forming Theta, Gamma, Xi (n^3 + n^2 m + n m^2 per
 // node). Per node k (blocks of N nodes, each array node-major):

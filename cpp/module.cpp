@@ -78,6 +78,30 @@ PYBIND11_MODULE(_core, m) {
       py::arg("C"));
 
   m.def(
+      "rnea_second_order",
+      [](py::handle pm, const Arr& q, const Arr& v, const Arr& a, bool one_body) {
+        // For the tests: Pinocchio's second-order RNEA tensors, or the one-body shortcut's
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        check_shape(q, {model.nq}, "q");
+        check_shape(v, {model.nv}, "v");
+        check_shape(a, {model.nv}, "a");
+        if (one_body && !geoddp::dyn::one_body_applies(model))
+          throw py::value_error("model: the one-body shortcut needs one free-flyer or spherical joint");
+        const py::ssize_t nv = model.nv;
+        // Pinocchio's column-major (i, j, k) is numpy's Fortran order
+        std::vector<py::ssize_t> shape{nv, nv, nv}, strides{8, 8 * nv, 8 * nv * nv};
+        py::array_t<double> Iqq(shape, strides), Ivv(shape, strides), Iqv(shape, strides), dM(shape, strides);
+        geoddp::dyn::rnea_second_order(model, q.data(), v.data(), a.data(), one_body, Iqq.mutable_data(),
+                                       Ivv.mutable_data(), Iqv.mutable_data(), dM.mutable_data());
+        return py::make_tuple(Iqq, Ivv, Iqv, dM);
+      },
+      py::arg("model"), py::arg("q"), py::arg("v"), py::arg("a"), py::arg("one_body"),
+      "(d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq), each (nv, nv, nv) indexed (i, j, k) as Pinocchio's;\n"
+      "with one_body, from the one-body shortcut the expansions use (cpp/one_body.hpp).");
+  m.def("one_body_applies", [](py::handle pm) { return geoddp::dyn::one_body_applies(geoddp::model_from_python(pm)); },
+        py::arg("model"), "Whether the expansions take RNEA's second-order tensors from the one-body shortcut.");
+
+  m.def(
       "rollout",
       [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0, const Arr& U) {
         const pinocchio::Model& model = geoddp::model_from_python(pm);
