@@ -44,6 +44,12 @@ class OneBodySecondOrder {
     return kind == SO3 || kind == SE3;
   }
 
+  // True when, moreover, gravity is zero: then tau does not depend on q at all and d2tau_dqdq is
+  // zero at every state (the variational step's kinetic-energy Hessian, variational.cpp).
+  static bool free_of_configuration(const pinocchio::Model& model) {
+    return applies(model) && model.gravity.linear().isZero(0.0);
+  }
+
   explicit OneBodySecondOrder(const pinocchio::Model& model)
       : nv_(model.nv), quat_at_(model.joints[1].idx_q() + (model.joints[1].nv() == 6 ? 3 : 0)) {
     const size_t n3 = (size_t)nv_ * nv_ * nv_;

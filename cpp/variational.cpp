@@ -15,6 +15,7 @@
 #include <cstdio>
 
 #include "joint_blocks.hpp"
+#include "one_body.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -60,14 +61,18 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& v) {
   const int nv = vm.model->nv;
-  pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
-  const auto& T = w.fdata.d2tau_dqdq;
-  for (int i = 0; i < nv; ++i)
-    for (int j = 0; j < nv; ++j) {
-      double acc = 0.0;
-      for (int p = 0; p < nv; ++p) acc += v[p] * T(p, i, j);
-      w.Hk(i, j) = 0.5 * acc;
-    }
+  if (vm.kinetic_hessian_zero) {
+    w.Hk.setZero();
+  } else {
+    pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
+    const auto& T = w.fdata.d2tau_dqdq;
+    for (int i = 0; i < nv; ++i)
+      for (int j = 0; j < nv; ++j) {
+        double acc = 0.0;
+        for (int p = 0; p < nv; ++p) acc += v[p] * T(p, i, j);
+        w.Hk(i, j) = 0.5 * acc;
+      }
+  }
   w.T.resize(nv, nv);  // reuse as the gravity derivative's buffer
   w.T.setZero();
   pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, q, w.T);
@@ -133,6 +138,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_, double dt_)
     : model(&model_), free_model(model_), groups(joint_groups(model_)), H(H_), m(m_), dt(dt_) {
   free_model.gravity.setZero();
+  kinetic_hessian_zero = OneBodySecondOrder::free_of_configuration(free_model);
 }
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {

@@ -47,6 +47,9 @@ struct VariationalModel {
   const double* H;  // (nv, m) row-major
   int m;
   double dt;
+  // one body on a free-flyer or spherical root (one_body.hpp): the gravity-free model's second-order
+  // RNEA tensor in q is zero, so the kinetic-energy Hessian is too and Pinocchio's call is skipped
+  bool kinetic_hessian_zero;
   VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
 };
 
