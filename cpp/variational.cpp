@@ -34,9 +34,14 @@ void mass(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd&
   M.triangularView<Eigen::StrictlyLower>() = M.transpose();
 }
 
-// D(q, x) = d(M(q) x)/dq, right-trivialised: RNEA's dtau/dq at (q, 0, x) without gravity.
+// D(q, x) = d(M(q) x)/dq, right-trivialised: RNEA's dtau/dq at (q, 0, x) without gravity (zero for
+// one body, whose M is constant in its own frame).
 void Dmat(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q, const Eigen::VectorXd& x,
           Eigen::MatrixXd& D) {
+  if (vm.configuration_free) {
+    D.setZero(vm.model->nv, vm.model->nv);
+    return;
+  }
   pinocchio::computeRNEADerivatives(vm.free_model, w.fdata, q, w.zero, x);
   D = w.fdata.dtau_dq;
 }
@@ -61,7 +66,7 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& v) {
   const int nv = vm.model->nv;
-  if (vm.kinetic_hessian_zero) {
+  if (vm.configuration_free) {
     w.Hk.setZero();
   } else {
     pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
@@ -138,7 +143,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_, double dt_)
     : model(&model_), free_model(model_), groups(joint_groups(model_)), H(H_), m(m_), dt(dt_) {
   free_model.gravity.setZero();
-  kinetic_hessian_zero = OneBodySecondOrder::free_of_configuration(free_model);
+  configuration_free = OneBodySecondOrder::free_of_configuration(free_model);
 }
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {

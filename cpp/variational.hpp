@@ -47,9 +47,9 @@ struct VariationalModel {
   const double* H;  // (nv, m) row-major
   int m;
   double dt;
-  // one body on a free-flyer or spherical root (one_body.hpp): the gravity-free model's second-order
-  // RNEA tensor in q is zero, so the kinetic-energy Hessian is too and Pinocchio's call is skipped
-  bool kinetic_hessian_zero;
+  // one body on a free-flyer or spherical root (one_body.hpp): the gravity-free model's tau does not
+  // depend on q, so D(q, w) and the kinetic-energy Hessian are zero and Pinocchio's calls are skipped
+  bool configuration_free;
   VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
 };
 
