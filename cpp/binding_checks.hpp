@@ -78,5 +78,10 @@ inline void check_box_arrays(const Arr& u_bar, const Arr& lower, const Arr& uppe
   check_output(Vxx0, {z.n, z.n}, "Vxx0");
 }
 
+// The backward passes' worker count: 0 (the core chooses by measurement), 1 or 2.
+inline void check_workers(int workers) {
+  if (workers < 0 || workers > 2) throw py::value_error("workers: expected 0 (choose), 1 or 2");
+}
+
 }  // namespace bind
 }  // namespace geoddp

@@ -75,7 +75,7 @@ void bind_contracted(py::module_& m) {
          Out quu_eig, int workers) {
         const auto z = bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
         if (z.H != t.N || z.n != 2 * t.nv || z.m != t.m) throw py::value_error("terms: sizes differ from Phi, B");
-        if (workers < 0 || workers > 2) throw py::value_error("workers: expected 0 (choose), 1 or 2");
+        bind::check_workers(workers);
         const long H = z.H, n = z.n, mm = z.m;
         bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
         double d1 = 0.0, d2 = 0.0;

@@ -339,7 +339,7 @@ PYBIND11_MODULE(_core, m) {
         const auto z = geoddp::bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
         const long n = z.n, mm = z.m;
         if (terms.N != z.H || 2 * terms.nv != n || terms.m != mm) throw py::value_error("terms: wrong sizes");
-        if (workers < 0 || workers > 2) throw py::value_error("workers: expected 0 (choose), 1 or 2");
+        geoddp::bind::check_workers(workers);
         geoddp::bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
         geoddp::bind::check_box_arrays(u_bar, lower, upper, active, Vx0, Vxx0, z);
         double d1 = 0.0, d2 = 0.0;

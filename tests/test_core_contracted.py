@@ -124,7 +124,7 @@ def test_two_worker_pass_equals_one_worker_pass(case, integrator):
     the one-worker pass's results: the failed node, (d1, d2) and every written gain, also when it
     stops at a failed node (the worker must then stop too: the repeated calls would hang
     otherwise). workers=0, what the solver runs when two cores may be used, picks one of the two
-    by their measured times (its first two calls for a size run each once). H = 1 has no hand-over."""
+    by their measured times (its first two calls for a shape run each once). H = 1 has no hand-over."""
     for H in (1, 30):
         mb, Q, V, U, rng = _setup(case, integrator, H=H)
         _, lc = _linearisations(mb, Q, V, U, rng)

@@ -268,6 +268,9 @@ def test_contracted_box_pass_equals_the_dense_one():
         for workers in (2, 2, 2, 0, 0, 0):
             two = run(False, r, workers=workers)
             assert two[0] == one[0] and all(np.array_equal(a, b) for a, b in zip(two[1:], one[1:]))
+    for workers in (-1, 3):  # the same check as the unconstrained pass (binding_checks.hpp)
+        with pytest.raises(ValueError, match="workers: expected 0"):
+            run(False, reg, workers=workers)
     outs = [run(False, reg)[:5], run(True, reg)[:5]]
     (f1, k1, K1, a1, v1), (f2, k2, K2, a2, v2) = outs
     assert f1[0] == f2[0] == -1
