@@ -90,7 +90,7 @@ def test_panda_tells_a_stall_from_a_badly_scaled_optimum(tmp_path):
     # status is "stalled". Second order ends at a strict local minimum whose raw gradient norm is
     # 6e-3..2e-1 (weights 1e-4 .. 1e3), yet the scale-free decrement is at round-off: "converged".
     # Switch (Gauss-Newton first order until its cost test, then second order) finishes the basin
-    # first order creeps towards, to round-off.
+    # first order creeps towards, to within a decrement under 1e-9.
     pytest.importorskip("example_robot_data")
     from tests_panda import panda_scene
 
@@ -112,9 +112,18 @@ def test_panda_tells_a_stall_from_a_badly_scaled_optimum(tmp_path):
     # badly scaled test): a raw gradient test would not stop here, where the decrement is at round-off.
     assert second.grad_norm > 1e4 * DEFAULT_GRAD_TOL and o["newton_decrease"] < 1e-10 and o["hessian_positive_definite"]
     assert second.cost < limit.cost  # non-convex: second order reaches a lower minimum
-    # switch's decrement: 1e-13 .. 1.6e-12 measured (rounding of the Riccati products), under 1e-8's threshold
-    assert switch.converged and _opt(switch)["newton_decrease"] < 1e-11 and _opt(switch)["hessian_positive_definite"]
-    assert switch.cost <= limit.cost + 1e-12 * limit.cost  # limit's basin, finished: limit is still creeping
+    # switch stops by its cost test with a decrement far under the 1e-8 threshold. Where exactly is
+    # set by round-off: 1e-13 .. 1.6e-12 measured (rounding of the Riccati products), and 1.5e-10
+    # once the SE(3) coupling block of the frame cost's log6 Jacobian was assembled from hat
+    # identities (98b5931: the same block to 3e-15 relative), when the cost test passed one step earlier.
+    os_ = _opt(switch)
+    assert switch.converged and os_["newton_decrease"] < 1e-9 and os_["hessian_positive_definite"]
+    # limit's basin: the minima both decrements predict agree (1.2e-12 apart measured, limit's own
+    # decrement 2e-12), and switch is above limit by no more than its decrement says
+    ol = _opt(limit)
+    floor_s, floor_l = switch.cost - os_["newton_decrease"], limit.cost - ol["newton_decrease"]
+    assert abs(floor_s - floor_l) <= 1e-11 * limit.cost
+    assert switch.cost - limit.cost <= os_["newton_decrease"] + 1e-12 * limit.cost
 
 
 def test_certificate_in_json_is_strict_and_round_trips(tmp_path):
