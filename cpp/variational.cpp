@@ -109,23 +109,30 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   out.noalias() -= dt * D1.transpose();
 }
 
-// [R_eta, R_dv, R_y] at any (q, v, y), into J (nv, 3 nv).
+// [R_eta, R_dv, R_y] at any (q, v, y), into J (nv, 3 nv). same_y: y (and nothing but q, v) is that
+// of the previous call on w, whose terms of y alone are kept: K1 = K(-dt y) always, and for one body
+// (vm.configuration_free: M constant, D zero) also M0, M1 and R_y. R_ww's differences along eta and
+// dv move q and v only (variational_node), so 4 nv of its 4 nv + 1 calls per node reuse them.
 void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
-                       const Eigen::VectorXd& v, const Eigen::VectorXd& y, Eigen::MatrixXd& J) {
+                       const Eigen::VectorXd& v, const Eigen::VectorXd& y, Eigen::MatrixXd& J,
+                       bool same_y = false) {
   const Model& model = *vm.model;
   const int nv = model.nv;
   const double dt = vm.dt;
+  const bool keep_mass = same_y && vm.configuration_free;
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
   blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
-  w.x = -dt * y;
-  Kmat(vm, w, w.x, w.K1);
-  mass(vm, w, w.qn, w.M1);
+  if (!same_y) {
+    w.x = -dt * y;
+    Kmat(vm, w, w.x, w.K1);
+  }
+  if (!keep_mass) mass(vm, w, w.qn, w.M1);
   Dmat(vm, w, w.qn, y, w.D1);
   lagrangian_hessian(vm, w, w.qn, y);
   w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
   w.Sq -= dt * w.Hk;
-  mass(vm, w, q, w.M0);
+  if (!keep_mass) mass(vm, w, q, w.M0);
   Dmat(vm, w, q, v, w.D0);
   J.leftCols(nv).noalias() = w.Sq * w.A;
   J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
@@ -134,7 +141,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
   J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
   J.middleCols(nv, nv) -= dt * w.Kt;
-  velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);
+  if (!keep_mass) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);  // else K1, M1, D1 = 0 and y as before
   J.rightCols(nv) = w.Ry;
 }
 
@@ -251,11 +258,11 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, true);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, true);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
   }
