@@ -14,6 +14,7 @@
 #include <cmath>
 #include <functional>
 #include <stdexcept>
+#include <type_traits>
 #include <thread>
 #include <vector>
 
@@ -311,33 +312,40 @@ template <typename Run>
 int with_workers(int workers, int H, int n, int m, const dyn::SecondOrderTerms& t, Run&& run) {
   if (workers == 1 || workers == 2 || H <= 0) return run(workers == 2 && H > 0 ? 2 : 1);
   const WorkersChoice::Shape shape{n, m, H, t.gD};
-  const int w = WorkersChoice::get().choose(shape);
+  WorkersChoice& choice = WorkersChoice::get();
+  const int w = choice.choose(shape);
   const auto t0 = std::chrono::steady_clock::now();
   const int failed = run(w);
   const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
-  if (failed < 0) WorkersChoice::get().record(shape, w, ns / H);
+  if (failed < 0) choice.record(shape, w, ns / H);
   return failed;
 }
 }  // namespace
+
+// A contracted pass with `workers` (0: with_workers's choice). run_pass(add, hand_over) runs the pass
+// itself (unconstrained or box) with node k's second-order hook and the V_x' hand-over: on two
+// workers those of on_two_workers, on one add_contracted and no hand-over (ric::NoHandOver).
+template <typename RunPass>
+static int contracted_pass(int workers, int H, int n, int m, const dyn::SecondOrderTerms& t, RunPass&& run_pass) {
+  return with_workers(workers, H, n, m, t, [&](int w) {
+    if (w == 2) return on_two_workers(H, t, run_pass);
+    RowMat S;
+    // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
+    const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+      add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
+    };
+    return run_pass(add, ric::NoHandOver());
+  });
+}
 
 int backward_pass_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                              const double* lu, const double* lxx, const double* lux, const double* luu,
                              const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,
                              double reg, int workers, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                              double* d2) {
-  return with_workers(workers, H, n, m, t, [&](int w) {
-    if (w == 2)
-      return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
-        return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
-                                       K_fb, quu_eig, d1, d2, hand_over);
-      });
-    RowMat S;
-    // sum_i V_x'_i Theta_i, Gamma_i^T, Xi_i (Remark rem:theta), contracted from the factors
-    const auto add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
-      add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
-    };
-    return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff,
-                                   K_fb, quu_eig, d1, d2);
+  return contracted_pass(workers, H, n, m, t, [&](const auto& add, const auto& hand_over) {
+    return ric::unconstrained_pass(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, add, reg, k_ff, K_fb,
+                                   quu_eig, d1, d2, hand_over);
   });
 }
 
@@ -346,21 +354,14 @@ int box_pass_contracted(int H, int n, int m, const double* Phi, const double* B,
                         const double* Vxx_final, const dyn::SecondOrderTerms& t, double reg, const double* u_bar,
                         const double* lower, const double* upper, int workers, double* k_ff, double* K_fb,
                         double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1, double* d2) {
-  const auto run = [&](const ric::SecondOrderHook& add, const ric::HandOverHook* hand_over) {
-    return ric::backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, &add, reg, u_bar,
-                                       lower, upper, k_ff, K_fb, quu_eig, active, Vx0, Vxx0, d1, d2, hand_over);
-  };
-  return with_workers(workers, H, n, m, t, [&](int w) {
-    if (w == 2)
-      return on_two_workers(H, t, [&](const auto& add, const auto& hand_over) {
-        const ric::HandOverHook h = hand_over;
-        return run(add, &h);
-      });
-    RowMat S;
-    const ric::SecondOrderHook add = [&](int k, const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
-      add_contracted(t, k, Vx, S, Qxx, Qux, Quu);
-    };
-    return run(add, nullptr);
+  return contracted_pass(workers, H, n, m, t, [&](const auto& add, const auto& hand_over) {
+    // the box pass takes its hooks as std::function pointers; no hand-over on one worker
+    const ric::SecondOrderHook second = add;
+    const ric::HandOverHook h = hand_over;
+    constexpr bool none = std::is_same_v<std::decay_t<decltype(hand_over)>, ric::NoHandOver>;
+    return ric::backward_pass_box_hook(H, n, m, Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, &second, reg,
+                                       u_bar, lower, upper, k_ff, K_fb, quu_eig, active, Vx0, Vxx0, d1, d2,
+                                       none ? nullptr : &h);
   });
 }
 

@@ -363,9 +363,21 @@ static std::unique_ptr<OneBodySecondOrder> one_body_for(const Model& model, bool
 
 bool one_body_applies(const Model& model) { return OneBodySecondOrder::applies(model); }
 
+// Pinocchio's second-order RNEA tensors at (q, v, a), copied out of `data` into Iqq, Ivv, Iqv, dM
+// (nv^3 each, its column-major layout).
+static void pinocchio_second_order(const Model& model, pinocchio::Data& data, const Eigen::VectorXd& q,
+                                   const Eigen::VectorXd& v, const Eigen::VectorXd& a, double* Iqq, double* Ivv,
+                                   double* Iqv, double* dM) {
+  const size_t n3 = (size_t)model.nv * model.nv * model.nv;
+  pinocchio::ComputeRNEASecondOrderDerivatives(model, data, q, v, a);
+  std::copy(data.d2tau_dqdq.data(), data.d2tau_dqdq.data() + n3, Iqq);
+  std::copy(data.d2tau_dvdv.data(), data.d2tau_dvdv.data() + n3, Ivv);
+  std::copy(data.d2tau_dqdv.data(), data.d2tau_dqdv.data() + n3, Iqv);
+  std::copy(data.d2tau_dadq.data(), data.d2tau_dadq.data() + n3, dM);
+}
+
 void rnea_second_order(const Model& model, const double* q, const double* v, const double* a, bool one_body,
                        double* Iqq, double* Ivv, double* Iqv, double* dM) {
-  const size_t n3 = (size_t)model.nv * model.nv * model.nv;
   if (one_body) {
     if (!OneBodySecondOrder::applies(model))
       throw std::invalid_argument("model: the one-body shortcut needs one free-flyer or spherical joint");
@@ -373,12 +385,8 @@ void rnea_second_order(const Model& model, const double* q, const double* v, con
     return;
   }
   pinocchio::Data data(model);
-  pinocchio::ComputeRNEASecondOrderDerivatives(model, data, CVecMap(q, model.nq), CVecMap(v, model.nv),
-                                               CVecMap(a, model.nv));
-  std::copy(data.d2tau_dqdq.data(), data.d2tau_dqdq.data() + n3, Iqq);
-  std::copy(data.d2tau_dvdv.data(), data.d2tau_dvdv.data() + n3, Ivv);
-  std::copy(data.d2tau_dqdv.data(), data.d2tau_dqdv.data() + n3, Iqv);
-  std::copy(data.d2tau_dadq.data(), data.d2tau_dadq.data() + n3, dM);
+  pinocchio_second_order(model, data, CVecMap(q, model.nq), CVecMap(v, model.nv), CVecMap(a, model.nv), Iqq, Ivv,
+                         Iqv, dM);
 }
 
 static void node_velocity_derivatives(const Setup& s, NodeWork& w, double* F1, double* F2) {
@@ -747,11 +755,8 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
         one_body->at(w.q.data(), t.Iqq.data() + k * n3, t.Ivv.data() + k * n3, t.Iqv.data() + k * n3,
                      t.dM.data() + k * n3);
       } else {
-        pinocchio::ComputeRNEASecondOrderDerivatives(model, w.data, w.q, w.v, w.a);
-        std::copy(w.data.d2tau_dqdq.data(), w.data.d2tau_dqdq.data() + n3, t.Iqq.data() + k * n3);
-        std::copy(w.data.d2tau_dvdv.data(), w.data.d2tau_dvdv.data() + n3, t.Ivv.data() + k * n3);
-        std::copy(w.data.d2tau_dqdv.data(), w.data.d2tau_dqdv.data() + n3, t.Iqv.data() + k * n3);
-        std::copy(w.data.d2tau_dadq.data(), w.data.d2tau_dadq.data() + n3, t.dM.data() + k * n3);
+        pinocchio_second_order(model, w.data, w.q, w.v, w.a, t.Iqq.data() + k * n3, t.Ivv.data() + k * n3,
+                               t.Iqv.data() + k * n3, t.dM.data() + k * n3);
       }
       MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
       MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);

@@ -85,15 +85,13 @@ PYBIND11_MODULE(_core, m) {
         check_shape(q, {model.nq}, "q");
         check_shape(v, {model.nv}, "v");
         check_shape(a, {model.nv}, "a");
-        if (one_body && !geoddp::dyn::one_body_applies(model))
-          throw py::value_error("model: the one-body shortcut needs one free-flyer or spherical joint");
         const py::ssize_t nv = model.nv;
         // Pinocchio's column-major (i, j, k) is numpy's Fortran order
         std::vector<py::ssize_t> shape{nv, nv, nv}, strides{8, 8 * nv, 8 * nv * nv};
         py::array_t<double> Iqq(shape, strides), Ivv(shape, strides), Iqv(shape, strides), dM(shape, strides);
         geoddp::dyn::rnea_second_order(model, q.data(), v.data(), a.data(), one_body, Iqq.mutable_data(),
                                        Ivv.mutable_data(), Iqv.mutable_data(), dM.mutable_data());
-        return py::make_tuple(Iqq, Ivv, Iqv, dM);
+        return py::make_tuple(Iqq, Ivv, Iqv, dM);  // std::invalid_argument (ValueError) for a model it does not fit
       },
       py::arg("model"), py::arg("q"), py::arg("v"), py::arg("a"), py::arg("one_body"),
       "(d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq), each (nv, nv, nv) indexed (i, j, k) as Pinocchio's;\n"
