@@ -154,11 +154,10 @@ static void difference(const Model& model, const std::vector<JointGroup>& groups
   }
 }
 
-// The forward pass; with `feed`, each state written is published to a concurrent expansion.
-static bool closed_loop(const Setup& s, const double* q0, const double* v0, const double* Qbar,
-                        const double* Vbar, const double* Ubar, const double* kff, const double* K,
-                        double gamma, int N, double* Qout, double* Vout, double* Uout,
-                        const double* lower, const double* upper, NodeFeed* feed) {
+bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, const double* Qbar,
+                         const double* Vbar, const double* Ubar, const double* kff, const double* K,
+                         double gamma, int N, double* Qout, double* Vout, double* Uout,
+                         const double* lower, const double* upper) {
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv;
   const std::vector<JointGroup> groups = joint_groups(model);
@@ -196,49 +195,8 @@ static bool closed_loop(const Setup& s, const double* q0, const double* v0, cons
     if (!all_finite(q1) || !all_finite(v1)) return false;
     Qo.row(k + 1) = q1.transpose();
     Vo.row(k + 1) = v1.transpose();
-    if (feed != nullptr) feed->ready.store(k + 1, std::memory_order_release);  // node k can be expanded
   }
   return true;
-}
-
-bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, const double* Qbar,
-                         const double* Vbar, const double* Ubar, const double* kff, const double* K,
-                         double gamma, int N, double* Qout, double* Vout, double* Uout,
-                         const double* lower, const double* upper) {
-  return closed_loop(s, q0, v0, Qbar, Vbar, Ubar, kff, K, gamma, N, Qout, Vout, Uout, lower, upper, nullptr);
-}
-
-bool rollout_closed_loop_expanding(const Setup& s, const double* q0, const double* v0, const double* Qbar,
-                                   const double* Vbar, const double* Ubar, const double* kff, const double* K,
-                                   double gamma, int N, double* Qout, double* Vout, double* Uout,
-                                   const double* lower, const double* upper, int threads, double* Phi, double* B,
-                                   int* expanded) {
-  *expanded = 0;
-  if (N < 1 || node_workers(N, threads) < 2)  // one worker: the forward pass alone
-    return closed_loop(s, q0, v0, Qbar, Vbar, Ubar, kff, K, gamma, N, Qout, Vout, Uout, lower, upper, nullptr);
-  NodeFeed feed;
-  bool ok = false;
-  int done = 0;
-  const std::function<void(int)> task = [&](int worker) {
-    if (worker == 1) {
-      try {
-        expansion(s, Qout, Vout, Uout, N, 1, 1, Phi, B, nullptr, nullptr, nullptr, 0, &feed, &done);
-      } catch (...) {
-        done = 0;  // no prefix: the full expansion recomputes these nodes (and raises the same error)
-      }
-      return;
-    }
-    try {
-      ok = closed_loop(s, q0, v0, Qbar, Vbar, Ubar, kff, K, gamma, N, Qout, Vout, Uout, lower, upper, &feed);
-    } catch (...) {
-      feed.stop.store(true, std::memory_order_release);
-      throw;
-    }
-    feed.stop.store(true, std::memory_order_release);  // the trial is decided: worker 1 stops at its next node
-  };
-  WorkerPool::get().run(2, task);
-  *expanded = ok ? done : 0;
-  return ok;
 }
 
 // Each of `rows` rows of X (rows, nz*nz) is an (nz, nz) matrix: make it exactly symmetric (the
@@ -547,52 +505,18 @@ static void bracket_block(const GroupStructure& gs, const JointGroup& g, int p, 
   gemm::gemm(false, d, nz, d, 0.5 * dt, Ds.data(), d, JWs.data(), (int)JWs.outerStride(), false, Mz.data(), nz);
 }
 
-// Whether node k of a fed expansion may run: its states are written (true), or the forward pass
-// has returned (false: the fed expansion stops; the nodes left are computed if the trial is kept).
-static bool node_fed(const NodeFeed& feed, int k) {
-  int spins = 0;
-  for (;;) {
-    if (feed.stop.load(std::memory_order_acquire)) return false;
-    if (feed.ready.load(std::memory_order_acquire) > k) return true;
-    wait_a_little(spins);
-  }
-}
-
-// Runs nodes(b, e) on chunks of [first, N) (parallel_for), or, fed by a forward pass, nodes(first,
-// N) on the calling thread (nodes checks node_fed and records where it stopped).
-template <typename Fn>
-static void expansion_nodes(int N, int first, int threads, const NodeFeed* feed, Fn nodes) {
-  if (feed != nullptr) {
-    nodes(first, N);
-    return;
-  }
-  parallel_for(N - first, threads, [&](int b, int e, int) { nodes(first + b, first + e); });
-}
-
 void expansion(const Setup& s, const double* Q, const double* V, const double* U, int N, int order, int threads,
-               double* Phi, double* B, double* Theta, double* Gamma, double* Xi, int first, NodeFeed* feed,
-               int* done) {
+               double* Phi, double* B, double* Theta, double* Gamma, double* Xi) {
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv, nz = n + m;
   const double dt = s.dt;
   const bool semi = s.integrator == SEMI_IMPLICIT;
-  if (first < 0 || first > N) throw std::invalid_argument("expansion: first node out of range");
-  if (feed != nullptr && (order != 1 || done == nullptr)) throw std::invalid_argument("expansion: a fed expansion is order 1");
-  if (first == N) return;
-  // a fed expansion stops where the forward pass left it: *done = the first node not computed
-  auto fed_stop = [&](int k) {
-    if (feed == nullptr || node_fed(*feed, k)) return false;
-    *done = k;
-    return true;
-  };
-  if (done != nullptr) *done = N;
   const std::vector<JointGroup> groups = joint_groups(model);
   if (s.integrator == RK4) {
-    expansion_nodes(N, first, threads, feed, [&](int b, int e) {
+    parallel_for(N, threads, [&](int b, int e, int) {
       Rk4Work w(model, m);
       Eigen::VectorXd q(nq), v(nv), u(m);
       for (int k = b; k < e; ++k) {
-        if (fed_stop(k)) return;
         q = CVecMap(Q + (size_t)k * nq, nq);
         v = CVecMap(V + (size_t)k * nv, nv);
         u = CVecMap(U + (size_t)k * m, m);
@@ -610,7 +534,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   const std::unique_ptr<VariationalModel> vmod =
       s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
   const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, order >= 2 && !vmod);
-  expansion_nodes(N, first, threads, feed, [&](int b0, int e0) {
+  parallel_for(N, threads, [&](int b0, int e0, int) {
     // each worker builds the scratch of its integrator only (a Pinocchio Data and pair tables, or
     // the variational step's)
     const std::unique_ptr<NodeWork> ew = vmod ? nullptr : std::make_unique<NodeWork>(model, m);
@@ -626,7 +550,6 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
     std::vector<double> Dt(order >= 2 ? (size_t)nv * nv * nv : 0);
     Eigen::VectorXd omega(nv);
     for (int k = b0; k < e0; ++k) {
-      if (fed_stop(k)) return;
       q = CVecMap(Q + (size_t)k * nq, nq);
       v = CVecMap(V + (size_t)k * nv, nv);
       if (vw) {

@@ -13,7 +13,6 @@
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Core>
-#include <atomic>
 #include <functional>
 #include <memory>
 #include <string>
@@ -57,26 +56,6 @@ bool rollout_closed_loop(const Setup& s, const double* q0, const double* v0, con
                          double gamma, int N, double* Qout, double* Vout, double* Uout,
                          const double* lower = nullptr, const double* upper = nullptr);
 
-// A forward pass feeding a first-order expansion on the other core. Node k of the expansion needs
-// x_k, u_k and x_{k+1} (v_{k+1}: the semi-implicit and variational reconstructions), so it may start
-// once `ready` > k; `stop` says the forward pass has returned (its trial is decided).
-struct NodeFeed {
-  std::atomic<int> ready{0};
-  std::atomic<bool> stop{false};
-};
-
-// rollout_closed_loop on worker 0 while worker 1 of the pool expands (order 1) the nodes the pass
-// has written, into Phi (N, n, n), B (N, n, m), until the pass returns: the next iteration's
-// first-order linearisation, started while the forward pass runs (when the line search accepts
-// the trial) and finished by expansion(..., first = *expanded). The prefix is bitwise what
-// expansion(order 1) gives: the same per-node arithmetic, on its own scratch. *expanded = the
-// number of nodes done (0 when the pass fails, or with one worker: `threads` == 1 or one core).
-bool rollout_closed_loop_expanding(const Setup& s, const double* q0, const double* v0, const double* Qbar,
-                                   const double* Vbar, const double* Ubar, const double* kff, const double* K,
-                                   double gamma, int N, double* Qout, double* Vout, double* Uout,
-                                   const double* lower, const double* upper, int threads, double* Phi, double* B,
-                                   int* expanded);
-
 // Derivatives of v+ = v + dt aba(q, v, H u) w.r.t. z at N nodes: Q (N, nq), V (N, nv), U (N, m)
 // -> F1 (N, nv, nz), and for order 2 F2 (N, nv, nz, nz), the symmetric (0)-Hessian (exact: from
 // computeABADerivatives and ComputeRNEASecondOrderDerivatives, no differences).
@@ -87,12 +66,8 @@ void velocity_derivatives(const Setup& s, const double* Q, const double* V, cons
 // Xi (N, n, m, m) at the N nodes of a rollout Q (N+1, nq), V (N+1, nv), U (N, m):
 // zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du^T Xi_i du.
 // Same meaning and layout as geoddp.models.multibody.Multibody.expansion.
-// Only nodes first .. N-1 are computed (the others are left as they are: a prefix that
-// rollout_closed_loop_expanding made). With `feed` (order 1), the nodes run on the calling thread
-// as a concurrent forward pass writes them, until it stops; *done = the nodes finished.
 void expansion(const Setup& s, const double* Q, const double* V, const double* U, int N, int order,
-               int threads, double* Phi, double* B, double* Theta, double* Gamma, double* Xi, int first = 0,
-               NodeFeed* feed = nullptr, int* done = nullptr);
+               int threads, double* Phi, double* B, double* Theta, double* Gamma, double* Xi);
 
 // Pinocchio's second-order RNEA tensors at (q (nq), v (nv), a (nv)): d2tau_dqdq, d2tau_dvdv,
 // d2tau_dqdv, d2tau_dadq, nv^3 each, column-major as Pinocchio stores them ((i, j, k) at

@@ -119,56 +119,44 @@ PYBIND11_MODULE(_core, m) {
       py::arg("U"),
       "Open-loop rollout: q0 (nq,), v0 (nv,), U (N, m) -> Q (N+1, nq), V (N+1, nv).");
 
-  // The forward pass's arguments, checked once for both of its bindings.
-  struct ClosedLoop {
-    Setup s;
-    int N;
-    const double *lo = nullptr, *hi = nullptr;
-    Arr lower, upper;
-  };
-  auto closed_loop_args = [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0,
-                             const Arr& Qbar, const Arr& Vbar, const Arr& Ubar, const Arr& kff, const Arr& K,
-                             py::array_t<double>& Qout, py::array_t<double>& Vout, py::array_t<double>& Uout,
-                             py::object lower, py::object upper) {
-    const pinocchio::Model& model = geoddp::model_from_python(pm);
-    ClosedLoop c{make_setup(model, H, dt, integrator), (int)Ubar.shape(0)};
-    const int N = c.N, nq = model.nq, nv = model.nv, m = c.s.m;
-    check_shape(q0, {nq}, "q0");
-    check_shape(v0, {nv}, "v0");
-    check_shape(Qbar, {N + 1, nq}, "Q_bar");
-    check_shape(Vbar, {N + 1, nv}, "V_bar");
-    check_shape(Ubar, {N, m}, "u_bar");
-    check_shape(kff, {N, m}, "k");
-    check_shape(K, {N, m, 2 * nv}, "K");
-    for (auto* o : {&Qout, &Vout, &Uout})
-      if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
-    if (Qout.ndim() != 2 || Qout.shape(0) != N + 1 || Qout.shape(1) != nq) throw py::value_error("Q_out: wrong shape");
-    if (Vout.ndim() != 2 || Vout.shape(0) != N + 1 || Vout.shape(1) != nv) throw py::value_error("V_out: wrong shape");
-    if (Uout.ndim() != 2 || Uout.shape(0) != N || Uout.shape(1) != m) throw py::value_error("u_out: wrong shape");
-    if (lower.is_none() != upper.is_none()) throw py::value_error("lower, upper: give both or neither");
-    if (!lower.is_none()) {
-      c.lower = lower.cast<Arr>();
-      c.upper = upper.cast<Arr>();
-      check_shape(c.lower, {N, m}, "lower");
-      check_shape(c.upper, {N, m}, "upper");
-      c.lo = c.lower.data();
-      c.hi = c.upper.data();
-    }
-    return c;
-  };
-
   m.def(
       "rollout_closed_loop",
-      [closed_loop_args](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0,
-                         const Arr& Qbar, const Arr& Vbar, const Arr& Ubar, const Arr& kff, const Arr& K, double gamma,
-                         py::array_t<double> Qout, py::array_t<double> Vout, py::array_t<double> Uout,
-                         py::object lower, py::object upper) {
-        const ClosedLoop c = closed_loop_args(pm, H, dt, integrator, q0, v0, Qbar, Vbar, Ubar, kff, K, Qout, Vout,
-                                              Uout, lower, upper);
-        py::gil_scoped_release nogil;
-        return geoddp::dyn::rollout_closed_loop(c.s, q0.data(), v0.data(), Qbar.data(), Vbar.data(), Ubar.data(),
-                                                kff.data(), K.data(), gamma, c.N, Qout.mutable_data(),
-                                                Vout.mutable_data(), Uout.mutable_data(), c.lo, c.hi);
+      [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0, const Arr& Qbar,
+         const Arr& Vbar, const Arr& Ubar, const Arr& kff, const Arr& K, double gamma, py::array_t<double> Qout,
+         py::array_t<double> Vout, py::array_t<double> Uout, py::object lower, py::object upper) {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        Setup s = make_setup(model, H, dt, integrator);
+        const int N = (int)Ubar.shape(0), nq = model.nq, nv = model.nv;
+        check_shape(q0, {nq}, "q0");
+        check_shape(v0, {nv}, "v0");
+        check_shape(Qbar, {N + 1, nq}, "Q_bar");
+        check_shape(Vbar, {N + 1, nv}, "V_bar");
+        check_shape(Ubar, {N, s.m}, "u_bar");
+        check_shape(kff, {N, s.m}, "k");
+        check_shape(K, {N, s.m, 2 * nv}, "K");
+        for (auto* o : {&Qout, &Vout, &Uout})
+          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("outputs: expected writeable C-contiguous float64 arrays");
+        if (Qout.ndim() != 2 || Qout.shape(0) != N + 1 || Qout.shape(1) != nq) throw py::value_error("Q_out: wrong shape");
+        if (Vout.ndim() != 2 || Vout.shape(0) != N + 1 || Vout.shape(1) != nv) throw py::value_error("V_out: wrong shape");
+        if (Uout.ndim() != 2 || Uout.shape(0) != N || Uout.shape(1) != s.m) throw py::value_error("u_out: wrong shape");
+        if (lower.is_none() != upper.is_none()) throw py::value_error("lower, upper: give both or neither");
+        Arr lo, hi;
+        if (!lower.is_none()) {
+          lo = lower.cast<Arr>();
+          hi = upper.cast<Arr>();
+          check_shape(lo, {N, s.m}, "lower");
+          check_shape(hi, {N, s.m}, "upper");
+        }
+        const double* lop = lower.is_none() ? nullptr : lo.data();
+        const double* hip = lower.is_none() ? nullptr : hi.data();
+        bool ok;
+        {
+          py::gil_scoped_release nogil;
+          ok = geoddp::dyn::rollout_closed_loop(s, q0.data(), v0.data(), Qbar.data(), Vbar.data(), Ubar.data(),
+                                                kff.data(), K.data(), gamma, N, Qout.mutable_data(),
+                                                Vout.mutable_data(), Uout.mutable_data(), lop, hip);
+        }
+        return ok;
       },
       py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("q0"), py::arg("v0"),
       py::arg("Q_bar"), py::arg("V_bar"), py::arg("u_bar"), py::arg("k"), py::arg("K"), py::arg("gamma"),
@@ -177,35 +165,6 @@ PYBIND11_MODULE(_core, m) {
       "Forward pass u = u_bar - gamma k - K zeta into Q_out (N+1, nq), V_out (N+1, nv), u_out (N, m); "
       "with lower, upper (N, m) u is clamped into the box after the feedback law. "
       "False if a state became non-finite.");
-
-  m.def(
-      "rollout_closed_loop_expanding",
-      [closed_loop_args](py::handle pm, const Arr& H, double dt, int integrator, const Arr& q0, const Arr& v0,
-                         const Arr& Qbar, const Arr& Vbar, const Arr& Ubar, const Arr& kff, const Arr& K, double gamma,
-                         py::array_t<double> Qout, py::array_t<double> Vout, py::array_t<double> Uout,
-                         py::object lower, py::object upper, int threads) -> py::tuple {
-        const ClosedLoop c = closed_loop_args(pm, H, dt, integrator, q0, v0, Qbar, Vbar, Ubar, kff, K, Qout, Vout,
-                                              Uout, lower, upper);
-        const int n = 2 * c.s.model->nv;
-        Arr Phi = empty({c.N, n, n}), B = empty({c.N, n, c.s.m});
-        int expanded = 0;
-        bool ok;
-        {
-          py::gil_scoped_release nogil;
-          ok = geoddp::dyn::rollout_closed_loop_expanding(
-              c.s, q0.data(), v0.data(), Qbar.data(), Vbar.data(), Ubar.data(), kff.data(), K.data(), gamma, c.N,
-              Qout.mutable_data(), Vout.mutable_data(), Uout.mutable_data(), c.lo, c.hi, threads, Phi.mutable_data(),
-              B.mutable_data(), &expanded);
-        }
-        return py::make_tuple(ok, Phi, B, expanded);
-      },
-      py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("q0"), py::arg("v0"),
-      py::arg("Q_bar"), py::arg("V_bar"), py::arg("u_bar"), py::arg("k"), py::arg("K"), py::arg("gamma"),
-      py::arg("Q_out").noconvert(), py::arg("V_out").noconvert(), py::arg("u_out").noconvert(),
-      py::arg("lower") = py::none(), py::arg("upper") = py::none(), py::arg("threads") = 0,
-      "rollout_closed_loop while the pool's second worker expands (order 1) the nodes already written: "
-      "(ok, Phi (N, n, n), B (N, n, m), expanded), nodes 0 .. expanded-1 of Phi and B bitwise those of "
-      "expansion(order=1); expansion_rest completes them.");
 
   m.def(
       "velocity_derivatives",
@@ -281,30 +240,6 @@ PYBIND11_MODULE(_core, m) {
       py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("Q"), py::arg("V"),
       py::arg("U"), py::arg("order") = 1, py::arg("threads") = 0,
       "Phi (N, n, n), B (N, n, m), and for order 2 Theta (N, n, n, n), Gamma (N, n, n, m), Xi (N, n, m, m).");
-
-  m.def(
-      "expansion_rest",
-      [](py::handle pm, const Arr& H, double dt, int integrator, const Arr& Q, const Arr& V, const Arr& U,
-         py::array_t<double> Phi, py::array_t<double> B, int first, int threads) {
-        const pinocchio::Model& model = geoddp::model_from_python(pm);
-        Setup s = make_setup(model, H, dt, integrator);
-        const int N = (int)U.shape(0), nv = model.nv, n = 2 * nv, mm = s.m;
-        check_shape(Q, {N + 1, model.nq}, "Q");
-        check_shape(V, {N + 1, nv}, "V");
-        check_shape(U, {N, mm}, "U");
-        for (auto* o : {&Phi, &B})
-          if (!(o->flags() & py::array::c_style) || !o->writeable()) throw py::value_error("Phi, B: expected writeable C-contiguous float64 arrays");
-        if (Phi.ndim() != 3 || Phi.shape(0) != N || Phi.shape(1) != n || Phi.shape(2) != n) throw py::value_error("Phi: wrong shape");
-        if (B.ndim() != 3 || B.shape(0) != N || B.shape(1) != n || B.shape(2) != mm) throw py::value_error("B: wrong shape");
-        if (first < 0 || first > N) throw py::value_error("first: expected 0 <= first <= N");
-        py::gil_scoped_release nogil;
-        geoddp::dyn::expansion(s, Q.data(), V.data(), U.data(), N, 1, threads, Phi.mutable_data(), B.mutable_data(),
-                               nullptr, nullptr, nullptr, first);
-      },
-      py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("Q"), py::arg("V"),
-      py::arg("U"), py::arg("Phi").noconvert(), py::arg("B").noconvert(), py::arg("first"), py::arg("threads") = 0,
-      "Nodes first .. N-1 of expansion(order=1) into Phi (N, n, n), B (N, n, m), the nodes before left as they "
-      "are (the prefix rollout_closed_loop_expanding made).");
 
   m.def(
       "block_ad_jr",

@@ -24,21 +24,6 @@
 
 namespace geoddp {
 
-// A short wait for the other worker of a two-worker kernel (the contracted pass's hand-over, the
-// forward pass feeding the expansion): it hands over within microseconds, so spin (with the CPU's
-// pause hint), and after a few microseconds yield the core at every check: if both workers share
-// one core (a CPU quota, an oversubscribed machine), the other one runs then instead of after a
-// scheduler slice (which had made the contracted pass 36x slower under taskset).
-inline void wait_a_little(int& spins) {
-  if (++spins < 256) {
-#if defined(__x86_64__) || defined(__i386__)
-    __builtin_ia32_pause();
-#endif
-  } else {
-    std::this_thread::yield();
-  }
-}
-
 class WorkerPool {
  public:
   // Runs task(worker) for worker = 0 .. T-1, worker 0 on the calling thread; returns when all

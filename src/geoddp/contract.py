@@ -17,7 +17,7 @@ This module imports nothing else from geoddp: problems and the solver both impor
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -35,16 +35,11 @@ class Trajectory:
         v: (H+1, nv) velocity part of the state (rad/s, m/s): body angular velocity Omega on
             TSO(3), generalised velocities for a multibody.
         u: (H, m) controls (units of the model's actuation).
-        precomputed: what the problem that made the trajectory computed along it ahead of time, for
-            its own later use (a compiled multibody model: the first nodes of the first-order
-            expansion, made on the second core while the forward pass wrote them); None by default.
-            Opaque to the solver, which never reads it.
     """
 
     q: np.ndarray
     v: np.ndarray
     u: np.ndarray
-    precomputed: Any = field(default=None, repr=False, compare=False)
 
 
 @dataclass

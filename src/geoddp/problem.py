@@ -72,9 +72,6 @@ class Problem:
                 raise InputError(name, f"expected costs on the model's tangent space (nx = {self.model.nx}), got nx = {nx}")
         self.limits = as_limits(self.limits)
         self._bounds = None if self.limits is None else self.limits.resolve(self.horizon, self.model.nu)
-        # The last linearisation was first order: the next one likely is too, so the forward pass
-        # starts it on the second core (rollout_policy; a compiled multibody model only).
-        self._first_order_next = False
 
     def with_limits(self, limits: Any) -> "Problem":
         """The same problem (model, costs, horizon, initial state shared) with other control limits
@@ -144,11 +141,8 @@ class Problem:
         if order == 2 and getattr(self.model, "contracts_second_order", False):
             # factored second order, contracted with V_x' in the backward pass (compiled multibody)
             exp = self.model.expansion(traj.q, traj.v, traj.u, order=2, contracted=True, **trusted)
-        elif order == 1 and traj.precomputed is not None:  # started while the forward pass ran
-            exp = self.model.expansion(traj.q, traj.v, traj.u, order=1, prefix=traj.precomputed, **trusted)
         else:
             exp = self.model.expansion(traj.q, traj.v, traj.u, order=order, **trusted)
-        self._first_order_next = order == 1 and getattr(self.model, "overlaps_first_order", False)
         # Order 1 is a Gauss-Newton model where the costs offer one (multibody residual terms):
         # the exact Hessian's residual-curvature part, sum_i (W r)_i Hess r_i, is indefinite far
         # from a target and made the first iterations regularise heavily (UR5 pose reach: 32
@@ -163,13 +157,6 @@ class Problem:
         """:meth:`rollout_closed_loop` around ``traj`` into new arrays; None if non-finite."""
         # fresh C-contiguous outputs (empty_like would copy a nominal's layout, e.g. a transposed guess)
         q, v, u = np.empty(traj.q.shape), np.empty(traj.v.shape), np.empty(traj.u.shape)
-        if self._first_order_next:
-            # after a first-order linearisation, the next one starts on the second core while the
-            # pass writes its nodes (Multibody.rollout_closed_loop_expanding; bitwise the same)
-            lo, hi = (None, None) if self._bounds is None else self._bounds
-            ok, prefix = self.model.rollout_closed_loop_expanding(self.q0, self.v0, traj.q, traj.v, traj.u, k, K,
-                                                                  step, q, v, u, lo, hi)
-            return Trajectory(q, v, u, prefix) if ok else None
         if not self.rollout_closed_loop(traj.q, traj.v, traj.u, k, K, step, q, v, u, trusted=True):
             return None
         return Trajectory(q, v, u)

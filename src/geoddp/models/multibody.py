@@ -468,32 +468,6 @@ class Multibody:
             Q_out[k + 1], V_out[k + 1] = q1, v1
         return True
 
-    @property
-    def overlaps_first_order(self) -> bool:
-        """Whether :meth:`rollout_closed_loop_expanding` overlaps the forward pass with the next
-        first-order expansion (the compiled backend)."""
-        return self.backend == "compiled"
-
-    def rollout_closed_loop_expanding(
-        self, q0: np.ndarray, v0: np.ndarray, Q_bar: np.ndarray, V_bar: np.ndarray, u_bar: np.ndarray,
-        k_ff: np.ndarray, K_fb: np.ndarray, gamma: float, Q_out: np.ndarray, V_out: np.ndarray, u_out: np.ndarray,
-        lower: np.ndarray | None = None, upper: np.ndarray | None = None,
-    ) -> tuple[bool, tuple[integ.Expansion, int] | None]:
-        """:meth:`rollout_closed_loop` (compiled backend; the caller's arrays as with ``checked=True``)
-        while the core's second worker expands, at order 1, the nodes the pass has written, until
-        the pass returns. Returns (ok, prefix): prefix = (Expansion with Phi (H, nx, nx), B (H, nx, m)
-        whose nodes 0 .. d-1 are bitwise those of :meth:`expansion` at order 1, d), for
-        :meth:`expansion`'s ``prefix``; None when the pass failed. With one worker (``threads=1``,
-        one core) d = 0. Why: in a first-order iteration the forward pass (one core) and the next
-        expansion (both) ran one after the other; the expansion now starts on the idle core as soon
-        as its nodes exist."""
-        if self.backend != "compiled":
-            raise InputError("backend", "expected the compiled backend: rollout_closed_loop_expanding runs in the core")
-        ok, Phi, B, done = compiled._core.rollout_closed_loop_expanding(
-            self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, Q_bar, V_bar,
-            u_bar, k_ff, K_fb, float(gamma), Q_out, V_out, u_out, lower, upper, self.threads)
-        return bool(ok), ((integ.Expansion(Phi=Phi, B=B), int(done)) if ok else None)
-
     # ------------------------------------------------------------------ derivatives
     def _invariant_q_dirs(self) -> np.ndarray:
         """Tangent directions of q along which the velocity update does not change at all.
@@ -621,8 +595,7 @@ class Multibody:
         return integ.Expansion.from_blocks(n, G, G2)
 
     def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1,
-                  contracted: bool = False, checked: bool = False,
-                  prefix: tuple[integ.Expansion, int] | None = None) -> integ.Expansion:
+                  contracted: bool = False, checked: bool = False) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
 
         Q (H+1, nq), V (H+1, nv), controls (H, m), with (Q, V) the rollout of controls (the
@@ -639,9 +612,6 @@ class Multibody:
         order 1 or 2: a problem's own rollout, :meth:`geoddp.problem.Problem.linearise`), so the
         checks and their copies are skipped (about 50 us a call, 7 % of a UR5 linearisation; the
         core still checks the shapes).
-
-        ``prefix`` (order 1, compiled backend): (Expansion, d) from :meth:`rollout_closed_loop_expanding`
-        along this very trajectory; nodes d .. H-1 are computed into its arrays, which are returned.
         """
         if checked:
             U, H = controls, controls.shape[0]
@@ -658,13 +628,6 @@ class Multibody:
             Phi, B, terms = compiled._core.expansion_contracted(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, self.threads)
             return integ.Expansion(Phi=Phi, B=B, terms=terms)
-        if prefix is not None and order == 1:
-            if self.backend != "compiled":
-                raise InputError("prefix", "expected None: a precomputed prefix comes from the compiled backend")
-            exp, done = prefix
-            compiled._core.expansion_rest(self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator],
-                                          Q, V, U, exp.Phi, exp.B, int(done), self.threads)
-            return exp
         if self.backend == "compiled":
             Phi, B, Theta, Gamma, Xi = compiled._core.expansion(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, order, self.threads)
