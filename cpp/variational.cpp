@@ -229,12 +229,11 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   F1k.resize(nv, nz);
   Jm.resize(nv, nw);
   Tj.resize(nv, nw);
-  P = Eigen::MatrixXd::Zero(nw, nz);
-  P.topLeftCorner(2 * nv, 2 * nv).setIdentity();
-  TP.resize(nw, nz);
-  PTP.resize(nz, nz);
-  stack.resize(nv, (Eigen::Index)nz * nz);
-  F2k.resize(nv, (Eigen::Index)nz * nz);
+  Ts.resize(nw, nw);
+  G.resize(2 * nv, nz);
+  CF.resize(nv, nz);
+  FCF.resize(nz, nz);
+  stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
 }
 
@@ -295,23 +294,55 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
     }
   }
   // Differentiating the right-trivialised Jacobian along integrate(q, h e_j) adds an
-  // antisymmetric bracket term to the eta-eta block: the symmetric part is the (0)-Hessian.
-  // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1].
-  nw.P.bottomRows(nv) = nw.F1k;
+  // antisymmetric bracket term to the eta-eta block: the symmetric part Ts is the (0)-Hessian.
+  // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1], and P^T Ts P is formed
+  // from Ts's blocks over (eta, dv | y), A (2nv, 2nv), Bm (2nv, nv), C (nv, nv), as
+  //   E^T A E + E^T Bm F1 + (Bm F1)^T E + F1^T C F1,  E = [I_2nv 0] (2nv, nz),
+  // on its upper triangle only (it is symmetric): a third of the two dense (3nv)^2 nz products it
+  // replaces, in coefficient-based loops instead of Eigen's blocked GEMM (whose packing cost more
+  // than the arithmetic at these sizes).
+  const int n2 = 2 * nv, nu = nz * (nz + 1) / 2;
   for (int i = 0; i < nv; ++i) {
-    const Eigen::MatrixXd Ts = 0.5 * (nw.T[i] + nw.T[i].transpose());
-    nw.TP.noalias() = Ts * nw.P;
-    nw.PTP.noalias() = nw.P.transpose() * nw.TP;
+    nw.Ts = 0.5 * (nw.T[i] + nw.T[i].transpose());
+    nw.G.noalias() = nw.Ts.topRightCorner(n2, nv).lazyProduct(nw.F1k);     // Bm F1 (2nv, nz)
+    nw.CF.noalias() = nw.Ts.bottomRightCorner(nv, nv).lazyProduct(nw.F1k);  // C F1 (nv, nz)
+    nw.FCF.noalias() = nw.F1k.transpose().lazyProduct(nw.CF);                // F1^T C F1 (nz, nz)
+    int c = 0;
     for (int a = 0; a < nz; ++a)
-      for (int b = 0; b < nz; ++b) nw.stack(i, (Eigen::Index)a * nz + b) = nw.PTP(a, b);
+      for (int b = a; b < nz; ++b, ++c) {
+        double s = nw.FCF(a, b);
+        if (a < n2) s += nw.G(a, b);
+        if (b < n2) s += nw.G(b, a) + nw.Ts(a, b);  // b < 2nv implies a < 2nv
+        nw.stack(i, c) = s;
+      }
   }
-  nw.F2k = -lu.solve(nw.stack);
-  // exactly symmetric, as the Python oracle's F2 (P^T T P is symmetric up to round-off)
-  for (int i = 0; i < nv; ++i)
+  // F2 = -R_y^-1 P^T Ts P: the LU factors applied column by column (nv <= a few tens: plain loops,
+  // not Eigen's blocked triangular solves, which dominated at nv = 6)
+  nw.stack = lu.permutationP() * nw.stack;
+  const Eigen::MatrixXd& LU = lu.matrixLU();
+  for (int c = 0; c < nu; ++c) {
+    double* x = nw.stack.col(c).data();
+    for (int r = 1; r < nv; ++r) {
+      double s = x[r];
+      for (int j = 0; j < r; ++j) s -= LU(r, j) * x[j];
+      x[r] = s;
+    }
+    for (int r = nv - 1; r >= 0; --r) {
+      double s = x[r];
+      for (int j = r + 1; j < nv; ++j) s -= LU(r, j) * x[j];
+      x[r] = s / LU(r, r);
+    }
+  }
+  // exactly symmetric, as the Python oracle's F2
+  for (int i = 0; i < nv; ++i) {
+    int c = 0;
     for (int a = 0; a < nz; ++a)
-      for (int b = 0; b < nz; ++b)
-        F2[((size_t)i * nz + a) * nz + b] =
-            0.5 * (nw.F2k(i, (Eigen::Index)a * nz + b) + nw.F2k(i, (Eigen::Index)b * nz + a));
+      for (int b = a; b < nz; ++b, ++c) {
+        const double f = -nw.stack(i, c);
+        F2[((size_t)i * nz + a) * nz + b] = f;
+        F2[((size_t)i * nz + b) * nz + a] = f;
+      }
+  }
 }
 
 void variational_velocity_derivatives(const VariationalModel& vm, const double* Q, const double* V,

@@ -71,7 +71,7 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
 struct VariationalNodeWork {
   VariationalWork w;
   Eigen::VectorXd qp, e, vp, yp;
-  Eigen::MatrixXd Rz, F1k, Jm, Tj, P, TP, PTP, stack, F2k;
+  Eigen::MatrixXd Rz, F1k, Jm, Tj, Ts, G, CF, FCF, stack;
   std::vector<Eigen::MatrixXd> T;
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
