@@ -113,16 +113,20 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 // of the previous call on w, whose terms of y alone are kept: K1 = K(-dt y) always, and for one body
 // (vm.configuration_free: M constant, D zero) also M0, M1 and R_y. R_ww's differences along eta and
 // dv move q and v only (variational_node), so 4 nv of its 4 nv + 1 calls per node reuse them.
+// same_v (with same_y, one body): v too is the previous call's, so are the terms of v alone:
+// Ad_exp(-dt v), Jr(dt v), K(dt v) and d/dx[K^T M0 v] (its dual-number dJr), kept for the 2 nv
+// differences along eta; the same values, so the same bits.
 void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                        const Eigen::VectorXd& v, const Eigen::VectorXd& y, Eigen::MatrixXd& J,
-                       bool same_y = false) {
+                       bool same_y = false, bool same_v = false) {
   const Model& model = *vm.model;
   const int nv = model.nv;
   const double dt = vm.dt;
   const bool keep_mass = same_y && vm.configuration_free;
+  const bool keep_v = keep_mass && same_v;
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
-  blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
+  if (!keep_v) blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
   if (!same_y) {
     w.x = -dt * y;
     Kmat(vm, w, w.x, w.K1);
@@ -136,8 +140,10 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   Dmat(vm, w, q, v, w.D0);
   J.leftCols(nv).noalias() = w.Sq * w.A;
   J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
-  w.tmp.noalias() = w.M0 * v;
-  dKT(vm, w, w.omega, w.K0, w.tmp, w.Kt);
+  if (!keep_v) {
+    w.tmp.noalias() = w.M0 * v;
+    dKT(vm, w, w.omega, w.K0, w.tmp, w.Kt);
+  }
   J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
   J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
   J.middleCols(nv, nv) -= dt * w.Kt;
@@ -151,6 +157,7 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
     : model(&model_), free_model(model_), groups(joint_groups(model_)), H(H_), m(m_), dt(dt_) {
   free_model.gravity.setZero();
   configuration_free = OneBodySecondOrder::free_of_configuration(free_model);
+  configuration_invariant = configuration_free && model_.gravity.toVector().isZero(0.0);
 }
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {
@@ -252,16 +259,21 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
   Eigen::Map<RowMat>(F1, nv, nz) = nw.F1k;
   if (F2 == nullptr) return;
   // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a)
+  // (eta first: their calls keep the terms of v, which the dv directions then change)
   for (int j = 0; j < 2 * nv; ++j) {
+    if (j < nv && vm.configuration_invariant) {  // J does not depend on q: exactly zero
+      for (int i = 0; i < nv; ++i) nw.T[i].col(j).setZero();
+      continue;
+    }
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, true);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, true, j < nv);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, true);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, true, j < nv);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
   }

@@ -50,6 +50,9 @@ struct VariationalModel {
   // one body on a free-flyer or spherical root (one_body.hpp): the gravity-free model's tau does not
   // depend on q, so D(q, w) and the kinetic-energy Hessian are zero and Pinocchio's calls are skipped
   bool configuration_free;
+  // configuration_free and no gravity: R and its Jacobian do not depend on q at all (R_ww's
+  // eta-derivatives are exactly zero)
+  bool configuration_invariant;
   VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
 };
 
