@@ -63,11 +63,14 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 // D(q, v)^T v = 1/2 sum_p v_p d2tau_p/dq_i dq_j (Pinocchio's second-order RNEA at (q, 0, v), no
 // gravity; the (i, j) order is that of differentiating the trivialised D along q exp(h e_j), as
 // the Python oracle's differences do), minus the generalised gravity's derivative.
+// keep_kinetic: the kinetic part w.Hkin is the previous call's (a root direction, see
+// VariationalModel::root_dirs); only the gravity part is recomputed.
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
-                        const Eigen::VectorXd& v) {
+                        const Eigen::VectorXd& v, bool keep_kinetic = false) {
   const int nv = vm.model->nv;
-  if (vm.configuration_free) {
-    w.Hk.setZero();
+  if (keep_kinetic) {
+  } else if (vm.configuration_free) {
+    w.Hkin.setZero();
   } else {
     pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
     const auto& T = w.fdata.d2tau_dqdq;
@@ -75,13 +78,13 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
       for (int j = 0; j < nv; ++j) {
         double acc = 0.0;
         for (int p = 0; p < nv; ++p) acc += v[p] * T(p, i, j);
-        w.Hk(i, j) = 0.5 * acc;
+        w.Hkin(i, j) = 0.5 * acc;
       }
   }
   w.T.resize(nv, nv);  // reuse as the gravity derivative's buffer
   w.T.setZero();
   pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, q, w.T);
-  w.Hk -= w.T;
+  w.Hk = w.Hkin - w.T;
 }
 
 // R at y (into w.r) with K1 = K(-dt y) and D1 = D(q+, y); M1 = M(q+), g1 = g(q+), b fixed.
@@ -115,14 +118,17 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 // dv move q and v only (variational_node), so 4 nv of its 4 nv + 1 calls per node reuse them.
 // same_v (with same_y, one body): v too is the previous call's, so are the terms of v alone:
 // Ad_exp(-dt v), Jr(dt v), K(dt v) and d/dx[K^T M0 v] (its dual-number dJr), kept for the 2 nv
-// differences along eta; the same values, so the same bits.
+// differences along eta; the same values, so the same bits. along_root (with same_y and same_v):
+// q differs from the previous call's along VariationalModel::root_dirs only, so M0, M1, D0, D1, the
+// kinetic Hessian and R_y are kept too (any model): only the gravity terms are recomputed.
 void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                        const Eigen::VectorXd& v, const Eigen::VectorXd& y, Eigen::MatrixXd& J,
-                       bool same_y = false, bool same_v = false) {
+                       bool same_y = false, bool same_v = false, bool along_root = false) {
   const Model& model = *vm.model;
   const int nv = model.nv;
   const double dt = vm.dt;
-  const bool keep_mass = same_y && vm.configuration_free;
+  const bool keep_kinetic = same_y && same_v && along_root;
+  const bool keep_mass = (same_y && vm.configuration_free) || keep_kinetic;
   const bool keep_v = keep_mass && same_v;
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
@@ -132,12 +138,12 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
     Kmat(vm, w, w.x, w.K1);
   }
   if (!keep_mass) mass(vm, w, w.qn, w.M1);
-  Dmat(vm, w, w.qn, y, w.D1);
-  lagrangian_hessian(vm, w, w.qn, y);
+  if (!keep_kinetic) Dmat(vm, w, w.qn, y, w.D1);
+  lagrangian_hessian(vm, w, w.qn, y, keep_kinetic);
   w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
   w.Sq -= dt * w.Hk;
   if (!keep_mass) mass(vm, w, q, w.M0);
-  Dmat(vm, w, q, v, w.D0);
+  if (!keep_kinetic) Dmat(vm, w, q, v, w.D0);
   J.leftCols(nv).noalias() = w.Sq * w.A;
   J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
   if (!keep_v) {
@@ -157,12 +163,14 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
     : model(&model_), free_model(model_), groups(joint_groups(model_)), H(H_), m(m_), dt(dt_) {
   free_model.gravity.setZero();
   configuration_free = OneBodySecondOrder::free_of_configuration(free_model);
-  configuration_invariant = configuration_free && model_.gravity.toVector().isZero(0.0);
+  gravity_free = model_.gravity.toVector().isZero(0.0);
+  const int root_kind = model_.njoints > 1 ? boost::apply_visitor(GroupKindOf(), model_.joints[1].toVariant()) : -1;
+  root_dirs = root_kind == SE3 ? 6 : root_kind == SO3 ? 3 : 0;
 }
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {
   const int nv = vm.model->nv, nq = vm.model->nq;
-  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &T, &Sq, &Ry, &Kx, &Dx})
+  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &Hkin, &T, &Sq, &Ry, &Kx, &Dx})
     M->resize(nv, nv);
   J.resize(nv, 3 * nv);
   Jp.resize(nv, 3 * nv);
@@ -261,7 +269,8 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
   // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a)
   // (eta first: their calls keep the terms of v, which the dv directions then change)
   for (int j = 0; j < 2 * nv; ++j) {
-    if (j < nv && vm.configuration_invariant) {  // J does not depend on q: exactly zero
+    const bool along_root = j < vm.root_dirs;  // (an eta direction: root_dirs <= nv)
+    if (along_root && vm.gravity_free) {  // J does not depend on the root's pose: exactly zero
       for (int i = 0; i < nv; ++i) nw.T[i].col(j).setZero();
       continue;
     }
@@ -269,11 +278,11 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, true, j < nv);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, true, j < nv, along_root);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, true, j < nv);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, true, j < nv, along_root);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
   }

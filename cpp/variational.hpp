@@ -50,9 +50,12 @@ struct VariationalModel {
   // one body on a free-flyer or spherical root (one_body.hpp): the gravity-free model's tau does not
   // depend on q, so D(q, w) and the kinetic-energy Hessian are zero and Pinocchio's calls are skipped
   bool configuration_free;
-  // configuration_free and no gravity: R and its Jacobian do not depend on q at all (R_ww's
-  // eta-derivatives are exactly zero)
-  bool configuration_invariant;
+  // The velocity dofs of a free-flyer (6) or spherical (3) first joint, else 0. Perturbing them,
+  // q exp(h e_j), moves that joint's whole subtree rigidly: M, D and the kinetic-energy Hessian
+  // (local frames, gravity-free model) do not change, only the gravity terms do; with no gravity
+  // (gravity_free) R's Jacobian does not change at all. One body: all of its nv dofs.
+  int root_dirs;
+  bool gravity_free;
   VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
 };
 
@@ -60,7 +63,7 @@ struct VariationalModel {
 // allocation per call).
 struct VariationalWork {
   pinocchio::Data data, fdata;
-  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, J, Jp, T, Sq, Ry, Kx, Dx;
+  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx;
   Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   explicit VariationalWork(const VariationalModel& vm);

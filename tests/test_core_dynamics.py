@@ -444,6 +444,33 @@ def test_variational_velocity_derivatives_equal_python_and_differences(case):
     assert np.abs(F2c[k] - ref).max() / scale < 1e-7
 
 
+@pytest.mark.parametrize("urdf, root, nroot, tilts", [("space_manipulator.urdf", "free_flyer", 6, True),
+                                                       ("spacecraft.urdf", "free_flyer", 6, True),
+                                                       ("satellite.urdf", "spherical", 3, False)])
+def test_variational_root_pose_directions(urdf, root, nroot, tilts):
+    """Perturbing a free-flyer or spherical root's pose moves the whole mechanism rigidly: without
+    gravity the variational step's velocity update does not change, so F2 is exactly zero along
+    those eta directions (the core skips their differences); with gravity only the gravity terms
+    change there, and F2 agrees with the oracle and with differences of F1 (test above). (``tilts``:
+    gravity acts through the root's attitude; not on the satellite, whose centre of mass is its
+    spherical joint's centre.)"""
+    for gravity in (False, True):
+        py, cc = _models((urdf, root, gravity), "variational")
+        q0, v0, _ = _state(py, 51)
+        U = np.random.default_rng(52).normal(size=(3, py.nu))
+        Q, V = cc.rollout(q0, v0, U)
+        _, F2c = _var_F(cc, Q[:-1], V[:-1], V[1:])
+        _, F2p = py._variational.velocity_derivatives(Q[:-1], V[:-1], V[1:], U, 2)
+        scale = max(1.0, float(np.abs(F2c).max()))
+        block = np.abs(F2c[:, :, :nroot, :]).max()
+        if gravity and tilts:
+            assert block > 1e-3 * scale  # gravity depends on the root's attitude
+        elif not gravity:
+            assert block == 0.0 and np.abs(F2c[:, :, :, :nroot]).max() == 0.0
+            assert np.abs(F2p[:, :, :nroot, :]).max() < 1e-6 * scale  # the oracle: differences of zero
+        assert np.abs(F2c - F2p).max() / scale < 2e-6
+
+
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_variational_expansion_equals_python(case, monkeypatch):
     """The core's whole expansion (its F1, F2 and the explicit-Euler reconstruction in C++) equals
