@@ -112,38 +112,46 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   out.noalias() -= dt * D1.transpose();
 }
 
-// [R_eta, R_dv, R_y] at any (q, v, y), into J (nv, 3 nv). same_y: y (and nothing but q, v) is that
-// of the previous call on w, whose terms of y alone are kept: K1 = K(-dt y) always, and for one body
-// (vm.configuration_free: M constant, D zero) also M0, M1 and R_y. R_ww's differences along eta and
-// dv move q and v only (variational_node), so 4 nv of its 4 nv + 1 calls per node reuse them.
-// same_v (with same_y, one body): v too is the previous call's, so are the terms of v alone:
-// Ad_exp(-dt v), Jr(dt v), K(dt v) and d/dx[K^T M0 v] (its dual-number dJr), kept for the 2 nv
-// differences along eta; the same values, so the same bits. along_root (with same_y and same_v):
-// q differs from the previous call's along VariationalModel::root_dirs only, so M0, M1, D0, D1, the
-// kinetic Hessian and R_y are kept too (any model): only the gravity terms are recomputed.
+// What a residual_jacobian call may keep from the previous call on the same work (variational_node
+// orders its calls so that these hold). Each kept value is the one the call would compute, up to
+// round-off where it rests on the root's invariance (VariationalModel::root_dirs).
+//   y: y is the previous call's: K1 = K(-dt y) (and for one body, whose M is constant and D zero,
+//      M0, M1 and R_y);
+//   v_terms: v too: Ad_exp(-dt v), Jr(dt v), K(dt v) and d/dx[K^T M0 v] (its dual-number dJr),
+//      when M0 is kept as well;
+//   M0: q differs at most along the root's pose: M0 = M(q);
+//   D0: and v is the previous call's: D0 = D(q, v);
+//   qn_kinetic: q+ = q exp(dt v) differs at most along the root's pose (and y is the same): M1,
+//      D1, the kinetic-energy Hessian and R_y. Only the gravity terms are then recomputed.
+struct Keep {
+  bool y = false, v_terms = false, M0 = false, D0 = false, qn_kinetic = false;
+};
+
+// [R_eta, R_dv, R_y] at any (q, v, y), into J (nv, 3 nv), keeping what `keep` allows.
 void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                        const Eigen::VectorXd& v, const Eigen::VectorXd& y, Eigen::MatrixXd& J,
-                       bool same_y = false, bool same_v = false, bool along_root = false) {
+                       const Keep& keep = Keep()) {
   const Model& model = *vm.model;
   const int nv = model.nv;
   const double dt = vm.dt;
-  const bool keep_kinetic = same_y && same_v && along_root;
-  const bool keep_mass = (same_y && vm.configuration_free) || keep_kinetic;
-  const bool keep_v = keep_mass && same_v;
+  const bool one_body = keep.y && vm.configuration_free;  // M constant, D and the kinetic Hessian zero
+  const bool kinetic = keep.y && keep.qn_kinetic;
+  const bool keep_M1 = one_body || kinetic, keep_M0 = one_body || keep.M0;
+  const bool keep_v = keep.v_terms && keep_M0;
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
   if (!keep_v) blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
-  if (!same_y) {
+  if (!keep.y) {
     w.x = -dt * y;
     Kmat(vm, w, w.x, w.K1);
   }
-  if (!keep_mass) mass(vm, w, w.qn, w.M1);
-  if (!keep_kinetic) Dmat(vm, w, w.qn, y, w.D1);
-  lagrangian_hessian(vm, w, w.qn, y, keep_kinetic);
+  if (!keep_M1) mass(vm, w, w.qn, w.M1);
+  if (!kinetic) Dmat(vm, w, w.qn, y, w.D1);
+  lagrangian_hessian(vm, w, w.qn, y, kinetic);
   w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
   w.Sq -= dt * w.Hk;
-  if (!keep_mass) mass(vm, w, q, w.M0);
-  if (!keep_kinetic) Dmat(vm, w, q, v, w.D0);
+  if (!keep_M0) mass(vm, w, q, w.M0);
+  if (!keep.D0) Dmat(vm, w, q, v, w.D0);
   J.leftCols(nv).noalias() = w.Sq * w.A;
   J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
   if (!keep_v) {
@@ -153,7 +161,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
   J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
   J.middleCols(nv, nv) -= dt * w.Kt;
-  if (!keep_mass) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);  // else K1, M1, D1 = 0 and y as before
+  if (!keep_M1) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);  // else K1, M1, D1 and y as before
   J.rightCols(nv) = w.Ry;
 }
 
@@ -259,32 +267,53 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
   const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
   CMatMap Hm(vm.H, nv, m);
   VariationalWork& w = nw.w;
-  residual_jacobian(vm, w, q, v, y, w.J);
+  residual_jacobian(vm, w, q, v, y, w.J);  // the base call: computes everything
   const Eigen::PartialPivLU<Eigen::MatrixXd> lu(w.J.rightCols(nv));
   nw.Rz.leftCols(2 * nv) = w.J.leftCols(2 * nv);
   nw.Rz.rightCols(m) = -dt * Hm;
   nw.F1k = -lu.solve(nw.Rz);
   Eigen::Map<RowMat>(F1, nv, nz) = nw.F1k;
   if (F2 == nullptr) return;
-  // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a)
-  // (eta first: their calls keep the terms of v, which the dv directions then change)
-  for (int j = 0; j < 2 * nv; ++j) {
-    const bool along_root = j < vm.root_dirs;  // (an eta direction: root_dirs <= nv)
-    if (along_root && vm.gravity_free) {  // J does not depend on the root's pose: exactly zero
-      for (int i = 0; i < nv; ++i) nw.T[i].col(j).setZero();
-      continue;
-    }
+  // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a).
+  // The directions run in an order that lets each call keep what did not change since the one
+  // before (Keep): the root's eta directions (only gravity changes; without gravity J does not
+  // change at all: exactly zero, skipped), the root's dv directions (q+ moves along the root's pose
+  // only: M1, D1 and the kinetic-energy Hessian, whose second-order RNEA dominates, are kept), the
+  // other dv directions (q as the base: M0 kept), then the other eta directions (nothing kept but y
+  // and, for one body, M and R_y). One body: every direction is the root's.
+  const int root = vm.root_dirs;
+  auto difference_along = [&](int j, const Keep& keep) {
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, true, j < nv, along_root);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, keep);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, true, j < nv, along_root);
+    residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, keep);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
+  };
+  Keep keep;
+  keep.y = true;
+  for (int j = 0; j < root; ++j) {  // eta along the root's pose (after the base call)
+    if (vm.gravity_free) {
+      for (int i = 0; i < nv; ++i) nw.T[i].col(j).setZero();
+      continue;
+    }
+    keep.v_terms = keep.M0 = keep.D0 = keep.qn_kinetic = true;
+    difference_along(j, keep);
+  }
+  for (int l = 0; l < nv; ++l) {  // dv: the root's velocity first, then the joints'
+    keep.v_terms = keep.D0 = false;
+    keep.M0 = true;  // q is the base's (or differs along the root's pose only)
+    keep.qn_kinetic = l < root;
+    difference_along(nv + l, keep);
+  }
+  for (int j = root; j < nv; ++j) {  // eta along the joints
+    keep.v_terms = keep.M0 = keep.D0 = keep.qn_kinetic = false;
+    difference_along(j, keep);
   }
   // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y's columns need
   // differencing: velocity_jacobian alone (one first-order RNEA derivative per point instead of
