@@ -81,6 +81,10 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
         w.Hkin(i, j) = 0.5 * acc;
       }
   }
+  if (vm.gravity_free) {  // no gravity: its derivative is zero (no Pinocchio call)
+    w.Hk = w.Hkin;
+    return;
+  }
   w.T.resize(nv, nv);  // reuse as the gravity derivative's buffer
   w.T.setZero();
   pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, q, w.T);
