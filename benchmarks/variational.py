@@ -10,7 +10,11 @@ second-order time on the same scene (issue 12's target: at most 3x).
 ``--python`` adds one run of the Python oracle's variational switch solve per scene (its second
 order is differences of differences; slow).
 
-Run: ``python benchmarks/variational.py [--runs 3] [--python]``.
+``--ref CHECKOUT`` instead times this code against another checkout with its own built core
+(``benchmarks/speed_vs_main.py``'s ``geoddp_ref``), side by side in one process: the variational
+second order and switch, and semi-implicit second order as the control, alternating per solve.
+
+Run: ``python benchmarks/variational.py [--runs 3] [--python] [--ref /tmp/ref_checkout]``.
 """
 from __future__ import annotations
 
@@ -31,11 +35,50 @@ def _solve(scene: str, integrator: str, expansion: str):
     return solve_scene(spec, verbose=False, expansion=expansion, tol=0.0, grad_tol=1e-9)
 
 
+def side_by_side(ref_checkout: Path, runs: int) -> None:
+    """This code against ``ref_checkout`` in one process, alternating per solve (new / ref ratios)."""
+    import sys
+    import tempfile
+    import time
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from speed_vs_main import load_reference
+
+    import geoddp.api as new_api
+
+    with tempfile.TemporaryDirectory() as tmp:
+        load_reference(ref_checkout, Path(tmp))
+        import geoddp_ref.api as ref_api
+
+        print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; this checkout against {ref_checkout}, "
+              f"medians of {runs} rounds after one warm-up, alternating per solve")
+        print("| scene | integrator | expansion | iterations (new, ref) | J* new | J* ref | new (s) | ref (s) | new / ref |")
+        print("|---|---|---|---:|---:|---:|---:|---:|---:|")
+        for scene in SCENES:
+            for integrator, expansion in (("variational", "second"), ("variational", "switch"), ("semi_implicit", "second")):
+                times: dict[str, list[float]] = {"new": [], "ref": []}
+                last = {}
+                for r in range(runs + 1):
+                    for side, api in (("new", new_api), ("ref", ref_api)):
+                        spec = api.load_scene(EXAMPLES / f"{scene}.toml").with_overrides(integrator=integrator)
+                        res = api.solve_scene(spec, verbose=False, expansion=expansion, tol=0.0, grad_tol=1e-9)
+                        if r:
+                            times[side].append(res.solve_time_s)
+                        last[side] = res
+                a, b = statistics.median(times["new"]), statistics.median(times["ref"])
+                print(f"| {scene} | {integrator} | {expansion} | {last['new'].iterations}, {last['ref'].iterations} | "
+                      f"{last['new'].cost:.12f} | {last['ref'].cost:.12f} | {a:.3f} | {b:.3f} | {a / b:.3f} |", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--python", action="store_true", help="one run of the Python oracle's switch solve per scene")
+    ap.add_argument("--ref", type=Path, help="another checkout (with its core built) to time against, side by side")
     args = ap.parse_args()
+    if args.ref is not None:
+        side_by_side(args.ref.resolve(), args.runs)
+        return
     print("| scene | integrator | expansion | iterations | J* | ‖∇J‖ | solve time (s) | variational second / semi-implicit second |")
     print("|---|---|---|---:|---:|---:|---:|---:|")
     for scene in SCENES:
