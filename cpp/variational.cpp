@@ -68,10 +68,9 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& v, bool keep_kinetic = false) {
   const int nv = vm.model->nv;
-  if (keep_kinetic) {
-  } else if (vm.configuration_free) {
+  if (vm.configuration_free) {
     w.Hkin.setZero();
-  } else {
+  } else if (!keep_kinetic) {
     pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
     const auto& T = w.fdata.d2tau_dqdq;
     for (int i = 0; i < nv; ++i)
