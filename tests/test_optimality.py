@@ -115,7 +115,7 @@ def test_panda_tells_a_stall_from_a_badly_scaled_optimum(tmp_path):
     # switch stops by its cost test with a decrement far under the 1e-8 threshold. Where exactly is
     # set by round-off: 1e-13 .. 1.6e-12 measured (rounding of the Riccati products), and 1.5e-10
     # once the SE(3) coupling block of the frame cost's log6 Jacobian was assembled from hat
-    # identities (98b5931: the same block to 3e-15 relative), when the cost test passed one step earlier.
+    # identities (04d2596: the same block to 3e-15 relative), when the cost test passed one step earlier.
     os_ = _opt(switch)
     assert switch.converged and os_["newton_decrease"] < 1e-9 and os_["hessian_positive_definite"]
     # limit's basin: the minima both decrements predict agree (1.2e-12 apart measured, limit's own
