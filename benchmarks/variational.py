@@ -28,11 +28,14 @@ SCENES = ("spacecraft_docking", "space_manipulator", "quadrotor")
 CASES = (("variational", "first"), ("variational", "second"), ("variational", "switch"), ("semi_implicit", "second"))
 
 
-def _solve(scene: str, integrator: str, expansion: str):
-    from geoddp.api import load_scene, solve_scene
+def _solve(scene: str, integrator: str, expansion: str, api=None):
+    """One solve of a built-in scene with the README table's stopping tests, through ``api``
+    (geoddp.api by default; side_by_side passes the reference checkout's)."""
+    if api is None:
+        import geoddp.api as api
 
-    spec = load_scene(EXAMPLES / f"{scene}.toml").with_overrides(integrator=integrator)
-    return solve_scene(spec, verbose=False, expansion=expansion, tol=0.0, grad_tol=1e-9)
+    spec = api.load_scene(EXAMPLES / f"{scene}.toml").with_overrides(integrator=integrator)
+    return api.solve_scene(spec, verbose=False, expansion=expansion, tol=0.0, grad_tol=1e-9)
 
 
 def side_by_side(ref_checkout: Path, runs: int) -> None:
@@ -60,8 +63,7 @@ def side_by_side(ref_checkout: Path, runs: int) -> None:
                 last = {}
                 for r in range(runs + 1):
                     for side, api in (("new", new_api), ("ref", ref_api)):
-                        spec = api.load_scene(EXAMPLES / f"{scene}.toml").with_overrides(integrator=integrator)
-                        res = api.solve_scene(spec, verbose=False, expansion=expansion, tol=0.0, grad_tol=1e-9)
+                        res = _solve(scene, integrator, expansion, api)
                         if r:
                             times[side].append(res.solve_time_s)
                         last[side] = res
