@@ -1,6 +1,7 @@
 // Contraction of the factored second-order terms with V_x' and the backward pass using it (see
 // contracted.hpp). Eigen only: no Pinocchio algorithm is instantiated here.
 #include "contracted.hpp"
+#include "ladder.hpp"
 #include "riccati_blocks.hpp"
 #include "riccati.hpp"
 
@@ -380,35 +381,64 @@ int regularised_contracted(int H, int n, int m, const double* Phi, const double*
   };
   *restarts = 0;
   int failed = pass(*lam, alone, k_ff, K_fb, quu_eig, d1, d2);
-  while (failed >= 0) {
-    ++*restarts;
-    *lam = std::max(*lam * reg_increase, reg_min);
-    if (*lam > reg_max) break;
-    const double nxt = std::max(*lam * reg_increase, reg_min);
-    if (!speculate || nxt > reg_max) {
-      failed = pass(*lam, alone, k_ff, K_fb, quu_eig, d1, d2);
-      continue;
+  if (failed < 0) return failed;
+  // the ladder, one product at a time (the one-rung loop's values bit for bit), to the first rung
+  // above reg_max
+  std::vector<double> rungs{*lam};
+  do rungs.push_back(std::max(rungs.back() * reg_increase, reg_min));
+  while (rungs.back() <= reg_max);
+  const int top = (int)rungs.size() - 1;
+
+  struct Buffers {
+    double *k, *K, *e;
+  };
+  const Buffers ws{k_ff, K_fb, quu_eig}, spare{spare_k, spare_K, spare_eig};
+  std::vector<double> own;  // the lower probe's buffers once ws holds a factorised pass
+  const auto take = [&](const Buffers& from, int f) {  // Workspace.take
+    const size_t lo = (size_t)(f + 1);
+    std::copy(from.k + lo * m, from.k + (size_t)H * m, k_ff + lo * m);
+    std::copy(from.K + lo * m * n, from.K + (size_t)H * m * n, K_fb + lo * m * n);
+    std::copy(from.e + lo, from.e + H, quu_eig + lo);
+  };
+  LadderSearch search(top, speculate);
+  int probe[2];
+  while (const int count = search.probes(probe)) {
+    Buffers buf[2];
+    if (!search.found) {
+      buf[0] = ws;
+      buf[1] = spare;
+    } else {
+      if (count == 2 && own.empty()) own.resize((size_t)H * m * (n + 1) + H);
+      const Buffers mine{own.data(), own.data() + (size_t)H * m, own.data() + (size_t)H * m * (n + 1)};
+      buf[0] = count == 2 ? mine : spare;
+      buf[1] = spare;
     }
-    int f2 = -1;
-    double e1 = 0.0, e2 = 0.0;
-    const double now = *lam;
-    const std::function<void(int)> both = [&](int w) {
-      if (w == 0) failed = pass(now, 1, k_ff, K_fb, quu_eig, d1, d2);
-      else f2 = pass(nxt, 1, spare_k, spare_K, spare_eig, &e1, &e2);
-    };
-    WorkerPool::get().run(2, both);
-    if (failed < 0) break;
-    // the pass at lam failed: the one at nxt is the next of the sequence; take what it wrote
-    ++*restarts;
-    *lam = nxt;
-    failed = f2;
-    *d1 = e1;
-    *d2 = e2;
-    const size_t lo = (size_t)(f2 + 1);
-    std::copy(spare_k + lo * m, spare_k + (size_t)H * m, k_ff + lo * m);
-    std::copy(spare_K + lo * m * n, spare_K + (size_t)H * m * n, K_fb + lo * m * n);
-    std::copy(spare_eig + lo, spare_eig + H, quu_eig + lo);
+    int f[2] = {-1, -1};
+    double a[2] = {0.0, 0.0}, b[2] = {0.0, 0.0};
+    if (count == 2) {
+      const std::function<void(int)> both = [&](int w) {
+        f[w] = pass(rungs[probe[w]], 1, buf[w].k, buf[w].K, buf[w].e, &a[w], &b[w]);
+      };
+      WorkerPool::get().run(2, both);
+    } else {
+      f[0] = pass(rungs[probe[0]], alone, buf[0].k, buf[0].K, buf[0].e, &a[0], &b[0]);
+    }
+    const bool ok[2] = {f[0] < 0, f[1] < 0};
+    const int i = search.record(probe, ok, count);
+    if (i >= 0) {
+      failed = -1;
+      *d1 = a[i];
+      *d2 = b[i];
+      if (buf[i].k != k_ff) take(buf[i], -1);
+    } else if (!search.found) {
+      failed = f[count - 1];
+      *d1 = a[count - 1];
+      *d2 = b[count - 1];
+      if (buf[count - 1].k != k_ff) take(buf[count - 1], failed);
+    }
   }
+  *restarts = search.found ? search.hi : top;
+  *lam = rungs[*restarts];
   return failed;
 }
 

@@ -37,13 +37,15 @@ int box_pass_contracted(int H, int n, int m, const double* Phi, const double* B,
                         double* quu_eig, signed char* active, double* Vx0, double* Vxx0, double* d1, double* d2);
 
 // geoddp.solver.backward.regularised_backward for the contracted pass, in one call: the pass at
-// lam, then, while Q_uu + lam I is not positive definite at some node, lam <- max(reg_increase lam,
-// reg_min) and the pass again, until it factorises or lam > reg_max. With `speculate`, once a pass
-// has failed, the passes at the next two lambdas of the sequence run side by side on the pool's
-// two workers (the second into the spare_* buffers, copied over for the nodes it solved when it
-// is the one taken), exactly as the Python loop does: lambda, the gains, (d1, d2) and the restart
-// count are those of running the sequence one pass at a time. Returns the failed node of the last
-// pass (-1: it factorised); *lam, *d1, *d2 and *restarts as regularised_backward returns them.
+// lam, then, if Q_uu + lam I is not positive definite at some node, the lowest rung of the ladder
+// lam_{j+1} = max(reg_increase lam_j, reg_min) whose pass factorises, found by the same galloping
+// and bisection as geoddp.solver.ladder.LadderSearch (the same rungs in the same order), or gives
+// up at the first rung above reg_max. With `speculate`, each round's two rungs run side by side
+// on the pool's two workers. Before a pass has factorised, the lower rung runs in k_ff/K_fb/quu_eig
+// and the higher in spare_* (copied over for the nodes it solved when it is the one kept); after,
+// the factorised pass stays in k_ff/K_fb/quu_eig and the probes run in spare_* and a buffer of
+// this call. Returns the failed node of the last pass kept (-1: it factorised); *lam, *d1, *d2 and
+// *restarts (rungs climbed) as regularised_backward returns them.
 int regularised_contracted(int H, int n, int m, const double* Phi, const double* B, const double* lx,
                            const double* lu, const double* lxx, const double* lux, const double* luu,
                            const double* Vx_final, const double* Vxx_final, const dyn::SecondOrderTerms& t,

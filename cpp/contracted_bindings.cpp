@@ -8,6 +8,7 @@
 
 #include "binding_checks.hpp"
 #include "contracted.hpp"
+#include "ladder.hpp"
 #include "pin_model.hpp"
 
 namespace py = pybind11;
@@ -126,9 +127,32 @@ void bind_contracted(py::module_& m) {
       py::arg("reg_min"), py::arg("reg_max"), py::arg("speculate"), py::arg("k_ff").noconvert(),
       py::arg("K_fb").noconvert(), py::arg("quu_eig").noconvert(), py::arg("spare_k").noconvert(),
       py::arg("spare_K").noconvert(), py::arg("spare_eig").noconvert(),
-      "geoddp.solver.backward.regularised_backward's restarts around backward_pass_contracted in one call\n"
-      "(speculate: the next two lambdas side by side once a pass failed; spare_* their second pass's\n"
-      "buffers): (lambda, failed node of the last pass or -1, d1, d2, restarts).");
+      "geoddp.solver.backward.regularised_backward's ladder search around backward_pass_contracted in one\n"
+      "call (speculate: two rungs a round side by side; spare_* the second pass's buffers):\n"
+      "(lambda, failed node of the last pass kept or -1, d1, d2, rungs climbed).");
+
+  m.def(
+      "ladder_search",
+      [](int top, bool two, const py::sequence& factorises) {
+        if (top < 1 || (int)py::len(factorises) != top) throw py::value_error("factorises: expected top >= 1 entries");
+        ctr::LadderSearch s(top, two);
+        py::list rounds;
+        int probe[2];
+        while (const int count = s.probes(probe)) {
+          py::tuple round(count);
+          bool ok[2];
+          for (int i = 0; i < count; ++i) {
+            round[i] = probe[i];
+            ok[i] = factorises[(size_t)probe[i]].cast<bool>();
+          }
+          rounds.append(round);
+          s.record(probe, ok, count);
+        }
+        return py::make_tuple(rounds, s.hi, s.found);
+      },
+      py::arg("top"), py::arg("two"), py::arg("factorises"),
+      "The C++ ladder search (regularised_contracted's) against a table of outcomes, for tests:\n"
+      "factorises[j] whether rung j's pass factorises (j < top; rung 0 must fail). Returns (rounds, hi, found).");
 }
 
 }  // namespace geoddp

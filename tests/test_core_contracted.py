@@ -233,10 +233,12 @@ def test_worker_pool_survives_fork():
 
 @pytest.mark.parametrize("speculate", [True, False], ids=["side_by_side", "one_thread"])
 @pytest.mark.parametrize("contract", [True, False])
-def test_speculative_restarts_equal_one_pass_at_a_time(contract, speculate, monkeypatch):
-    """regularised_backward runs two lambdas of its sequence side by side after a failure (in C++
-    for the contracted pass, _core.regularised_contracted; in Python for the tensor one); lambda,
-    (d1, d2), the restart count and every written gain equal the sequential loop's exactly."""
+def test_ladder_search_equals_one_rung_at_a_time(contract, speculate, monkeypatch):
+    """regularised_backward climbs the regularisation ladder by galloping and bisection, two rungs
+    side by side where it may (in C++ for the contracted pass, _core.regularised_contracted; in
+    Python for the tensor one); here factorising is monotone in lambda, so lambda, (d1, d2), the
+    rungs climbed and every gain of the nodes the last pass solved equal the paper's loop, one
+    pass per rung, exactly, and with fewer passes."""
     from geoddp.solver import backward as bw
 
     if not speculate:
@@ -246,13 +248,10 @@ def test_speculative_restarts_equal_one_pass_at_a_time(contract, speculate, monk
     mb.contract = contract
     lt, lc = _linearisations(mb, Q, V, U, rng)
     lin = lc if contract else lt
-    # make the pass fail for small lambda: an indefinite control Hessian at a few nodes
-    lin.l_uu = lin.l_uu.copy()
-    lin.l_uu[[3, 17, 29]] -= 40.0 * np.eye(mb.nu)
     H, m, n = U.shape[0], mb.nu, mb.nx
     opt = SolverOptions()
 
-    def sequential(lin, ws, lam, opt):  # the loop as it was: one pass at a time
+    def sequential(lin, ws, lam, opt):  # the paper's loop: one pass per rung
         restarts = 0
         while True:
             failed, d1, d2 = backward(lin, ws, lam)
@@ -262,17 +261,39 @@ def test_speculative_restarts_equal_one_pass_at_a_time(contract, speculate, monk
             lam = max(lam * opt.reg_increase, opt.reg_min)
             if lam > opt.reg_max:
                 break
-        return lam, d1, d2, restarts
+        return (lam, d1, d2, restarts), failed
 
-    for lam0, reg_max in ((0.0, opt.reg_max), (1e-3, opt.reg_max), (0.0, 1e-2), (0.0, 1e-2 * opt.reg_increase)):
-        o = SolverOptions(reg_max=reg_max)
-        wa, wb = Workspace(H, m, n), Workspace(H, m, n)
-        for w in (wa, wb):  # same stale contents before the call
-            w.k[:], w.K[:], w.quu_eig[:] = 7.0, -3.0, 5.0
-        a = bw.regularised_backward(lin, wa, lam0, o)
-        b = sequential(lin, wb, lam0, o)
-        assert a == b and a[3] >= 2, (a, b)
-        assert np.array_equal(wa.k, wb.k) and np.array_equal(wa.K, wb.K) and np.array_equal(wa.quu_eig, wb.quu_eig)
+    passes = {"n": 0}
+    real_backward = bw.backward
+
+    def counted(*a, **k):
+        passes["n"] += 1
+        return real_backward(*a, **k)
+
+    climbed = []
+    for shift in (40.0, 2.0):  # an indefinite control Hessian at a few nodes: many rungs, then few
+        lin.l_uu = lt.l_uu.copy()
+        lin.l_uu[[3, 17, 29]] -= shift * np.eye(mb.nu)
+        for lam0, reg_max in ((0.0, opt.reg_max), (1e-3, opt.reg_max), (1.0, opt.reg_max), (4.0, opt.reg_max), (20.0, opt.reg_max), (30.0, opt.reg_max),
+                              (0.0, 1e-2), (0.0, 1e-2 * opt.reg_increase)):
+            o = SolverOptions(reg_max=reg_max)
+            wa, wb = Workspace(H, m, n), Workspace(H, m, n)
+            for w in (wa, wb):  # same stale contents before the call
+                w.k[:], w.K[:], w.quu_eig[:] = 7.0, -3.0, 5.0
+            passes["n"] = 0
+            monkeypatch.setattr(bw, "backward", counted)
+            a = bw.regularised_backward(lin, wa, lam0, o)
+            monkeypatch.setattr(bw, "backward", real_backward)
+            b, failed = sequential(lin, wb, lam0, o)
+            assert a == b, (a, b)
+            lo = failed + 1  # the nodes the last pass solved (all of them when it factorised)
+            assert np.array_equal(wa.k[lo:], wb.k[lo:]) and np.array_equal(wa.K[lo:], wb.K[lo:])
+            assert np.array_equal(wa.quu_eig[lo:], wb.quu_eig[lo:])
+            if not contract and a[3] >= 20:  # the Python loop's passes, counted: far fewer than rungs
+                # (one at a time: 1 + galloping's ~log2 + bisection's ~log2; side by side, two a round)
+                assert passes["n"] <= (16 if bw._can_speculate(lin) else 12), (passes["n"], a[3])
+            climbed.append(a[3])
+    assert max(climbed) >= 20 and {1, 2, 3} & set(climbed), climbed
     assert bw._can_speculate(lin) == (speculate and core.default_threads() >= 2)
 
 

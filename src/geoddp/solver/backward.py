@@ -7,6 +7,7 @@ import numpy as np
 from .. import kernels
 from ..contract import Linearisation
 from ..validate import threads_from_environment
+from .ladder import LadderSearch, ladder
 from .options import SolverOptions
 
 try:  # pinocchio first: its import loads the libpinocchio geoddp._core links
@@ -52,13 +53,13 @@ class Workspace:
         self.empty_theta = np.zeros((0, nx, nx, nx))
         self.empty_gamma = np.zeros((0, nx, nx, m))
         self.empty_xi = np.zeros((0, nx, m, m))
-        self._spare: Workspace | None = None
+        self._spares: list[Workspace] = []
 
-    def spare(self) -> "Workspace":
-        """A second set of buffers of the same shapes (for a speculative pass), made once."""
-        if self._spare is None:
-            self._spare = Workspace(self.k.shape[0], self.k.shape[1], self.K.shape[2])
-        return self._spare
+    def spare(self, i: int = 0) -> "Workspace":
+        """Spare buffers of the same shapes (for speculative passes), made once: spare(0), spare(1)."""
+        while len(self._spares) <= i:
+            self._spares.append(Workspace(self.k.shape[0], self.k.shape[1], self.K.shape[2]))
+        return self._spares[i]
 
     def take(self, other: "Workspace", failed: int) -> None:
         """Copy what a pass into ``other`` that stopped at node ``failed`` (-1: none) wrote: the
@@ -183,24 +184,27 @@ def _speculation_pool(lin: Linearisation):
 def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions,
                          u_bar: np.ndarray | None = None) -> tuple[float, float, float, int]:
     """Backward pass restarted from k = H with a larger lambda while Q_uu + lambda I is not
-    positive definite (Remark rem:theta): lambda <- max(reg_increase lambda, reg_min).
+    positive definite (Remark rem:theta): lambda takes the lowest rung of the ladder
+    lambda_{j+1} = max(reg_increase lambda_j, reg_min) whose pass factorises, found by galloping and
+    bisection (:mod:`.ladder`; the same rung as one restart per rung wherever factorising is
+    monotone in lambda), or gives up above opt.reg_max.
 
-    With control limits the same rule holds for the box pass: it fails at a node where the whole
-    Q_uu + lambda I is not positive definite, so every box QP it solves is strictly convex.
+    With control limits the same rule holds for the box pass, one rung at a time: it fails at a
+    node where the whole Q_uu + lambda I is not positive definite, so every box QP it solves is
+    strictly convex.
 
-    Returns (lambda, d1, d2, restarts); lambda > opt.reg_max means it gave up.
+    Returns (lambda, d1, d2, rungs climbed); lambda > opt.reg_max means it gave up.
 
-    Once a pass has failed (the first iterations restart 30-50 times on the real robots), the
-    passes at the next two lambdas of that same sequence run side by side (the compiled pass
-    releases the GIL; the second into ``ws.spare()``): the first of them that factorises is taken.
-    Each pass is deterministic and independent of the other, so lambda, the gains, (d1, d2) and
-    the restart count are exactly those of running the sequence one pass at a time (tested).
-    For the unconstrained contracted pass (compiled multibody models) the whole loop runs in C++
-    (geoddp._core.regularised_contracted, on the core's two workers): a restart there costs no
-    Python call and no thread hand-off, which had been 3-5 % of a second-order solve. A pass that
-    runs alone there may put each node's contraction on the second worker, beside the node's
-    first-order blocks (0.55-0.79x the one-worker pass's time on the seven benchmark cases, idle);
-    the core runs whichever way has been faster for passes of that shape (:func:`_pass_workers`).
+    Once a pass has failed (the first iterations climb 30-50 rungs on the real robots), each round
+    of the search runs two rungs side by side where two cores may be used (the compiled pass
+    releases the GIL; the higher rung into ``ws.spare()``). Each pass is deterministic and
+    independent of the other, so the result is that of the same search one pass at a time
+    (tested). For the unconstrained contracted pass (compiled multibody models) the whole search
+    runs in C++ (geoddp._core.regularised_contracted, on the core's two workers): a restart there
+    costs no Python call and no thread hand-off, which had been 3-5 % of a second-order solve. A
+    pass that runs alone there may put each node's contraction on the second worker, beside the
+    node's first-order blocks (0.55-0.79x the one-worker pass's time on the seven benchmark cases,
+    idle); the core runs whichever way has been faster for passes of that shape (:func:`_pass_workers`).
     """
     if lin.order == 2 and lin.second_order is not None and ws.bounds is None:
         # the contracted pass: the same loop in C++ (no Python, no thread hand-off per restart)
@@ -215,32 +219,53 @@ def regularised_backward(lin: Linearisation, ws: Workspace, lam: float, opt: Sol
 
 def _regularised_loop(lin: Linearisation, ws: Workspace, lam: float, opt: SolverOptions,
                       u_bar: np.ndarray | None = None) -> tuple[float, float, float, int]:
-    """regularised_backward's loop in Python, pass by pass (every pass but the unconstrained
-    contracted one, whose loop runs in C++: geoddp._core.regularised_contracted, tested against this)."""
-    restarts = 0
+    """regularised_backward's loop in Python (every pass but the unconstrained contracted one,
+    whose loop runs in C++: geoddp._core.regularised_contracted, tested against this).
+
+    After a failed pass, lambda climbs its ladder by :class:`.ladder.LadderSearch` (galloping, then
+    bisection); the box pass, which warm-starts from the previous pass's feedforward in ws, climbs
+    it one rung at a time. Returns (lambda, d1, d2, rungs climbed)."""
     failed, d1, d2 = backward(lin, ws, lam, u_bar)
-    # speculative restarts only without limits (the box pass keeps its warm start in ws)
-    pool = _speculation_pool(lin) if failed >= 0 and ws.bounds is None else None
-    while failed >= 0:
-        restarts += 1
-        lam = max(lam * opt.reg_increase, opt.reg_min)
-        if lam > opt.reg_max:
-            break
-        nxt = max(lam * opt.reg_increase, opt.reg_min)
-        if pool is None or nxt > opt.reg_max:
-            failed, d1, d2 = backward(lin, ws, lam, u_bar)
-            continue
-        spare = ws.spare()
-        ahead = pool.submit(backward, lin, spare, nxt)
-        failed, d1, d2 = backward(lin, ws, lam)
-        f2, e1, e2 = ahead.result()
-        if failed < 0:
-            break
-        # the pass at lam failed: the one at nxt is the next of the sequence
-        restarts += 1
-        lam, failed, d1, d2 = nxt, f2, e1, e2
-        ws.take(spare, f2)
-    return lam, d1, d2, restarts
+    if failed < 0:
+        return lam, d1, d2, 0
+    rungs = ladder(lam, opt.reg_increase, opt.reg_min, opt.reg_max)
+    top = len(rungs) - 1
+    if ws.bounds is not None:
+        j = 1
+        while j < top:
+            failed, d1, d2 = backward(lin, ws, rungs[j], u_bar)
+            if failed < 0:
+                return rungs[j], d1, d2, j
+            j += 1
+        return rungs[top], d1, d2, top
+    # speculative (side by side) passes only without limits
+    pool = _speculation_pool(lin)
+    search = LadderSearch(top, two=pool is not None)
+    while probes := search.probes():
+        # before a pass factorised, the lower probe runs in ws (whose partial gains, like the
+        # one-rung loop's, are then those of the highest failed rung); after, ws keeps the
+        # factorised pass and the probes run in spares
+        if not search.found:
+            bufs = [ws, ws.spare()][:len(probes)]
+        else:
+            bufs = [ws.spare(1), ws.spare()] if len(probes) == 2 else [ws.spare()]
+        if len(probes) == 2:
+            ahead = pool.submit(backward, lin, bufs[1], rungs[probes[1]])
+            outs = [backward(lin, bufs[0], rungs[probes[0]]), ahead.result()]
+        else:
+            outs = [backward(lin, bufs[0], rungs[probes[0]])]
+        ok = search.record(probes, [out[0] < 0 for out in outs])
+        if ok is not None:
+            failed, d1, d2 = outs[ok]
+            if bufs[ok] is not ws:
+                ws.take(bufs[ok], -1)
+        elif not search.found:
+            failed, d1, d2 = outs[-1]
+            if bufs[-1] is not ws:
+                ws.take(bufs[-1], failed)
+    if search.found:
+        return rungs[search.hi], d1, d2, search.hi
+    return rungs[top], d1, d2, top
 
 
 def factorisable_gains(lin: Linearisation, ws: Workspace, opt: SolverOptions, u_bar: np.ndarray | None = None) -> None:
