@@ -297,6 +297,39 @@ def test_ladder_search_equals_one_rung_at_a_time(contract, speculate, monkeypatc
     assert bw._can_speculate(lin) == (speculate and core.default_threads() >= 2)
 
 
+@pytest.mark.parametrize("contract", [True, False])
+def test_box_pass_climbs_one_rung_at_a_time(contract):
+    """With control limits the box pass warm-starts from the previous pass's feedforward, so
+    regularised_backward climbs the ladder one rung per pass there: lambda, (d1, d2), the rungs
+    climbed, the gains and the active set equal the paper's loop run by hand, bit for bit."""
+    from geoddp.solver import backward as bw
+
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=30)
+    mb.contract = contract
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    lin = lc if contract else lt
+    lin.l_uu = lt.l_uu.copy()
+    lin.l_uu[[3, 17, 29]] -= 40.0 * np.eye(mb.nu)
+    H, m, n = U.shape[0], mb.nu, mb.nx
+    bounds = (U - 0.05, U + 0.05)  # tight: the unconstrained steps leave the box
+    for lam0 in (0.0, 1.0):
+        o = SolverOptions()
+        wa, wb = Workspace(H, m, n, bounds), Workspace(H, m, n, bounds)
+        a = bw.regularised_backward(lin, wa, lam0, o, U)
+        lam, rungs = lam0, 0
+        while True:  # the paper's loop
+            failed, d1, d2 = backward(lin, wb, lam, U)
+            if failed < 0:
+                break
+            rungs += 1
+            lam = max(lam * o.reg_increase, o.reg_min)
+            if lam > o.reg_max:
+                break
+        assert a == (lam, d1, d2, rungs) and rungs >= 1, (a, lam, rungs)
+        assert np.array_equal(wa.k, wb.k) and np.array_equal(wa.K, wb.K) and np.array_equal(wa.active, wb.active)
+        assert wa.active.any()  # the box pass ran, with inputs on a bound
+
+
 def test_linearisation_tensors_materialise_the_factored_terms():
     mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=5)
     lt, lc = _linearisations(mb, Q, V, U, rng)
