@@ -3,6 +3,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -106,7 +107,11 @@ void bind_contracted(py::module_& m) {
          Out spare_eig) {
         const auto z = bind::check_pass_inputs(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final);
         if (z.H != t.N || z.n != 2 * t.nv || z.m != t.m) throw py::value_error("terms: sizes differ from Phi, B");
+        // the ladder must end: a finite lam >= 0, a factor > 1, a floor > 0, a finite ceiling
         if (!(reg_increase > 1.0)) throw py::value_error("reg_increase: expected a factor > 1");
+        if (!(std::isfinite(lam) && lam >= 0.0)) throw py::value_error("lam: expected a finite number >= 0");
+        if (!(std::isfinite(reg_min) && reg_min > 0.0)) throw py::value_error("reg_min: expected a finite number > 0");
+        if (!std::isfinite(reg_max)) throw py::value_error("reg_max: expected a finite number");
         bind::check_gain_outputs(k_ff, K_fb, quu_eig, z);
         bind::check_gain_outputs(spare_k, spare_K, spare_eig, z);
         double d1 = 0.0, d2 = 0.0;

@@ -297,6 +297,28 @@ def test_ladder_search_equals_one_rung_at_a_time(contract, speculate, monkeypatc
     assert bw._can_speculate(lin) == (speculate and core.default_threads() >= 2)
 
 
+def test_regularised_contracted_refuses_a_ladder_that_would_not_end():
+    """The C++ search's own guard (SolverOptions validates the solver's options; this is the
+    binding called directly): a NaN or negative lambda, a factor <= 1, a floor <= 0 or an infinite
+    ceiling would climb forever."""
+    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=5)
+    lt, lc = _linearisations(mb, Q, V, U, rng)
+    H, m, n = U.shape[0], mb.nu, mb.nx
+    ws, spare = Workspace(H, m, n), Workspace(H, m, n)
+    for bad, name in (((float("nan"), 1.9, 1e-8, 1e10), "lam"), ((-1.0, 1.9, 1e-8, 1e10), "lam"),
+                      ((0.0, 1.0, 1e-8, 1e10), "reg_increase"), ((0.0, 1.9, 0.0, 1e10), "reg_min"),
+                      ((0.0, 1.9, 1e-8, float("inf")), "reg_max")):
+        with pytest.raises(ValueError, match=name):
+            core.regularised_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, lc.l_uu, lc.lf_x, lc.lf_xx,
+                                        lc.second_order, *bad, False, ws.k, ws.K, ws.quu_eig, spare.k, spare.K,
+                                        spare.quu_eig)
+    # and the same call with a ladder that ends runs
+    out = core.regularised_contracted(lc.Phi, lc.B, lc.l_x, lc.l_u, lc.l_xx, lc.l_ux, lc.l_uu, lc.lf_x, lc.lf_xx,
+                                      lc.second_order, 0.0, 1.9, 1e-8, 1e10, False, ws.k, ws.K, ws.quu_eig, spare.k,
+                                      spare.K, spare.quu_eig)
+    assert np.isfinite(out[0]) and np.isfinite(out[2])
+
+
 @pytest.mark.parametrize("contract", [True, False])
 def test_box_pass_climbs_one_rung_at_a_time(contract):
     """With control limits the box pass warm-starts from the previous pass's feedforward, so

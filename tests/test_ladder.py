@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from geoddp.solver.ladder import LadderSearch, ladder
+from geoddp.validate import InputError
 from geoddp.solver.options import SolverOptions
 
 import pinocchio  # noqa: F401  (first: its import loads the libpinocchio geoddp._core links)
@@ -38,6 +39,17 @@ def test_ladder_is_the_one_rung_loops_values():
                 break
         assert rungs == expected and len(rungs) >= 2
         assert all(r <= o.reg_max for r in rungs[1:-1]) and rungs[-1] > o.reg_max
+
+
+@pytest.mark.parametrize("args, name", [
+    ((float("nan"), 1.9, 1e-8, 1e10), "lam"), ((-1.0, 1.9, 1e-8, 1e10), "lam"),
+    ((0.0, 1.0, 1e-8, 1e10), "reg_increase"), ((0.0, float("nan"), 1e-8, 1e10), "reg_increase"),
+    ((0.0, 1.9, 0.0, 1e10), "reg_min"), ((0.0, 1.9, 1e-8, float("inf")), "reg_max"),
+])
+def test_a_ladder_that_would_not_end_is_refused(args, name):
+    # options changed after SolverOptions validated them: never an endless loop
+    with pytest.raises(InputError, match=name):
+        ladder(*args)
 
 
 @pytest.mark.parametrize("two", [False, True], ids=["one_at_a_time", "two_a_round"])

@@ -17,13 +17,24 @@ that factorises directly above one that does not. ``cpp/contracted.cpp``'s
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+
+from ..validate import InputError
 
 
 def ladder(lam: float, reg_increase: float, reg_min: float, reg_max: float) -> list[float]:
     """[lam_0 = lam, lam_1, ..., lam_T]: lam_{j+1} = max(reg_increase lam_j, reg_min), computed
     one product at a time (the values of the one-rung loop, bit for bit), ending with the first
-    rung T >= 1 above reg_max (reaching it means giving up)."""
+    rung T >= 1 above reg_max (reaching it means giving up). The ladder is finite only for a
+    finite lam >= 0, reg_increase > 1, reg_min > 0 and a finite reg_max: anything else raises
+    InputError (SolverOptions validates its own; this guards options changed after it)."""
+    for name, value, ok in (("lam", lam, math.isfinite(lam) and lam >= 0.0),
+                            ("reg_increase", reg_increase, reg_increase > 1.0),
+                            ("reg_min", reg_min, math.isfinite(reg_min) and reg_min > 0.0),
+                            ("reg_max", reg_max, math.isfinite(reg_max))):
+        if not ok:
+            raise InputError(name, f"expected a value for which the regularisation ladder ends, got {value!r}")
     rungs = [lam]
     while True:
         rungs.append(max(rungs[-1] * reg_increase, reg_min))
