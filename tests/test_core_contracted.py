@@ -231,6 +231,20 @@ def test_worker_pool_survives_fork():
     assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)  # the parent's pool still works
 
 
+def _one_rung_loop(lin, ws, lam, opt, u_bar=None):
+    """The paper's loop, one pass per rung: ((lambda, d1, d2, rungs), failed node of the last pass)."""
+    rungs = 0
+    while True:
+        failed, d1, d2 = backward(lin, ws, lam, u_bar)
+        if failed < 0:
+            break
+        rungs += 1
+        lam = max(lam * opt.reg_increase, opt.reg_min)
+        if lam > opt.reg_max:
+            break
+    return (lam, d1, d2, rungs), failed
+
+
 @pytest.mark.parametrize("speculate", [True, False], ids=["side_by_side", "one_thread"])
 @pytest.mark.parametrize("contract", [True, False])
 def test_ladder_search_equals_one_rung_at_a_time(contract, speculate, monkeypatch):
@@ -250,18 +264,6 @@ def test_ladder_search_equals_one_rung_at_a_time(contract, speculate, monkeypatc
     lin = lc if contract else lt
     H, m, n = U.shape[0], mb.nu, mb.nx
     opt = SolverOptions()
-
-    def sequential(lin, ws, lam, opt):  # the paper's loop: one pass per rung
-        restarts = 0
-        while True:
-            failed, d1, d2 = backward(lin, ws, lam)
-            if failed < 0:
-                break
-            restarts += 1
-            lam = max(lam * opt.reg_increase, opt.reg_min)
-            if lam > opt.reg_max:
-                break
-        return (lam, d1, d2, restarts), failed
 
     passes = {"n": 0}
     real_backward = bw.backward
@@ -284,7 +286,7 @@ def test_ladder_search_equals_one_rung_at_a_time(contract, speculate, monkeypatc
             monkeypatch.setattr(bw, "backward", counted)
             a = bw.regularised_backward(lin, wa, lam0, o)
             monkeypatch.setattr(bw, "backward", real_backward)
-            b, failed = sequential(lin, wb, lam0, o)
+            b, failed = _one_rung_loop(lin, wb, lam0, o)
             assert a == b, (a, b)
             lo = failed + 1  # the nodes the last pass solved (all of them when it factorised)
             assert np.array_equal(wa.k[lo:], wb.k[lo:]) and np.array_equal(wa.K[lo:], wb.K[lo:])
@@ -338,16 +340,8 @@ def test_box_pass_climbs_one_rung_at_a_time(contract):
         o = SolverOptions()
         wa, wb = Workspace(H, m, n, bounds), Workspace(H, m, n, bounds)
         a = bw.regularised_backward(lin, wa, lam0, o, U)
-        lam, rungs = lam0, 0
-        while True:  # the paper's loop
-            failed, d1, d2 = backward(lin, wb, lam, U)
-            if failed < 0:
-                break
-            rungs += 1
-            lam = max(lam * o.reg_increase, o.reg_min)
-            if lam > o.reg_max:
-                break
-        assert a == (lam, d1, d2, rungs) and rungs >= 1, (a, lam, rungs)
+        b, _ = _one_rung_loop(lin, wb, lam0, o, U)
+        assert a == b and b[3] >= 1, (a, b)
         assert np.array_equal(wa.k, wb.k) and np.array_equal(wa.K, wb.K) and np.array_equal(wa.active, wb.active)
         assert wa.active.any()  # the box pass ran, with inputs on a bound
 
