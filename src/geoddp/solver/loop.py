@@ -109,12 +109,14 @@ def cost_gradient(problem: OptimalControlProblem, controls: np.ndarray) -> tuple
 
 
 def _print_header(out: TextIO) -> None:
-    # One row per iteration: the nominal iterate's J and gradient, then the step taken from it.
-    out.write(f"{'iter':>4} {'cost':>20} {'|grad|':>10} {'dJ':>11} {'lambda':>9} {'gamma':>7} {'exp':>6} {'restarts':>8}\n")
+    # One row per iteration: the nominal iterate's J and gradient, then the step taken from it;
+    # 'rungs': how many rungs of its ladder lambda climbed there (the paper's restarts; the passes
+    # that found them are fewer, :mod:`.ladder`)
+    out.write(f"{'iter':>4} {'cost':>20} {'|grad|':>10} {'dJ':>11} {'lambda':>9} {'gamma':>7} {'exp':>6} {'rungs':>8}\n")
 
 
-def _print_row(out: TextIO, it, J, g, dJ, lam, gamma, exp_name, restarts) -> None:
-    out.write(f"{it:4d} {J:20.14e} {g:10.3e} {dJ:11.3e} {lam:9.2e} {gamma:7.4f} {exp_name:>6} {restarts:8d}\n")
+def _print_row(out: TextIO, it, J, g, dJ, lam, gamma, exp_name, rungs) -> None:
+    out.write(f"{it:4d} {J:20.14e} {g:10.3e} {dJ:11.3e} {lam:9.2e} {gamma:7.4f} {exp_name:>6} {rungs:8d}\n")
     out.flush()
 
 
@@ -323,7 +325,7 @@ class _Solve:
             return False
 
         t0 = time.perf_counter()
-        self.lam, d1, d2, restarts = regularised_backward(lin, ws, self.lam, opt, self.traj.u)
+        self.lam, d1, d2, rungs = regularised_backward(lin, ws, self.lam, opt, self.traj.u)
         self.timings["backward"] += time.perf_counter() - t0
         lam_used, quu_min = self.lam, float(ws.quu_eig.min())
         if not (np.isfinite(d1) and np.isfinite(d2)):
@@ -369,7 +371,7 @@ class _Solve:
         dJ = J_new - self.J
         exp_name = "second" if self.use_second else "first"
         if opt.verbose:
-            _print_row(self.out, self.it, self.J, gnorm, dJ, self.lam, gamma, exp_name, restarts)
+            _print_row(self.out, self.it, self.J, gnorm, dJ, self.lam, gamma, exp_name, rungs)
         self.accept(traj, J_new, self.lam, gamma, exp_name)
         if gamma >= 0.5:
             self.lam = self.lam / 10.0 if self.lam / 10.0 >= opt.reg_min else 0.0
