@@ -6,7 +6,9 @@ node). One rung per restart had cost 30-46 passes in the first second-order iter
 benchmark case (23 % of the docking scene's second-order solve). :class:`LadderSearch` gallops
 instead (rungs 1, 3, 7, 15, ... above the last failure; two passes at a time: 1 and 2, 4 and 6,
 10 and 14, ...) until a pass factorises, then bisects between the highest rung that failed and
-the lowest that factorised: rung 30 takes 9 passes one at a time, 7 rounds two at a time.
+the lowest that factorised: rung 30 takes 9 passes one at a time or 6 rounds two at a time
+(the one-rung loop: 30 passes, 15 rounds); rungs 31-46 take 9-11 passes or 7-8 rounds (against
+16-23 rounds).
 
 Where factorising is monotone in lambda (a pass that factorises at lambda factorises at every
 larger one, the usual case: lambda I only adds to Q_uu, and the value functions it feeds back
