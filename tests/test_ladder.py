@@ -6,15 +6,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pinocchio  # noqa: F401  (before geoddp._core: its import loads the libpinocchio _core links)
 import pytest
 
-from geoddp.solver.ladder import LadderSearch, ladder
-from geoddp.validate import InputError
-from geoddp.solver.options import SolverOptions
-
-import pinocchio  # noqa: F401  (first: its import loads the libpinocchio geoddp._core links)
-
 from geoddp import _core
+from geoddp.solver.ladder import LadderSearch, ladder
+from geoddp.solver.options import SolverOptions
+from geoddp.validate import InputError
 
 
 def run(top: int, two: bool, factorises) -> tuple[list[tuple[int, ...]], int, bool]:

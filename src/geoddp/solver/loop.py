@@ -11,9 +11,9 @@ Decisions the paper leaves open, and why:
   the failing node would mix value functions of different lambda; with the second-order expansion
   the first iterations need this to produce descent directions (30-46 rungs in the first one on
   the benchmark cases: the lowest rung that factorises is found by galloping and bisection,
-  :mod:`.ladder`, about 9 passes, instead of one pass per rung). After an accepted step with
-  gamma >= 0.5, lambda <- lambda / 10 (and to 0 below reg_min) so that the last iterations run
-  unregularised and keep their superlinear rate.
+  :mod:`.ladder`, in 9-11 passes, or 6-8 rounds of two side by side, instead of one pass per
+  rung). After an accepted step with gamma >= 0.5, lambda <- lambda / 10 (and to 0 below
+  reg_min) so that the last iterations run unregularised and keep their superlinear rate.
 * Line search: gamma in {1, 1/3, 1/9, ...} until J <= J_bar (the paper's test); if gamma falls
   below min_step, lambda is raised and the iteration is redone; past reg_max the solve stops.
 * First order and the switch: a first-order iteration drops the dynamics' second-order terms;
