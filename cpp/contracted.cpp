@@ -37,6 +37,90 @@ static void bracket_factor(const double* as, const double* l, const Eigen::Matri
       Eigen::Map<const Eigen::Matrix<double, D, D, Eigen::RowMajor>>(as).transpose() * Cl;
 }
 
+// The reconstruction rows of the SO(3)/SE(3) groups (upper triangle of S), contracted with lq.
+static void reconstruction_upper(const dyn::SecondOrderTerms& t, int k, const CVecMap& lq, RowMat& S) {
+  const int nv = t.nv, nz = t.nz();
+  const double dt = t.dt;
+  thread_local std::vector<double> ml, dl, DW, X;
+  // reconstruction rows of the SO(3)/SE(3) groups
+  const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
+  const double* as = t.As.data() + (size_t)k * t.gJ;
+  const double* jw = t.JWs.data() + (size_t)k * t.gW;
+  const double* F1 = t.F1.data() + (size_t)k * nv * nz;
+  for (const JointGroup& g : t.groups) {
+    const int o = g.idx_v, d = g.nv, dd = d * d, dn = d * nz;
+    dl.assign(dd, 0.0);
+    for (int p = 0; p < d; ++p) {
+      const double l = lq[o + p];
+      const double* Dp = dsym + (size_t)p * dd;
+      for (int e = 0; e < dd; ++e) dl[e] += l * Dp[e];
+    }
+    // Ml = dt/2 As^T (sum_p lq_p C_p) JWs: a d x d factor, then one (d, d) x (d, nz) product
+    X.resize(dd);
+    if (g.kind == SO3) bracket_factor<3>(as, lq.data() + o, STRUCTURE.C3, X.data());
+    else bracket_factor<6>(as, lq.data() + o, STRUCTURE.C6, X.data());
+    ml.resize(dn);
+    gemm::gemm(false, d, nz, d, 0.5 * dt, X.data(), d, jw, nz, false, ml.data(), nz);
+    if (t.semi) {  // S += dt^2 Ws^T Dl Ws with Ws = F1's rows of the group: upper triangle only
+      const double* Ws = F1 + (size_t)o * nz;
+      DW.resize(dn);
+      gemm::gemm(false, d, nz, d, 1.0, dl.data(), d, Ws, nz, false, DW.data(), nz);
+      gemm::gemm_upper(true, nz, d, dt * dt, Ws, nz, DW.data(), nz, true, S.data(), nz);
+    } else {  // W_s selects the group's v directions
+      for (int a = 0; a < d; ++a)
+        for (int b = a; b < d; ++b) S(nv + o + a, nv + o + b) += (dt * dt) * dl[(size_t)a * d + b];
+    }
+    // Ml on the group's q rows and Ml^T on its q columns, upper entries only
+    for (int p = 0; p < d; ++p) {
+      const int row = o + p;
+      double* Srow = S.data() + (size_t)row * nz;
+      const double* Mp = ml.data() + (size_t)p * nz;
+      for (int b = row; b < nz; ++b) Srow[b] += Mp[b];
+      for (int a = 0; a <= row; ++a) S(a, row) += Mp[a];
+    }
+    dsym += d * dd;
+    as += dd;
+    jw += dn;
+  }
+}
+
+// The variational step's velocity rows (t.variational), upper triangle of S: v+ = y with R(w, y) = 0
+// over w = (eta, dv) and y, so sum_p lv_p F2_p = P^T T P with T = sum_i mu_i Ts_i, mu = -R_y^-T lv
+// and P = [I_2nv 0; F1] (variational.hpp, variational_node_factored). With T's blocks over
+// (eta, dv | y), A (2nv, 2nv), Bm (2nv, nv), C (nv, nv): P^T T P = E^T A E + E^T Bm F1 + (Bm F1)^T E
+// + F1^T C F1, E = [I_2nv 0] (variational.cpp's variational_node forms the same per row i, nv
+// times; here once per node).
+static void variational_upper(const dyn::SecondOrderTerms& t, int k, const double* lv, RowMat& S) {
+  const int nv = t.nv, nz = t.nz(), n2 = 2 * nv, w = 3 * nv, nt = dyn::variational_upper_size(nv);
+  thread_local Eigen::VectorXd mu;
+  thread_local Eigen::MatrixXd T, G, CF;
+  mu.noalias() = -(CMatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * CVecMap(lv, nv));
+  T.resize(w, w);
+  const double* ts = t.Ts.data() + (size_t)k * nt * nv;
+  const double* u = mu.data();
+  for (int a = 0, c = 0; a < w; ++a)
+    for (int b = a; b < w; ++b, ++c) {
+      const double* x = ts + (size_t)c * nv;
+      double s = 0.0;
+      for (int i = 0; i < nv; ++i) s += x[i] * u[i];
+      T(a, b) = s;
+      T(b, a) = s;
+    }
+  const auto F1 = CMatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz);
+  G.noalias() = T.topRightCorner(n2, nv).lazyProduct(F1);     // Bm F1 (2nv, nz)
+  CF.noalias() = T.bottomRightCorner(nv, nv).lazyProduct(F1);  // C F1 (nv, nz)
+  for (int a = 0; a < nz; ++a) {
+    double* Sa = S.data() + (size_t)a * nz;
+    for (int b = a; b < nz; ++b) {
+      double s = 0.0;  // (F1^T C F1)(a, b)
+      for (int l = 0; l < nv; ++l) s += F1(l, a) * CF(l, b);
+      if (a < n2) s += G(a, b);
+      if (b < n2) s += G(b, a) + T(a, b);  // b < 2nv implies a < 2nv
+      Sa[b] += s;
+    }
+  }
+}
+
 // S's upper triangle (the top-right n x m block is S_ux^T); the lower triangle is left as junk.
 // With lq = Vx[:nv], lv = Vx[nv:]:
 // * velocity rows (v+ = v + dt a): G2 = dt a_zz with a_zz = -Minv T, T_i = ID_zz,i + P_i + P_i^T,
@@ -56,9 +140,14 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   const size_t n3 = (size_t)nv * nn;
   // per-thread scratch: contract runs once per node in the sequential pass
   thread_local Eigen::VectorXd c, mu;
-  thread_local std::vector<double> r4, R, ml, dl, DW, X;
+  thread_local std::vector<double> r4, R;
   CVecMap lq(Vx, nv), lv(Vx + nv, nv);
   S.setZero(nz, nz);
+  if (t.variational) {
+    variational_upper(t, k, Vx + nv, S);
+    reconstruction_upper(t, k, lq, S);
+    return;
+  }
   c = lv;
   if (t.semi) {
     c.noalias() += dt * lq;
@@ -113,46 +202,7 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
     for (int b = j; b < nz; ++b) Sj[b] += Rj[b];
     for (int b = j; b < nv; ++b) Sj[b] += R[(size_t)b * nz + j];
   }
-  // reconstruction rows of the SO(3)/SE(3) groups
-  const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
-  const double* as = t.As.data() + (size_t)k * t.gJ;
-  const double* jw = t.JWs.data() + (size_t)k * t.gW;
-  const double* F1 = t.F1.data() + (size_t)k * nv * nz;
-  for (const JointGroup& g : t.groups) {
-    const int o = g.idx_v, d = g.nv, dd = d * d, dn = d * nz;
-    dl.assign(dd, 0.0);
-    for (int p = 0; p < d; ++p) {
-      const double l = lq[o + p];
-      const double* Dp = dsym + (size_t)p * dd;
-      for (int e = 0; e < dd; ++e) dl[e] += l * Dp[e];
-    }
-    // Ml = dt/2 As^T (sum_p lq_p C_p) JWs: a d x d factor, then one (d, d) x (d, nz) product
-    X.resize(dd);
-    if (g.kind == SO3) bracket_factor<3>(as, lq.data() + o, STRUCTURE.C3, X.data());
-    else bracket_factor<6>(as, lq.data() + o, STRUCTURE.C6, X.data());
-    ml.resize(dn);
-    gemm::gemm(false, d, nz, d, 0.5 * dt, X.data(), d, jw, nz, false, ml.data(), nz);
-    if (t.semi) {  // S += dt^2 Ws^T Dl Ws with Ws = F1's rows of the group: upper triangle only
-      const double* Ws = F1 + (size_t)o * nz;
-      DW.resize(dn);
-      gemm::gemm(false, d, nz, d, 1.0, dl.data(), d, Ws, nz, false, DW.data(), nz);
-      gemm::gemm_upper(true, nz, d, dt * dt, Ws, nz, DW.data(), nz, true, S.data(), nz);
-    } else {  // W_s selects the group's v directions
-      for (int a = 0; a < d; ++a)
-        for (int b = a; b < d; ++b) S(nv + o + a, nv + o + b) += (dt * dt) * dl[(size_t)a * d + b];
-    }
-    // Ml on the group's q rows and Ml^T on its q columns, upper entries only
-    for (int p = 0; p < d; ++p) {
-      const int row = o + p;
-      double* Srow = S.data() + (size_t)row * nz;
-      const double* Mp = ml.data() + (size_t)p * nz;
-      for (int b = row; b < nz; ++b) Srow[b] += Mp[b];
-      for (int a = 0; a <= row; ++a) S(a, row) += Mp[a];
-    }
-    dsym += d * dd;
-    as += dd;
-    jw += dn;
-  }
+  reconstruction_upper(t, k, lq, S);
 }
 
 void contract(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
@@ -264,10 +314,10 @@ static int on_two_workers(int H, const dyn::SecondOrderTerms& t, RunPass&& run_p
 // virtual machine that round trip was measured at 70-230 ns most of a day and at 460-900 ns for
 // stretches of it, when the two-worker pass ran 1.0-1.2x the one-worker time instead of
 // 0.55-0.8x. Both ways give bitwise the same results, so choosing by time changes nothing else.
-// Per problem shape (n, m, H and the size of the reconstruction's group blocks): a moving average
-// of each way's time per node over whole passes (a pass that fails after a few nodes mostly
-// measures the hand-over's start); the faster runs, and every 16th pass runs the other to follow
-// the machine's changes.
+// Per problem shape (n, m, H, the size of the reconstruction's group blocks and whether the terms
+// are the variational step's): a moving average of each way's time per node over whole passes (a
+// pass that fails after a few nodes mostly measures the hand-over's start); the faster runs, and
+// every 16th pass runs the other to follow the machine's changes.
 namespace {
 class WorkersChoice {
  public:
@@ -280,7 +330,7 @@ class WorkersChoice {
     if (c == nullptr || c->pid_ != getpid()) c = new WorkersChoice;  // the parent's is abandoned
     return *c;
   }
-  typedef std::array<int, 4> Shape;  // n, m, H, group block size
+  typedef std::array<int, 5> Shape;  // n, m, H, group block size, variational (its contraction differs)
   int choose(const Shape& shape) {
     std::lock_guard<std::mutex> lk(mutex_);
     Entry& e = entries_[shape];
@@ -312,7 +362,7 @@ class WorkersChoice {
 template <typename Run>
 int with_workers(int workers, int H, int n, int m, const dyn::SecondOrderTerms& t, Run&& run) {
   if (workers == 1 || workers == 2 || H <= 0) return run(workers == 2 && H > 0 ? 2 : 1);
-  const WorkersChoice::Shape shape{n, m, H, t.gD};
+  const WorkersChoice::Shape shape{n, m, H, t.gD, t.variational ? 1 : 0};
   WorkersChoice& choice = WorkersChoice::get();
   const int w = choice.choose(shape);
   const auto t0 = std::chrono::steady_clock::now();

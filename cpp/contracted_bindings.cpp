@@ -51,7 +51,8 @@ void bind_contracted(py::module_& m) {
          int threads) {
         const pinocchio::Model& model = model_from_python(pm);
         if (H.ndim() != 2 || H.shape(0) != model.nv) throw py::value_error("actuation: wrong shape");
-        if (integrator != 0 && integrator != 1) throw py::value_error("integrator: expected 0 (euler) or 1 (semi_implicit)");
+        if (integrator != 0 && integrator != 1 && integrator != 3)
+          throw py::value_error("integrator: expected 0 (euler), 1 (semi_implicit) or 3 (variational)");
         const int mm = (int)H.shape(1), N = (int)U.shape(0), nv = model.nv, n = 2 * nv;
         bind::check_shape(Q, {N + 1, model.nq}, "Q");
         bind::check_shape(V, {N + 1, nv}, "V");

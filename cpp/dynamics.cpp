@@ -692,12 +692,13 @@ void buffer_give(double* p, size_t n) {
   for (double* d : drop) delete[] d;
 }
 
-void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bool semi_) {
+void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_) {
   N = N_;
   nv = model.nv;
   m = m_;
   dt = dt_;
   semi = semi_;
+  variational = variational_;
   groups.clear();
   for (const JointGroup& g : joint_groups(model))
     if (g.kind == SO3 || g.kind == SE3) groups.push_back(g);
@@ -708,10 +709,11 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
     gD += g.nv * g.nv * g.nv;
     gW += g.nv * nz;
   }
-  const size_t n3 = (size_t)N * nv * nv * nv;
+  const size_t n3 = variational ? 0 : (size_t)N * nv * nv * nv;
   for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
   Minv.resize((size_t)N * nv * nv);
-  az.resize((size_t)N * nv * nz);
+  az.resize(variational ? 0 : (size_t)N * nv * nz);
+  Ts.resize(variational ? (size_t)N * variational_upper_size(nv) * nv : 0);
   F1.resize((size_t)N * nv * nz);
   Jr.resize((size_t)N * gJ);
   Dsym.resize((size_t)N * gD);
@@ -719,36 +721,79 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
   JWs.resize((size_t)N * gW);
 }
 
+// Node k's reconstruction group blocks (Jr, As, JWs, Dsym) into t, from block_ad_jr's A, Jr, D
+// and first_order_blocks' JW.
+static void store_group_blocks(const std::vector<JointGroup>& groups, SecondOrderTerms& t, int k, const RowMat& Jr,
+                               const RowMat& A, const RowMat& JW, const std::vector<double>& Dt, int nv, int nz) {
+  double* jr = t.Jr.data() + (size_t)k * t.gJ;
+  double* as = t.As.data() + (size_t)k * t.gJ;
+  double* dsym = t.Dsym.data() + (size_t)k * t.gD;
+  double* jw = t.JWs.data() + (size_t)k * t.gW;
+  for (const JointGroup& g : groups) {
+    if (g.kind != SO3 && g.kind != SE3) continue;
+    const int o = g.idx_v, d = g.nv;
+    MatMap(jr, d, d) = Jr.block(o, o, d, d);
+    MatMap(as, d, d) = A.block(o, o, d, d);
+    MatMap(jw, d, nz) = JW.middleRows(o, d);
+    jr += d * d;
+    as += d * d;
+    jw += d * nz;
+    for (int p = 0; p < d; ++p)
+      for (int a = 0; a < d; ++a)
+        for (int c = 0; c < d; ++c) dsym[(size_t)(p * d + a) * d + c] = dsym_entry(Dt, nv, o, p, a, c);
+    dsym += d * d * d;
+  }
+}
+
 // Per node: the first-order part exactly as expansion() computes it (same expressions, so Phi and
 // B are bitwise those of order 1), then RNEA's second-order tensors and the reconstruction's group
 // blocks copied into `t` instead of being assembled into Theta, Gamma, Xi.
 void expansion_contracted(const Setup& s, const double* Q, const double* V, const double* U, int N, int threads,
                           double* Phi, double* B, SecondOrderTerms& t) {
-  if (s.integrator == RK4 || s.integrator == VARIATIONAL)
-    throw std::invalid_argument("integrator: the factored second order is for euler and semi_implicit");
+  if (s.integrator == RK4)
+    throw std::invalid_argument("integrator: the factored second order is for euler, semi_implicit and variational");
   const Model& model = *s.model;
   const int nq = model.nq, nv = model.nv, m = s.m, n = 2 * nv, nz = n + m;
   const double dt = s.dt;
   const bool semi = s.integrator == SEMI_IMPLICIT;
-  t.resize(model, m, N, dt, semi);
+  // the variational step: its residual Hessians and R_y^-T (variational_node_factored); its
+  // reconstruction is explicit Euler's, so the group blocks below are those of euler
+  const std::unique_ptr<VariationalModel> vmod =
+      s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
+  t.resize(model, m, N, dt, semi, vmod != nullptr);
   const std::vector<JointGroup> groups = joint_groups(model);
   CMatMap Hm(s.H, nv, m);
-  const size_t n3 = (size_t)nv * nv * nv;
-  const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, true);
+  const size_t n3 = (size_t)nv * nv * nv, nts = (size_t)variational_upper_size(nv) * nv;
+  const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, !vmod);
   parallel_for(N, threads, [&](int b0, int e0, int) {
-    NodeWork w(model, m);
+    const std::unique_ptr<NodeWork> ew = vmod ? nullptr : std::make_unique<NodeWork>(model, m);
+    const std::unique_ptr<VariationalNodeWork> vw = vmod ? std::make_unique<VariationalNodeWork>(*vmod) : nullptr;
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
     RowMat A(nv, nv), Jr(nv, nv);
     std::vector<double> Dt((size_t)nv * nv * nv);
-    Eigen::VectorXd omega(nv);
+    Eigen::VectorXd omega(nv), q(nq), v(nv), ynext(nv);
     for (int k = b0; k < e0; ++k) {
-      w.q = CVecMap(Q + (size_t)k * nq, nq);
-      w.v = CVecMap(V + (size_t)k * nv, nv);
-      w.tau = Hm * CVecMap(U + (size_t)k * m, m);
-      node_derivatives(s, w, F1.data(), false);
+      if (vw) {
+        q = CVecMap(Q + (size_t)k * nq, nq);
+        v = CVecMap(V + (size_t)k * nv, nv);
+        ynext = CVecMap(V + (size_t)(k + 1) * nv, nv);
+        variational_node_factored(*vmod, *vw, q, v, ynext, F1.data(), t.Minv.data() + (size_t)k * nv * nv,
+                                  t.Ts.data() + k * nts);
+      } else {
+        ew->q = CVecMap(Q + (size_t)k * nq, nq);
+        ew->v = CVecMap(V + (size_t)k * nv, nv);
+        ew->tau = Hm * CVecMap(U + (size_t)k * m, m);
+        node_derivatives(s, *ew, F1.data(), false);
+      }
       omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
       first_order_blocks(groups, semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
+      if (vw) {
+        MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
+        store_group_blocks(groups, t, k, Jr, A, JW, Dt, nv, nz);
+        continue;
+      }
+      NodeWork& w = *ew;
       // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses them
       // (the one-body shortcut writes them in place)
       if (one_body) {
@@ -764,25 +809,7 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
       azk.middleCols(nv, nv) = w.av;
       azk.rightCols(m) = w.au;
       MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
-      // the reconstruction's group blocks
-      double* jr = t.Jr.data() + (size_t)k * t.gJ;
-      double* as = t.As.data() + (size_t)k * t.gJ;
-      double* dsym = t.Dsym.data() + (size_t)k * t.gD;
-      double* jw = t.JWs.data() + (size_t)k * t.gW;
-      for (const JointGroup& g : groups) {
-        if (g.kind != SO3 && g.kind != SE3) continue;
-        const int o = g.idx_v, d = g.nv;
-        MatMap(jr, d, d) = Jr.block(o, o, d, d);
-        MatMap(as, d, d) = A.block(o, o, d, d);
-        MatMap(jw, d, nz) = JW.middleRows(o, d);
-        jr += d * d;
-        as += d * d;
-        jw += d * nz;
-        for (int p = 0; p < d; ++p)
-          for (int a = 0; a < d; ++a)
-            for (int c = 0; c < d; ++c) dsym[(size_t)(p * d + a) * d + c] = dsym_entry(Dt, nv, o, p, a, c);
-        dsym += d * d * d;
-      }
+      store_group_blocks(groups, t, k, Jr, A, JW, Dt, nv, nz);
     }
   });
 }

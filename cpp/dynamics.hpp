@@ -85,6 +85,10 @@ bool one_body_applies(const Model& model);
 //     (q_k, v_k, a_k), column-major as Pinocchio stores them (see node_derivatives in dynamics.cpp);
 //   Minv (nv, nv) full, az (nv, nz) = [ddq_dq ddq_dv Minv H], F1 (nv, nz) the velocity Jacobian,
 //   all row-major;
+//   for the variational step (`variational`: its velocity update is implicit, v+ = y with
+//   R(eta, dv, y, u) = 0, variational.hpp) instead of the four RNEA tensors and az: Ts
+//   (variational_upper_size(nv), nv), the upper triangles of the symmetrised residual Hessians R_ww,i
+//   (variational_node_factored), and Minv holds R_y^-T; its reconstruction is explicit Euler's;
 //   per SO(3)/SE(3) joint group g (offset o, dimension d), in the order of `groups`:
 //     Jr (d, d): the reconstruction's right Jacobian block at dt w_bar;
 //     Dsym (d, d, d): [p][a][c] = sym_(a,c) dJr[p, a] / d omega_c (the 1/2 dJr[rho] rho term);
@@ -118,15 +122,19 @@ struct Buffer {
   size_t size() const { return n; }
 };
 
+// Entries in the upper triangle of a (3 nv, 3 nv) matrix: the variational step's residual Hessians
+// over (eta, dv, y), per row of R.
+inline int variational_upper_size(int nv) { return 3 * nv * (3 * nv + 1) / 2; }
+
 struct SecondOrderTerms {
   int N = 0, nv = 0, m = 0;
   double dt = 0.0;
-  bool semi = false;
+  bool semi = false, variational = false;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
-  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs;
+  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts;
   int nz() const { return 2 * nv + m; }
-  void resize(const Model& model, int m_, int N_, double dt_, bool semi_);
+  void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false);
 };
 
 // Phi (N, n, n), B (N, n, m) exactly as expansion(order=1), and the factored second-order terms.

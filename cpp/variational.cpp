@@ -263,20 +263,31 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   T.assign(nv, Eigen::MatrixXd(nw, nw));
 }
 
-void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
-                      const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* F2) {
-  const Model& model = *vm.model;
-  const int nv = model.nv, m = vm.m, nz = 2 * nv + m;
-  const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
+namespace {
+
+// The first order at a node: the base residual_jacobian (it computes everything the differences
+// below may keep), R_y's LU in nw.lu_y and F1 = -R_y^-1 [R_eta, R_dv, -dt H] in nw.F1k and F1.
+void node_first_order(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
+                      const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1) {
+  const int nv = vm.model->nv, m = vm.m, nz = 2 * nv + m;
   CMatMap Hm(vm.H, nv, m);
   VariationalWork& w = nw.w;
-  residual_jacobian(vm, w, q, v, y, w.J);  // the base call: computes everything
-  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(w.J.rightCols(nv));
+  residual_jacobian(vm, w, q, v, y, w.J);
+  nw.lu_y.compute(w.J.rightCols(nv));
   nw.Rz.leftCols(2 * nv) = w.J.leftCols(2 * nv);
-  nw.Rz.rightCols(m) = -dt * Hm;
-  nw.F1k = -lu.solve(nw.Rz);
+  nw.Rz.rightCols(m) = -vm.dt * Hm;
+  nw.F1k = -nw.lu_y.solve(nw.Rz);
   Eigen::Map<RowMat>(F1, nv, nz) = nw.F1k;
-  if (F2 == nullptr) return;
+}
+
+// R_ww after node_first_order (same q, v, y, the same work): nw.T[i](a, j) = d_j J(i, a), by
+// central differences of the analytic Jacobian.
+void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
+                       const Eigen::VectorXd& v, const Eigen::VectorXd& y) {
+  const Model& model = *vm.model;
+  const int nv = model.nv;
+  const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
+  VariationalWork& w = nw.w;
   // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a).
   // The directions run in an order that lets each call keep what did not change since the one
   // before (Keep): the root's eta directions (only gravity changes; without gravity J does not
@@ -346,6 +357,17 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
       for (int a = 0; a < 2 * nv; ++a) nw.T[i](a, j) = nw.T[i](j, a);
     }
   }
+}
+
+}  // namespace
+
+void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
+                      const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* F2) {
+  const int nv = vm.model->nv, nz = 2 * nv + vm.m;
+  node_first_order(vm, nw, q, v, y, F1);
+  if (F2 == nullptr) return;
+  residual_hessians(vm, nw, q, v, y);
+  const Eigen::PartialPivLU<Eigen::MatrixXd>& lu = nw.lu_y;
   // Differentiating the right-trivialised Jacobian along integrate(q, h e_j) adds an
   // antisymmetric bracket term to the eta-eta block: the symmetric part Ts is the (0)-Hessian.
   // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1], and P^T Ts P is formed
@@ -395,6 +417,25 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
         F2[((size_t)i * nz + a) * nz + b] = f;
         F2[((size_t)i * nz + b) * nz + a] = f;
       }
+  }
+}
+
+void variational_node_factored(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
+                               const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* RyInvT,
+                               double* Ts) {
+  const int nv = vm.model->nv, nw3 = 3 * nv;
+  node_first_order(vm, nw, q, v, y, F1);
+  residual_hessians(vm, nw, q, v, y);
+  // R_y^-T, column by column from the LU factors (a once-per-node nv x nv inverse: the pass then
+  // contracts with one matrix-vector product)
+  Eigen::Map<RowMat>(RyInvT, nv, nv) = nw.lu_y.inverse().transpose();
+  // the symmetric parts (the eta-eta block's antisymmetric bracket term dropped, as in
+  // variational_node), upper triangles, i fastest
+  for (int i = 0; i < nv; ++i) {
+    const Eigen::MatrixXd& T = nw.T[i];
+    int c = 0;
+    for (int a = 0; a < nw3; ++a)
+      for (int b = a; b < nw3; ++b, ++c) Ts[(size_t)c * nv + i] = 0.5 * (T(a, b) + T(b, a));
   }
 }
 

@@ -79,6 +79,7 @@ struct VariationalNodeWork {
   Eigen::VectorXd qp, e, vp, yp;
   Eigen::MatrixXd Rz, F1k, Jm, Tj, Ts, G, CF, FCF, stack;
   std::vector<Eigen::MatrixXd> T;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_y;  // R_y at the node
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
@@ -86,6 +87,17 @@ struct VariationalNodeWork {
 // at (q, v) with the solved v+ = y.
 void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
                       const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* F2);
+
+// One node in factored form, for the backward pass to contract with V_x' (dynamics.hpp's
+// SecondOrderTerms): F1 (nv, nz) row-major, bitwise variational_node's; RyInvT (nv, nv) row-major
+// = R_y^-T; Ts the upper triangles of the symmetrised residual Hessians R_ww,i (i < nv) over
+// w = (eta, dv, y) (3 nv), entry (a, b), a <= b, of Ts_i at [c * nv + i] with c the row-major
+// index of (a, b) in the upper triangle (variational_upper_size(nv) entries per i, dynamics.hpp). Then
+//   sum_p lv_p F2_p = P^T (sum_i mu_i Ts_i) P,  mu = -R_y^-T lv,  P = [I_2nv 0; F1] (3 nv, nz):
+// one projection per contraction instead of nv per node (variational_node's F2).
+void variational_node_factored(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
+                               const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* RyInvT,
+                               double* Ts);
 
 // Derivatives of v+ at N nodes by implicit differentiation: Q (N, nq), V (N, nv), Vnext (N, nv)
 // the solved v+, -> F1 (N, nv, nz) and for order 2 F2 (N, nv, nz, nz) (symmetric (0)-Hessian).

@@ -59,7 +59,7 @@ def _dense(e, k, Vx):
     return S
 
 
-@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit", "variational"])
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_contraction_equals_tensors(case, integrator):
     mb, Q, V, U, rng = _setup(case, integrator)
@@ -97,7 +97,7 @@ def _linearisations(mb, Q, V, U, rng):
     return lt, lc
 
 
-@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit", "variational"])
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_contracted_backward_pass_equals_tensor_pass(case, integrator):
     mb, Q, V, U, rng = _setup(case, integrator)
@@ -117,7 +117,7 @@ def test_contracted_backward_pass_equals_tensor_pass(case, integrator):
             assert np.abs(node_quu(lc, k) - node_quu(lt, k)).max() <= 1e-10 * max(1.0, np.abs(node_quu(lt, k)).max())
 
 
-@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit", "variational"])
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_two_worker_pass_equals_one_worker_pass(case, integrator):
     """The pass with each node's contraction on the core's second worker (workers=2) gives bitwise
@@ -174,27 +174,36 @@ def test_contracted_pass_rejects_wrong_shapes():
         py.expansion(Q, V, U, order=2, contracted=True)
 
 
-@pytest.mark.parametrize("expansion", ["second", "switch"])
-def test_solve_history_equals_tensor_form(expansion):
+@pytest.mark.parametrize("expansion, integrator", [("second", "semi_implicit"), ("switch", "semi_implicit"),
+                                                   ("second", "variational"), ("switch", "variational")])
+def test_solve_history_equals_tensor_form(expansion, integrator):
     from geoddp import multibody_scenes as scenes
 
     res = {}
     for contract in (True, False):
-        p = scenes.space_manipulator(integrator="semi_implicit")
+        p = scenes.space_manipulator(integrator=integrator)
         p.model.contract = contract
         assert p.model.contracts_second_order == contract
         res[contract] = solve(p, SolverOptions(expansion=expansion, verbose=False))
     a, b = res[True], res[False]
     assert a.iterations == b.iterations and a.status == b.status
     assert a.expansion_history == b.expansion_history
+    # The variational second-order solve's third iterate is ill-conditioned: relative noise of 1e-14
+    # put on the tensor form's Theta, Gamma, Xi alone moves its cost history by up to 3.7e-8
+    # relative (semi-implicit: 1e-13), and the two forms differ by round-off (1e-14 of each
+    # contracted block, test_contraction_equals_tensors): measured 2.4e-8 at the third iterate,
+    # J* and the controls equal to 2e-15 and 1.4e-13. Its switch solve agrees to 7e-16 throughout.
+    tol = 1e-7 if (integrator, expansion) == ("variational", "second") else 1e-10
     for name in ("cost_history", "reg_history", "step_history"):
         x, y = np.asarray(getattr(a, name), float), np.asarray(getattr(b, name), float)
         assert x.shape == y.shape
-        assert np.all(np.abs(x - y) <= 1e-10 * np.abs(y)), name
+        assert np.all(np.abs(x - y) <= (tol if name == "cost_history" else 1e-10) * np.abs(y)), name
+    assert abs(a.cost - b.cost) <= 1e-12 * abs(b.cost)
+    assert np.abs(a.controls - b.controls).max() <= 1e-10 * np.abs(b.controls).max()
     # ||dJ/dU|| falls by 1e11 over the solve: near the optimum it is the round-off of the iterate,
-    # so it agrees to 1e-10 of the first gradient (measured: 2.3e-11 absolute at 237), not relatively
+    # so it agrees to tol of the largest gradient (measured: 2.3e-11 absolute at 237), not relatively
     x, y = a.grad_norm_history, b.grad_norm_history
-    assert x.shape == y.shape and np.abs(x - y).max() <= 1e-10 * y.max()
+    assert x.shape == y.shape and np.abs(x - y).max() <= tol * y.max()
 
 
 def test_threads_give_identical_terms():

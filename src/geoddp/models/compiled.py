@@ -20,7 +20,7 @@ from ..validate import InputError
 
 INTEGRATORS = {"euler": 0, "semi_implicit": 1, "rk4": 2, "variational": 3}
 #: the integrators whose second order the core also keeps factored (expansion_contracted)
-CONTRACTED_INTEGRATORS = ("euler", "semi_implicit")
+CONTRACTED_INTEGRATORS = ("euler", "semi_implicit", "variational")
 
 try:  # pinocchio first: its import loads the libpinocchio the extension links
     import pinocchio  # noqa: F401
