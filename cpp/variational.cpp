@@ -126,8 +126,11 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 //   D0: and v is the previous call's: D0 = D(q, v);
 //   qn_kinetic: q+ = q exp(dt v) differs at most along the root's pose (and y is the same): M1,
 //      D1, the kinetic-energy Hessian and R_y. Only the gravity terms are then recomputed.
+// D0_value (with D0 false): D(q, v) given, not computed (residual_hessians's dv directions: q is
+// the base's and D is linear in its velocity argument).
 struct Keep {
   bool y = false, v_terms = false, M0 = false, D0 = false, qn_kinetic = false;
+  const Eigen::MatrixXd* D0_value = nullptr;
 };
 
 // [R_eta, R_dv, R_y] at any (q, v, y), into J (nv, 3 nv), keeping what `keep` allows.
@@ -154,7 +157,8 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
   w.Sq -= dt * w.Hk;
   if (!keep_M0) mass(vm, w, q, w.M0);
-  if (!keep.D0) Dmat(vm, w, q, v, w.D0);
+  if (keep.D0_value) w.D0 = *keep.D0_value;
+  else if (!keep.D0) Dmat(vm, w, q, v, w.D0);
   J.leftCols(nv).noalias() = w.Sq * w.A;
   J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
   if (!keep_v) {
@@ -261,6 +265,7 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   FCF.resize(nz, nz);
   stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
+  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm}) M->resize(vm.model->nv, vm.model->nv);
 }
 
 namespace {
@@ -295,16 +300,27 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // only: M1, D1 and the kinetic-energy Hessian, whose second-order RNEA dominates, are kept), the
   // other dv directions (q as the base: M0 kept), then the other eta directions (nothing kept but y
   // and, for one body, M and R_y). One body: every direction is the root's.
+  // D(x) = D(q, x) is linear in x: along dv (q the base's) D(q, v +- h e_l) = D(q, v) +- h D(q, e_l),
+  // and along y D(q+, y +- h e_l) = D(q+, y) +- h D(q+, e_l): one first-order RNEA derivative per
+  // direction instead of two (none for one body: D = 0).
+  const bool linear_D = !vm.configuration_free;
+  if (linear_D) nw.Dbase = w.D0;  // the base call's D(q, v)
   const int root = vm.root_dirs;
-  auto difference_along = [&](int j, const Keep& keep) {
+  auto difference_along = [&](int j, Keep keep) {
+    const bool given = keep.D0_value != nullptr;
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
+    if (given) {
+      nw.Dpm = nw.Dbase + h * nw.Dl;
+      keep.D0_value = &nw.Dpm;
+    }
     residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, keep);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
+    if (given) nw.Dpm = nw.Dbase - h * nw.Dl;
     residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, keep);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
@@ -323,8 +339,15 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     keep.v_terms = keep.D0 = false;
     keep.M0 = true;  // q is the base's (or differs along the root's pose only)
     keep.qn_kinetic = l < root;
+    if (linear_D) {
+      nw.yp.setZero();
+      nw.yp[l] = 1.0;
+      Dmat(vm, w, q, nw.yp, nw.Dl);  // D(q, e_l)
+      keep.D0_value = &nw.Dl;        // marks D0 as given (difference_along sets the value)
+    }
     difference_along(nv + l, keep);
   }
+  keep.D0_value = nullptr;
   for (int j = root; j < nv; ++j) {  // eta along the joints
     keep.v_terms = keep.M0 = keep.D0 = keep.qn_kinetic = false;
     difference_along(j, keep);
@@ -338,20 +361,27 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
   mass(vm, w, w.qn, w.M1);
-  auto Ry_at = [&](const Eigen::VectorXd& yy, Eigen::MatrixXd& out) {
+  if (linear_D) Dmat(vm, w, w.qn, y, nw.Dbase);  // D(q+, y)
+  auto Ry_at = [&](const Eigen::VectorXd& yy, double sign, Eigen::MatrixXd& out) {
     w.x = -dt * yy;
     Kmat(vm, w, w.x, w.K1);
-    Dmat(vm, w, w.qn, yy, w.D1);
+    if (linear_D) w.D1 = nw.Dbase + (sign * h) * nw.Dl;  // D(q+, y +- h e_l)
+    else w.D1.setZero();  // one body: D = 0
     velocity_jacobian(vm, w, w.K1, w.D1, yy, out);
   };
   Eigen::MatrixXd &Rp = w.Kx, &Rm = w.Dx;  // the step's scratch, free here
   for (int l = 0; l < nv; ++l) {
     const int j = 2 * nv + l;
+    if (linear_D) {
+      nw.yp.setZero();
+      nw.yp[l] = 1.0;
+      Dmat(vm, w, w.qn, nw.yp, nw.Dl);  // D(q+, e_l)
+    }
     nw.yp = y;
     nw.yp[l] += h;
-    Ry_at(nw.yp, Rp);
+    Ry_at(nw.yp, 1.0, Rp);
     nw.yp[l] = y[l] - h;
-    Ry_at(nw.yp, Rm);
+    Ry_at(nw.yp, -1.0, Rm);
     for (int i = 0; i < nv; ++i) {
       for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = (Rp(i, a) - Rm(i, a)) / (2.0 * h);
       for (int a = 0; a < 2 * nv; ++a) nw.T[i](a, j) = nw.T[i](j, a);

@@ -80,6 +80,7 @@ struct VariationalNodeWork {
   Eigen::MatrixXd Rz, F1k, Jm, Tj, Ts, G, CF, FCF, stack;
   std::vector<Eigen::MatrixXd> T;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_y;  // R_y at the node
+  Eigen::MatrixXd Dbase, Dl, Dpm;             // D at the base point, D(., e_l), D at a shifted point
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
