@@ -128,9 +128,12 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 //      D1, the kinetic-energy Hessian and R_y. Only the gravity terms are then recomputed.
 // D0_value (with D0 false): D(q, v) given, not computed (residual_hessians's dv directions: q is
 // the base's and D is linear in its velocity argument).
+// lin: Sq and R_y from q+'s first-order model (QplusLinear, variational.hpp) instead of M(q+),
+// D(q+, y), the kinetic-energy Hessian and the gravity terms at q+ (implies y).
 struct Keep {
   bool y = false, v_terms = false, M0 = false, D0 = false, qn_kinetic = false;
   const Eigen::MatrixXd* D0_value = nullptr;
+  const QplusLinear* lin = nullptr;
 };
 
 // [R_eta, R_dv, R_y] at any (q, v, y), into J (nv, 3 nv), keeping what `keep` allows.
@@ -147,15 +150,26 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
   if (!keep_v) blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
-  if (!keep.y) {
-    w.x = -dt * y;
-    Kmat(vm, w, w.x, w.K1);
+  if (keep.lin) {
+    const QplusLinear& L = *keep.lin;
+    pinocchio::difference(model, L.qn, w.qn, w.xi);
+    w.Sq = L.Sq0;
+    w.Ry = L.Ry0;
+    for (int k = 0; k < nv; ++k) {
+      if (!L.dSq_zero[k]) w.Sq += w.xi[k] * L.dSq[k];
+      if (!L.dRy_zero[k]) w.Ry += w.xi[k] * L.dRy[k];
+    }
+  } else {
+    if (!keep.y) {
+      w.x = -dt * y;
+      Kmat(vm, w, w.x, w.K1);
+    }
+    if (!keep_M1) mass(vm, w, w.qn, w.M1);
+    if (!kinetic) Dmat(vm, w, w.qn, y, w.D1);
+    lagrangian_hessian(vm, w, w.qn, y, kinetic);
+    w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
+    w.Sq -= dt * w.Hk;
   }
-  if (!keep_M1) mass(vm, w, w.qn, w.M1);
-  if (!kinetic) Dmat(vm, w, w.qn, y, w.D1);
-  lagrangian_hessian(vm, w, w.qn, y, kinetic);
-  w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
-  w.Sq -= dt * w.Hk;
   if (!keep_M0) mass(vm, w, q, w.M0);
   if (keep.D0_value) w.D0 = *keep.D0_value;
   else if (!keep.D0) Dmat(vm, w, q, v, w.D0);
@@ -168,7 +182,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
   J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
   J.middleCols(nv, nv) -= dt * w.Kt;
-  if (!keep_M1) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);  // else K1, M1, D1 and y as before
+  if (!keep_M1 && !keep.lin) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);  // else K1, M1, D1 and y as before
   J.rightCols(nv) = w.Ry;
 }
 
@@ -190,7 +204,7 @@ VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), 
   J.resize(nv, 3 * nv);
   Jp.resize(nv, 3 * nv);
   zero = Eigen::VectorXd::Zero(nv);
-  for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy}) v->resize(nv);
+  for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy, &xi}) v->resize(nv);
   qn.resize(nq);
   lu = Eigen::PartialPivLU<Eigen::MatrixXd>(nv);
 }
@@ -265,7 +279,15 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   FCF.resize(nz, nz);
   stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
-  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm}) M->resize(vm.model->nv, vm.model->nv);
+  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Hkinb, &Sqp, &Sqm, &Ryp, &Rym}) M->resize(nv, nv);
+  lin.qn.resize(nq);
+  lin.xi.resize(nv);
+  lin.Sq0.resize(nv, nv);
+  lin.Ry0.resize(nv, nv);
+  lin.dSq.assign(nv, Eigen::MatrixXd(nv, nv));
+  lin.dRy.assign(nv, Eigen::MatrixXd(nv, nv));
+  lin.dSq_zero.assign(nv, 0);
+  lin.dRy_zero.assign(nv, 0);
 }
 
 namespace {
@@ -294,18 +316,58 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
   VariationalWork& w = nw.w;
   // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a).
-  // The directions run in an order that lets each call keep what did not change since the one
-  // before (Keep): the root's eta directions (only gravity changes; without gravity J does not
-  // change at all: exactly zero, skipped), the root's dv directions (q+ moves along the root's pose
-  // only: M1, D1 and the kinetic-energy Hessian, whose second-order RNEA dominates, are kept), the
-  // other dv directions (q as the base: M0 kept), then the other eta directions (nothing kept but y
-  // and, for one body, M and R_y). One body: every direction is the root's.
+  // J depends on q+ = q exp(eta) exp(dt (v + dv)) only through Sq = dR/deta+ and R_y (M(q+),
+  // D(q+, y), the kinetic-energy Hessian and the gravity terms). Those are differenced once along
+  // q+'s own nv directions into the first-order model QplusLinear, and each eta or dv difference
+  // then reads them at xi = difference(q+, q+'): the chain rule, which halves the second-order RNEA
+  // calls (one per joint direction of q+ and sign, instead of one per joint direction of eta and
+  // of dv and sign). A free-flyer or spherical root's pose moves the mechanism rigidly (local
+  // frames, gravity-free model): along it M, D and the kinetic-energy Hessian do not change, only
+  // the gravity terms (nothing at all without gravity: those dSq, dRy are exactly zero, skipped).
+  // One body: every direction is the root's.
+  const int root = vm.root_dirs;
+  QplusLinear& L = nw.lin;
+  L.qn = w.qn;  // the base call's q+, Sq, R_y and the terms they came from
+  L.Sq0 = w.Sq;
+  L.Ry0 = w.Ry;
+  nw.M1b = w.M1;
+  nw.D1b = w.D1;
+  nw.Hkinb = w.Hkin;
+  const Eigen::MatrixXd K1 = w.K1;  // K(-dt y): y is fixed throughout
+  auto sq_ry_at = [&](const Eigen::VectorXd& qn, bool rigid, Eigen::MatrixXd& Sq, Eigen::MatrixXd& Ry) {
+    if (rigid) {  // the root's pose: only the gravity terms change
+      w.D1 = nw.D1b;
+      w.Hkin = nw.Hkinb;
+      lagrangian_hessian(vm, w, qn, y, true);
+    } else {
+      mass(vm, w, qn, w.M1);
+      Dmat(vm, w, qn, y, w.D1);
+      lagrangian_hessian(vm, w, qn, y);
+      velocity_jacobian(vm, w, K1, w.D1, y, Ry);
+    }
+    Sq.noalias() = K1.transpose() * w.D1;
+    Sq -= dt * w.Hk;
+  };
+  for (int k = 0; k < nv; ++k) {
+    const bool rigid = k < root;
+    L.dSq_zero[k] = rigid && vm.gravity_free;
+    L.dRy_zero[k] = rigid;
+    if (L.dSq_zero[k]) continue;
+    nw.e.setZero();
+    nw.e[k] = h;
+    pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
+    sq_ry_at(nw.qp, rigid, nw.Sqp, nw.Ryp);
+    nw.e[k] = -h;
+    pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
+    sq_ry_at(nw.qp, rigid, nw.Sqm, nw.Rym);
+    L.dSq[k] = (nw.Sqp - nw.Sqm) / (2.0 * h);
+    if (!rigid) L.dRy[k] = (nw.Ryp - nw.Rym) / (2.0 * h);
+  }
   // D(x) = D(q, x) is linear in x: along dv (q the base's) D(q, v +- h e_l) = D(q, v) +- h D(q, e_l),
   // and along y D(q+, y +- h e_l) = D(q+, y) +- h D(q+, e_l): one first-order RNEA derivative per
   // direction instead of two (none for one body: D = 0).
   const bool linear_D = !vm.configuration_free;
   if (linear_D) nw.Dbase = w.D0;  // the base call's D(q, v)
-  const int root = vm.root_dirs;
   auto difference_along = [&](int j, Keep keep) {
     const bool given = keep.D0_value != nullptr;
     nw.e.setZero();
@@ -327,18 +389,18 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   };
   Keep keep;
   keep.y = true;
-  for (int j = 0; j < root; ++j) {  // eta along the root's pose (after the base call)
-    if (vm.gravity_free) {
+  keep.lin = &L;
+  for (int j = 0; j < root; ++j) {  // eta along the root's pose: M(q), D(q, v) do not change
+    if (vm.gravity_free) {  // nor does anything else: exactly zero
       for (int i = 0; i < nv; ++i) nw.T[i].col(j).setZero();
       continue;
     }
-    keep.v_terms = keep.M0 = keep.D0 = keep.qn_kinetic = true;
+    keep.v_terms = keep.M0 = keep.D0 = true;
     difference_along(j, keep);
   }
-  for (int l = 0; l < nv; ++l) {  // dv: the root's velocity first, then the joints'
+  for (int l = 0; l < nv; ++l) {  // dv: q is the base's (M(q) kept; D(q, v) linear in v)
     keep.v_terms = keep.D0 = false;
-    keep.M0 = true;  // q is the base's (or differs along the root's pose only)
-    keep.qn_kinetic = l < root;
+    keep.M0 = true;
     if (linear_D) {
       nw.yp.setZero();
       nw.yp[l] = 1.0;
@@ -348,8 +410,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     difference_along(nv + l, keep);
   }
   keep.D0_value = nullptr;
-  for (int j = root; j < nv; ++j) {  // eta along the joints
-    keep.v_terms = keep.M0 = keep.D0 = keep.qn_kinetic = false;
+  for (int j = root; j < nv; ++j) {  // eta along the joints: M(q), D(q, v) and the v terms anew
+    keep.v_terms = keep.M0 = keep.D0 = false;
     difference_along(j, keep);
   }
   // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y's columns need

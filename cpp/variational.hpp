@@ -64,7 +64,7 @@ struct VariationalModel {
 struct VariationalWork {
   pinocchio::Data data, fdata;
   Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx;
-  Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy;
+  Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   explicit VariationalWork(const VariationalModel& vm);
 };
@@ -72,6 +72,18 @@ struct VariationalWork {
 // One step: q (nq), v (nv), tau (nv) -> q1 (nq), v1 (nv). Throws StepNotConverged.
 void variational_step(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                       const Eigen::VectorXd& v, const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1);
+
+// The residual Jacobian's q+-dependent parts near a node's q+, to first order: with
+// xi = difference(q+, q+') (nv), Sq(q+') = Sq0 + sum_k xi_k dSq[k] and R_y(q+') = Ry0 + sum_k xi_k dRy[k]
+// (Sq = dR/deta+; y fixed). R_ww's differences along eta and dv move q+ only through these, so
+// their central differences equal those of the exact terms to O(h^2) (variational.cpp,
+// residual_hessians), and q+'s nv directions are differenced once instead of each of eta's and dv's.
+struct QplusLinear {
+  Eigen::VectorXd qn, xi;
+  Eigen::MatrixXd Sq0, Ry0;
+  std::vector<Eigen::MatrixXd> dSq, dRy;
+  std::vector<char> dSq_zero, dRy_zero;  // exactly zero (the root's pose moves the model rigidly)
+};
 
 // Scratch of variational_node beyond VariationalWork (the second order's buffers).
 struct VariationalNodeWork {
@@ -81,6 +93,8 @@ struct VariationalNodeWork {
   std::vector<Eigen::MatrixXd> T;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_y;  // R_y at the node
   Eigen::MatrixXd Dbase, Dl, Dpm;             // D at the base point, D(., e_l), D at a shifted point
+  QplusLinear lin;
+  Eigen::MatrixXd M1b, D1b, Hkinb, Sqp, Sqm, Ryp, Rym;  // residual_hessians' q+ differences
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
