@@ -206,9 +206,10 @@ def test_solve_history_equals_tensor_form(expansion, integrator):
     assert x.shape == y.shape and np.abs(x - y).max() <= tol * y.max()
 
 
-def test_threads_give_identical_terms():
-    mb, Q, V, U, rng = _setup(CASES[3], "semi_implicit", H=9)
-    args = (mb.pin_model, mb.actuation, mb.dt, compiled.INTEGRATORS["semi_implicit"], Q, V, U)
+@pytest.mark.parametrize("integrator", ["semi_implicit", "variational"])
+def test_threads_give_identical_terms(integrator):
+    mb, Q, V, U, rng = _setup(CASES[3], integrator, H=9)
+    args = (mb.pin_model, mb.actuation, mb.dt, compiled.INTEGRATORS[integrator], Q, V, U)
     Phi1, B1, t1 = core.expansion_contracted(*args, 1)
     Phi2, B2, t2 = core.expansion_contracted(*args, 2)
     assert np.array_equal(Phi1, Phi2) and np.array_equal(B1, B2)
