@@ -115,23 +115,20 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   out.noalias() -= dt * D1.transpose();
 }
 
-// What a residual_jacobian call may keep from the previous call on the same work (variational_node
+// What a residual_jacobian call may keep from the previous call on the same work (residual_hessians
 // orders its calls so that these hold). Each kept value is the one the call would compute, up to
 // round-off where it rests on the root's invariance (VariationalModel::root_dirs).
-//   y: y is the previous call's: K1 = K(-dt y) (and for one body, whose M is constant and D zero,
-//      M0, M1 and R_y);
-//   v_terms: v too: Ad_exp(-dt v), Jr(dt v), K(dt v) and d/dx[K^T M0 v] (its dual-number dJr),
-//      when M0 is kept as well;
+//   v_terms: v is the previous call's: Ad_exp(-dt v), Jr(dt v), K(dt v) and d/dx[K^T M0 v] (its
+//      dual-number dJr), when M0 is kept as well;
 //   M0: q differs at most along the root's pose: M0 = M(q);
 //   D0: and v is the previous call's: D0 = D(q, v);
-//   qn_kinetic: q+ = q exp(dt v) differs at most along the root's pose (and y is the same): M1,
-//      D1, the kinetic-energy Hessian and R_y. Only the gravity terms are then recomputed.
-// D0_value (with D0 false): D(q, v) given, not computed (residual_hessians's dv directions: q is
-// the base's and D is linear in its velocity argument).
-// lin: Sq and R_y from q+'s first-order model (QplusLinear, variational.hpp) instead of M(q+),
-// D(q+, y), the kinetic-energy Hessian and the gravity terms at q+ (implies y).
+//   D0_value (with D0 false): D(q, v) given, not computed (the dv directions: q is the base's and D
+//      is linear in its velocity argument);
+//   lin: y is the base call's, and Sq and R_y come from q+'s first-order model (QplusLinear,
+//      variational.hpp) instead of M(q+), D(q+, y), the kinetic-energy Hessian and the gravity
+//      terms at q+.
 struct Keep {
-  bool y = false, v_terms = false, M0 = false, D0 = false, qn_kinetic = false;
+  bool v_terms = false, M0 = false, D0 = false;
   const Eigen::MatrixXd* D0_value = nullptr;
   const QplusLinear* lin = nullptr;
 };
@@ -143,10 +140,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   const Model& model = *vm.model;
   const int nv = model.nv;
   const double dt = vm.dt;
-  const bool one_body = keep.y && vm.configuration_free;  // M constant, D and the kinetic Hessian zero
-  const bool kinetic = keep.y && keep.qn_kinetic;
-  const bool keep_M1 = one_body || kinetic, keep_M0 = one_body || keep.M0;
-  const bool keep_v = keep.v_terms && keep_M0;
+  const bool keep_v = keep.v_terms && keep.M0;
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
   if (!keep_v) blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
@@ -160,17 +154,15 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
       if (!L.dRy_zero[k]) w.Ry += w.xi[k] * L.dRy[k];
     }
   } else {
-    if (!keep.y) {
-      w.x = -dt * y;
-      Kmat(vm, w, w.x, w.K1);
-    }
-    if (!keep_M1) mass(vm, w, w.qn, w.M1);
-    if (!kinetic) Dmat(vm, w, w.qn, y, w.D1);
-    lagrangian_hessian(vm, w, w.qn, y, kinetic);
+    w.x = -dt * y;
+    Kmat(vm, w, w.x, w.K1);
+    mass(vm, w, w.qn, w.M1);
+    Dmat(vm, w, w.qn, y, w.D1);
+    lagrangian_hessian(vm, w, w.qn, y);
     w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
     w.Sq -= dt * w.Hk;
   }
-  if (!keep_M0) mass(vm, w, q, w.M0);
+  if (!keep.M0) mass(vm, w, q, w.M0);
   if (keep.D0_value) w.D0 = *keep.D0_value;
   else if (!keep.D0) Dmat(vm, w, q, v, w.D0);
   J.leftCols(nv).noalias() = w.Sq * w.A;
@@ -182,7 +174,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
   J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
   J.middleCols(nv, nv) -= dt * w.Kt;
-  if (!keep_M1 && !keep.lin) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);  // else K1, M1, D1 and y as before
+  if (!keep.lin) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);
   J.rightCols(nv) = w.Ry;
 }
 
@@ -388,7 +380,6 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
   };
   Keep keep;
-  keep.y = true;
   keep.lin = &L;
   for (int j = 0; j < root; ++j) {  // eta along the root's pose: M(q), D(q, v) do not change
     if (vm.gravity_free) {  // nor does anything else: exactly zero

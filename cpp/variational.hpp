@@ -8,8 +8,10 @@
 // from Pinocchio's ComputeRNEASecondOrderDerivatives at (q, 0, y) on the gravity-free model
 // instead of central differences of D. So the residual's Jacobian [R_eta, R_dv, R_y] is analytic
 // throughout, and the second-order term R_ww is one central difference of it (not the Python
-// oracle's difference of a difference): F2 = -R_y^-1 P^T R_ww P. Along eta and dv the whole
-// Jacobian is differenced (4 nv evaluations per node); along y only its R_y columns (2 nv cheap
+// oracle's difference of a difference): F2 = -R_y^-1 P^T R_ww P. Along eta and dv the Jacobian is
+// differenced (4 nv evaluations per node) with its q+-dependent parts read from a first-order model
+// differenced once along q+'s own directions (QplusLinear: the chain rule, 2 nv evaluations of
+// them, fewer on a free-flyer or spherical root); along y only its R_y columns (2 nv cheap
 // evaluations: q+ does not move), the other entries of those directions being the mixed partials
 // already differenced along eta and dv.
 //
