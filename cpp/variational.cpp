@@ -141,17 +141,21 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   const int nv = model.nv;
   const double dt = vm.dt;
   const bool keep_v = keep.v_terms && keep.M0;
+  // one body without gravity: Sq = 0 and R_y fixed, so q+ and Ad_exp(-dt v) are not needed
+  const bool fixed = keep.lin && keep.lin->fixed, Sq_zero = fixed && keep.lin->Sq_zero;
   w.omega = dt * v;
-  pinocchio::integrate(model, q, w.omega, w.qn);
-  if (!keep_v) blocks(vm.groups, w.omega, &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
+  if (!fixed) pinocchio::integrate(model, q, w.omega, w.qn);
+  if (!keep_v) blocks(vm.groups, w.omega, Sq_zero ? nullptr : &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
   if (keep.lin) {
     const QplusLinear& L = *keep.lin;
-    pinocchio::difference(model, L.qn, w.qn, w.xi);
     w.Sq = L.Sq0;
     w.Ry = L.Ry0;
-    for (int k = 0; k < nv; ++k) {
-      if (!L.dSq_zero[k]) w.Sq += w.xi[k] * L.dSq[k];
-      if (!L.dRy_zero[k]) w.Ry += w.xi[k] * L.dRy[k];
+    if (!fixed) {
+      pinocchio::difference(model, L.qn, w.qn, w.xi);
+      for (int k = 0; k < nv; ++k) {
+        if (!L.dSq_zero[k]) w.Sq += w.xi[k] * L.dSq[k];
+        if (!L.dRy_zero[k]) w.Ry += w.xi[k] * L.dRy[k];
+      }
     }
   } else {
     w.x = -dt * y;
@@ -165,14 +169,22 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   if (!keep.M0) mass(vm, w, q, w.M0);
   if (keep.D0_value) w.D0 = *keep.D0_value;
   else if (!keep.D0) Dmat(vm, w, q, v, w.D0);
-  J.leftCols(nv).noalias() = w.Sq * w.A;
-  J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
+  if (Sq_zero) {
+    J.leftCols(nv).noalias() = -w.K0.transpose() * w.D0;
+  } else {
+    J.leftCols(nv).noalias() = w.Sq * w.A;
+    J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
+  }
   if (!keep_v) {
     w.tmp.noalias() = w.M0 * v;
     dKT(vm, w, w.omega, w.K0, w.tmp, w.Kt);
   }
-  J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
-  J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
+  if (Sq_zero) {
+    J.middleCols(nv, nv).noalias() = -w.K0.transpose() * w.M0;
+  } else {
+    J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
+    J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
+  }
   J.middleCols(nv, nv) -= dt * w.Kt;
   if (!keep.lin) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);
   J.rightCols(nv) = w.Ry;
@@ -355,6 +367,9 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     L.dSq[k] = (nw.Sqp - nw.Sqm) / (2.0 * h);
     if (!rigid) L.dRy[k] = (nw.Ryp - nw.Rym) / (2.0 * h);
   }
+  L.fixed = true;
+  for (int k = 0; k < nv; ++k) L.fixed = L.fixed && L.dSq_zero[k] && L.dRy_zero[k];
+  L.Sq_zero = L.fixed && L.Sq0.isZero(0.0);
   // D(x) = D(q, x) is linear in x: along dv (q the base's) D(q, v +- h e_l) = D(q, v) +- h D(q, e_l),
   // and along y D(q+, y +- h e_l) = D(q+, y) +- h D(q+, e_l): one first-order RNEA derivative per
   // direction instead of two (none for one body: D = 0).

@@ -85,6 +85,8 @@ struct QplusLinear {
   Eigen::MatrixXd Sq0, Ry0;
   std::vector<Eigen::MatrixXd> dSq, dRy;
   std::vector<char> dSq_zero, dRy_zero;  // exactly zero (the root's pose moves the model rigidly)
+  bool fixed = false;    // every dSq and dRy zero: Sq and R_y do not move (one body, no gravity)
+  bool Sq_zero = false;  // and Sq0 = 0 (no D, no kinetic-energy Hessian, no gravity): R_eta = 0
 };
 
 // Scratch of variational_node beyond VariationalWork (the second order's buffers).
