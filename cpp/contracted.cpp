@@ -42,7 +42,6 @@ static void reconstruction_upper(const dyn::SecondOrderTerms& t, int k, const CV
   const int nv = t.nv, nz = t.nz();
   const double dt = t.dt;
   thread_local std::vector<double> ml, dl, DW, X;
-  // reconstruction rows of the SO(3)/SE(3) groups
   const double* dsym = t.Dsym.data() + (size_t)k * t.gD;
   const double* as = t.As.data() + (size_t)k * t.gJ;
   const double* jw = t.JWs.data() + (size_t)k * t.gW;
@@ -128,7 +127,8 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
 //   semi-implicit reconstruction adds dt Jr F2 to the q rows, so both contract with
 //   c = lv + [semi] dt Jr^T lq, and sum_p c_p F2_p = sum_i mu_i T_i with mu = -dt Minv c;
 //   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) are mu^T times Pinocchio's column-major tensors;
-// * reconstruction rows of each SO(3)/SE(3) group s: dt^2 W_s^T (sum_p lq_p Dsym_p) W_s and
+//   for the variational step (t.variational) v+ is implicit instead: variational_upper;
+// * reconstruction rows of each SO(3)/SE(3) group s (reconstruction_upper): dt^2 W_s^T (sum_p lq_p Dsym_p) W_s and
 //   Ml = dt/2 As^T (sum_p lq_p C_p) JWs on the group's q rows plus its transpose (the dense
 //   expansion in dynamics.cpp adds each dt/2 As^T C_p JWs, bracket_block; here the sum over p is
 //   taken before the products).
