@@ -85,12 +85,10 @@ static void reconstruction_upper(const dyn::SecondOrderTerms& t, int k, const CV
 
 // The variational step's velocity rows (t.variational), upper triangle of S: v+ = y with R(w, y) = 0
 // over w = (eta, dv) and y, so sum_p lv_p F2_p = P^T T P with T = sum_i mu_i Ts_i, mu = -R_y^-T lv
-// and P = [I_2nv 0; F1] (variational.hpp, variational_node_factored). With T's blocks over
-// (eta, dv | y), A (2nv, 2nv), Bm (2nv, nv), C (nv, nv): P^T T P = E^T A E + E^T Bm F1 + (Bm F1)^T E
-// + F1^T C F1, E = [I_2nv 0] (variational.cpp's variational_node forms the same per row i, nv
-// times; here once per node).
+// and P = [I_2nv 0; F1] (variational.hpp, variational_node_factored; the projection is
+// dyn::variational_projection_upper, which the dense expansion applies per row i, nv times).
 static void variational_upper(const dyn::SecondOrderTerms& t, int k, const double* lv, RowMat& S) {
-  const int nv = t.nv, nz = t.nz(), n2 = 2 * nv, w = 3 * nv, nt = dyn::variational_upper_size(nv);
+  const int nv = t.nv, nz = t.nz(), w = 3 * nv, nt = dyn::variational_upper_size(nv);
   thread_local Eigen::VectorXd mu;
   thread_local Eigen::MatrixXd T, G, CF;
   mu.noalias() = -(CMatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) * CVecMap(lv, nv));
@@ -105,19 +103,8 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
       T(a, b) = s;
       T(b, a) = s;
     }
-  const auto F1 = CMatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz);
-  G.noalias() = T.topRightCorner(n2, nv).lazyProduct(F1);     // Bm F1 (2nv, nz)
-  CF.noalias() = T.bottomRightCorner(nv, nv).lazyProduct(F1);  // C F1 (nv, nz)
-  for (int a = 0; a < nz; ++a) {
-    double* Sa = S.data() + (size_t)a * nz;
-    for (int b = a; b < nz; ++b) {
-      double s = 0.0;  // (F1^T C F1)(a, b)
-      for (int l = 0; l < nv; ++l) s += F1(l, a) * CF(l, b);
-      if (a < n2) s += G(a, b);
-      if (b < n2) s += G(b, a) + T(a, b);  // b < 2nv implies a < 2nv
-      Sa[b] += s;
-    }
-  }
+  const CMatMap F1(t.F1.data() + (size_t)k * nv * nz, nv, nz);
+  dyn::variational_projection_upper(T, F1, G, CF, [&](int a, int b, double s) { S(a, b) += s; });
 }
 
 // S's upper triangle (the top-right n x m block is S_ux^T); the lower triangle is left as junk.

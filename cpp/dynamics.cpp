@@ -788,26 +788,23 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
       omega = dt * CVecMap(V + (size_t)(semi ? k + 1 : k) * nv, nv);
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
       first_order_blocks(groups, semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
-      if (vw) {
-        MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
-        store_group_blocks(groups, t, k, Jr, A, JW, Dt, nv, nz);
-        continue;
+      if (ew) {
+        NodeWork& w = *ew;
+        // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses
+        // them (the one-body shortcut writes them in place); the variational step's are written above
+        if (one_body) {
+          one_body->at(w.q.data(), t.Iqq.data() + k * n3, t.Ivv.data() + k * n3, t.Iqv.data() + k * n3,
+                       t.dM.data() + k * n3);
+        } else {
+          pinocchio_second_order(model, w.data, w.q, w.v, w.a, t.Iqq.data() + k * n3, t.Ivv.data() + k * n3,
+                                 t.Iqv.data() + k * n3, t.dM.data() + k * n3);
+        }
+        MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
+        MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);
+        azk.leftCols(nv) = w.aq;
+        azk.middleCols(nv, nv) = w.av;
+        azk.rightCols(m) = w.au;
       }
-      NodeWork& w = *ew;
-      // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses them
-      // (the one-body shortcut writes them in place)
-      if (one_body) {
-        one_body->at(w.q.data(), t.Iqq.data() + k * n3, t.Ivv.data() + k * n3, t.Iqv.data() + k * n3,
-                     t.dM.data() + k * n3);
-      } else {
-        pinocchio_second_order(model, w.data, w.q, w.v, w.a, t.Iqq.data() + k * n3, t.Ivv.data() + k * n3,
-                               t.Iqv.data() + k * n3, t.dM.data() + k * n3);
-      }
-      MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
-      MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);
-      azk.leftCols(nv) = w.aq;
-      azk.middleCols(nv, nv) = w.av;
-      azk.rightCols(m) = w.au;
       MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
       store_group_blocks(groups, t, k, Jr, A, JW, Dt, nv, nz);
     }

@@ -126,6 +126,30 @@ struct Buffer {
 // over (eta, dv, y), per row of R.
 inline int variational_upper_size(int nv) { return 3 * nv * (3 * nv + 1) / 2; }
 
+// The upper triangle of P^T T P for a symmetric T (3 nv, 3 nv) over (eta, dv | y) and
+// P = [I_2nv 0; F1] (3 nv, nz): the variational step's velocity update enters its second order
+// only through P (R is affine in u). From T's blocks A (2nv, 2nv), Bm (2nv, nv), C (nv, nv):
+//   E^T A E + E^T Bm F1 + (Bm F1)^T E + F1^T C F1,  E = [I_2nv 0] (2nv, nz),
+// in coefficient-based loops (Eigen's blocked GEMM packs more than it computes at these sizes).
+// sink(a, b, value) receives the entries a <= b in row-major order; G, CF are scratch. Used per row
+// of R by the dense expansion (variational.cpp) and once per node by the contracted pass
+// (contracted.cpp, on sum_i mu_i Ts_i).
+template <class F1Type, class Sink>
+inline void variational_projection_upper(const Eigen::MatrixXd& T, const F1Type& F1, Eigen::MatrixXd& G,
+                                         Eigen::MatrixXd& CF, Sink&& sink) {
+  const int nv = (int)F1.rows(), nz = (int)F1.cols(), n2 = 2 * nv;
+  G.noalias() = T.topRightCorner(n2, nv).lazyProduct(F1);     // Bm F1 (2nv, nz)
+  CF.noalias() = T.bottomRightCorner(nv, nv).lazyProduct(F1);  // C F1 (nv, nz)
+  for (int a = 0; a < nz; ++a)
+    for (int b = a; b < nz; ++b) {
+      double s = 0.0;  // (F1^T C F1)(a, b)
+      for (int l = 0; l < nv; ++l) s += F1(l, a) * CF(l, b);
+      if (a < n2) s += G(a, b);
+      if (b < n2) s += G(b, a) + T(a, b);  // b < 2nv implies a < 2nv
+      sink(a, b, s);
+    }
+}
+
 struct SecondOrderTerms {
   int N = 0, nv = 0, m = 0;
   double dt = 0.0;

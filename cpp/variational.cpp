@@ -280,7 +280,6 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   Ts.resize(nw, nw);
   G.resize(2 * nv, nz);
   CF.resize(nv, nz);
-  FCF.resize(nz, nz);
   stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
   for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Hkinb, &Sqp, &Sqm, &Ryp, &Rym}) M->resize(nv, nv);
@@ -375,21 +374,21 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // direction instead of two (none for one body: D = 0).
   const bool linear_D = !vm.configuration_free;
   if (linear_D) nw.Dbase = w.D0;  // the base call's D(q, v)
-  auto difference_along = [&](int j, Keep keep) {
-    const bool given = keep.D0_value != nullptr;
+  // dD0: D(q, e_j - nv) along a dv direction, so that D(q, v +- h e) = D(q, v) +- h dD0
+  auto difference_along = [&](int j, Keep keep, const Eigen::MatrixXd* dD0 = nullptr) {
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    if (given) {
-      nw.Dpm = nw.Dbase + h * nw.Dl;
+    if (dD0) {
+      nw.Dpm = nw.Dbase + h * *dD0;
       keep.D0_value = &nw.Dpm;
     }
     residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, keep);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    if (given) nw.Dpm = nw.Dbase - h * nw.Dl;
+    if (dD0) nw.Dpm = nw.Dbase - h * *dD0;
     residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, keep);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
@@ -411,11 +410,9 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
       nw.yp.setZero();
       nw.yp[l] = 1.0;
       Dmat(vm, w, q, nw.yp, nw.Dl);  // D(q, e_l)
-      keep.D0_value = &nw.Dl;        // marks D0 as given (difference_along sets the value)
     }
-    difference_along(nv + l, keep);
+    difference_along(nv + l, keep, linear_D ? &nw.Dl : nullptr);
   }
-  keep.D0_value = nullptr;
   for (int j = root; j < nv; ++j) {  // eta along the joints: M(q), D(q, v) and the v terms anew
     keep.v_terms = keep.M0 = keep.D0 = false;
     difference_along(j, keep);
@@ -426,14 +423,12 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // gravity derivatives). The (eta, dv) rows of a y-direction are the mixed partials d_y d_eta R,
   // d_y d_dv R, already differenced along eta and dv: y is a flat coordinate of R, so they commute
   // with it (only eta-eta does not: the right-trivialised base point moves), T[i](a, y) = T[i](y, a).
-  w.omega = dt * v;
-  pinocchio::integrate(model, q, w.omega, w.qn);
-  mass(vm, w, w.qn, w.M1);
-  if (linear_D) Dmat(vm, w, w.qn, y, nw.Dbase);  // D(q+, y)
+  w.qn = L.qn;    // the base call's q+,
+  w.M1 = nw.M1b;  // M(q+)
   auto Ry_at = [&](const Eigen::VectorXd& yy, double sign, Eigen::MatrixXd& out) {
     w.x = -dt * yy;
     Kmat(vm, w, w.x, w.K1);
-    if (linear_D) w.D1 = nw.Dbase + (sign * h) * nw.Dl;  // D(q+, y +- h e_l)
+    if (linear_D) w.D1 = nw.D1b + (sign * h) * nw.Dl;  // D(q+, y +- h e_l), D1b = D(q+, y)
     else w.D1.setZero();  // one body: D = 0
     velocity_jacobian(vm, w, w.K1, w.D1, yy, out);
   };
@@ -468,26 +463,14 @@ void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const
   const Eigen::PartialPivLU<Eigen::MatrixXd>& lu = nw.lu_y;
   // Differentiating the right-trivialised Jacobian along integrate(q, h e_j) adds an
   // antisymmetric bracket term to the eta-eta block: the symmetric part Ts is the (0)-Hessian.
-  // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1], and P^T Ts P is formed
-  // from Ts's blocks over (eta, dv | y), A (2nv, 2nv), Bm (2nv, nv), C (nv, nv), as
-  //   E^T A E + E^T Bm F1 + (Bm F1)^T E + F1^T C F1,  E = [I_2nv 0] (2nv, nz),
-  // on its upper triangle only (it is symmetric): a third of the two dense (3nv)^2 nz products it
-  // replaces, in coefficient-based loops instead of Eigen's blocked GEMM (whose packing cost more
-  // than the arithmetic at these sizes).
-  const int n2 = 2 * nv, nu = nz * (nz + 1) / 2;
+  // R is affine in u, so u enters only through P = dw/dz = [I 0; 0 I; F1]: P^T Ts P on its upper
+  // triangle (dynamics.hpp, variational_projection_upper), a third of the two dense (3nv)^2 nz
+  // products it replaces.
+  const int nu = nz * (nz + 1) / 2;
   for (int i = 0; i < nv; ++i) {
     nw.Ts = 0.5 * (nw.T[i] + nw.T[i].transpose());
-    nw.G.noalias() = nw.Ts.topRightCorner(n2, nv).lazyProduct(nw.F1k);     // Bm F1 (2nv, nz)
-    nw.CF.noalias() = nw.Ts.bottomRightCorner(nv, nv).lazyProduct(nw.F1k);  // C F1 (nv, nz)
-    nw.FCF.noalias() = nw.F1k.transpose().lazyProduct(nw.CF);                // F1^T C F1 (nz, nz)
     int c = 0;
-    for (int a = 0; a < nz; ++a)
-      for (int b = a; b < nz; ++b, ++c) {
-        double s = nw.FCF(a, b);
-        if (a < n2) s += nw.G(a, b);
-        if (b < n2) s += nw.G(b, a) + nw.Ts(a, b);  // b < 2nv implies a < 2nv
-        nw.stack(i, c) = s;
-      }
+    variational_projection_upper(nw.Ts, nw.F1k, nw.G, nw.CF, [&](int, int, double s) { nw.stack(i, c++) = s; });
   }
   // F2 = -R_y^-1 P^T Ts P: the LU factors applied column by column (nv <= a few tens: plain loops,
   // not Eigen's blocked triangular solves, which dominated at nv = 6)

@@ -93,12 +93,13 @@ struct QplusLinear {
 struct VariationalNodeWork {
   VariationalWork w;
   Eigen::VectorXd qp, e, vp, yp;
-  Eigen::MatrixXd Rz, F1k, Jm, Tj, Ts, G, CF, FCF, stack;
+  Eigen::MatrixXd Rz, F1k, Jm, Tj, Ts, G, CF, stack;
   std::vector<Eigen::MatrixXd> T;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_y;  // R_y at the node
-  Eigen::MatrixXd Dbase, Dl, Dpm;             // D at the base point, D(., e_l), D at a shifted point
+  Eigen::MatrixXd Dbase, Dl, Dpm;             // D(q, v) at the base point, D(., e_l), D(q, v +- h e_l)
   QplusLinear lin;
-  Eigen::MatrixXd M1b, D1b, Hkinb, Sqp, Sqm, Ryp, Rym;  // residual_hessians' q+ differences
+  // the base call's M(q+), D(q+, y) and kinetic-energy Hessian; residual_hessians' q+ differences
+  Eigen::MatrixXd M1b, D1b, Hkinb, Sqp, Sqm, Ryp, Rym;
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
