@@ -35,7 +35,7 @@ inline void blocks(const std::vector<JointGroup>& groups, const Eigen::VectorXd&
       if (A != nullptr) A->block<6, 6>(o, o) = pinocchio::exp6(pinocchio::Motion(-x)).toActionMatrix();
       const lie::Mat6 J = lie::se3_jr(x);
       Jr.block<6, 6>(o, o) = J;
-      Jinv.block<6, 6>(o, o) = J.inverse();
+      Jinv.block<6, 6>(o, o) = lie::se3_jr_inverse(J);
     }
   }
 }

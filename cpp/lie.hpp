@@ -223,6 +223,18 @@ inline Mat6 se3_jr(const Eigen::Matrix<double, 6, 1>& x) {
   return J;
 }
 
+// Jr(x)^-1 of SE(3) from Jr = [[J3, Q], [0, J3]]: [[A, -A Q A], [0, A]], A = J3^-1 (a 3x3
+// cofactor inverse). Eigen's 6x6 inverse goes through a blocked LU and triangular solves on the
+// identity, which had cost the variational step more than the closed form of Jr itself.
+inline Mat6 se3_jr_inverse(const Mat6& J) {
+  const Mat3 A = J.topLeftCorner<3, 3>().inverse();
+  Mat6 K = Mat6::Zero();
+  K.topLeftCorner<3, 3>() = A;
+  K.bottomRightCorner<3, 3>() = A;
+  K.topRightCorner<3, 3>().noalias() = -(A * J.topRightCorner<3, 3>()) * A;
+  return K;
+}
+
 // D[l](i, j) = d Jr(x)(i, j) / d x_l of SE(3), exact: the rotation blocks from so3_djr; the
 // coupling block Q(r, p), r = -v, p = -w, by forward-mode dual numbers through its closed form.
 // c1, c2, c3 depend on t2 = |p|^2 only, so they and their t2-derivatives are computed once (one
