@@ -6,6 +6,7 @@
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
+#include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea-derivatives.hpp>
 #include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
@@ -470,7 +471,7 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   throw StepNotConverged(buf);
 }
 
-VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
+VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm), gmodel(*vm.model), gdata(gmodel) {
   const int nq = vm.model->nq, nv = vm.model->nv, nz = 2 * nv + vm.m, nw = 3 * nv;
   qp.resize(nq);
   e.resize(2 * nv);  // a step along (eta, dv); y is differenced apart
@@ -554,8 +555,31 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     Sq.noalias() = K1.transpose() * w.D1;
     Sq -= dt * w.Hk;
   };
+  // Along the root's pose only the generalised gravity's derivative G(q+) moves (rigid: M, D and
+  // the kinetic-energy Hessian do not), and Sq = ... + dt G. G depends on the root's attitude only
+  // through the gravity seen from the root, g_r = W^T g (W the root's world rotation), linearly;
+  // q+ exp(xi) turns g_r at the rate g_r x e_k along a rotation direction k, which is g's turn
+  // g x (W e_k) at fixed W. So dSq[k] = dt G(q+) under the gravity g x (W e_k), exactly, from one
+  // Pinocchio call (two for the central difference it replaces), and the root's translation
+  // directions give exactly zero.
+  const int rot0 = root == 6 ? 3 : 0;  // the root's rotation directions: rot0 .. root - 1
+  if (root > 0 && !vm.gravity_free) {
+    pinocchio::forwardKinematics(nw.gmodel, nw.gdata, L.qn);
+    const Eigen::Matrix3d W = nw.gdata.oMi[1].rotation();
+    const Eigen::Vector3d g = vm.model->gravity.linear();
+    for (int k = 0; k < root; ++k) {
+      L.dRy_zero[k] = 1;
+      L.dSq_zero[k] = k < rot0;
+      if (k < rot0) continue;
+      nw.gmodel.gravity.linear() = g.cross(W.col(k - rot0));
+      w.T.setZero();
+      pinocchio::computeGeneralizedGravityDerivatives(nw.gmodel, nw.gdata, L.qn, w.T);
+      L.dSq[k] = dt * w.T;
+    }
+  }
   for (int k = 0; k < nv; ++k) {
     const bool rigid = k < root;
+    if (rigid && !vm.gravity_free) continue;  // exact, above
     L.dSq_zero[k] = rigid && vm.gravity_free;
     L.dRy_zero[k] = rigid;
     if (L.dSq_zero[k]) continue;

@@ -100,6 +100,9 @@ struct VariationalNodeWork {
   QplusLinear lin;
   // the base call's M(q+), D(q+, y) and kinetic-energy Hessian; residual_hessians' q+ differences
   Eigen::MatrixXd M1b, D1b, Hkinb, Sqp, Sqm, Ryp, Rym;
+  // a copy of the model whose gravity residual_hessians turns (the root's rotation directions)
+  Model gmodel;
+  pinocchio::Data gdata;
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
