@@ -60,11 +60,14 @@ inline void djr_columns(const std::vector<JointGroup>& groups, const Eigen::Vect
         else out.block<3, 1>(o, o + l) = Dl[l] * y.segment<3>(o);
       }
     } else if (g.kind == SE3) {
-      lie::Mat6 Dl[6];
-      lie::se3_djr(theta.segment<6>(o), Dl);
-      for (int l = 0; l < 6; ++l) {
-        if constexpr (Transpose) out.block<6, 1>(o, o + l) = Dl[l].transpose() * y.segment<6>(o);
-        else out.block<6, 1>(o, o + l) = Dl[l] * y.segment<6>(o);
+      if constexpr (Transpose) {
+        lie::Mat6 N;
+        lie::se3_djr_transpose_apply(theta.segment<6>(o), y.segment<6>(o), N);
+        out.block<6, 6>(o, o) = N;
+      } else {
+        lie::Mat6 Dl[6];
+        lie::se3_djr(theta.segment<6>(o), Dl);
+        for (int l = 0; l < 6; ++l) out.block<6, 1>(o, o + l) = Dl[l] * y.segment<6>(o);
       }
     }
   }

@@ -275,6 +275,51 @@ inline void se3_djr(const Eigen::Matrix<double, 6, 1>& x, Mat6 D[6]) {
   }
 }
 
+// N(:, l) = dJr(x)/dx_l^T s of SE(3) (6, 6), what se3_djr's D[l]^T s gives, without forming D:
+// D[l] = [[D3, Qd], [0, D3]] (D3 = 0 along the translation), so D[l]^T s = [D3^T s_t; Qd^T s_t +
+// D3^T s_b]. Along the translation (x_l = -r_l) Q is linear in r and s_t^T Q(r, p) has the
+// gradient G(j, .) in r below (from the closed form above, d = p.r, w = p x r, m2 = -2 c3 d):
+//   1/2 (e_j x s) + c1 (p_j s + (s.p) e_j - (s^T P)_j p) + c2 (p_j (s x p) - (s.p)(e_j x p)
+//   + (s^T P)_j p) - 2 c3 (s.p) p_j p - 2 (c1 - c3 t2) s_j p,   (s^T P)_j = p.(e_j x s),
+// so N(3 + j, l) = -G(j, l); along the rotation, Qd by dual numbers as in se3_djr.
+inline void se3_djr_transpose_apply(const Eigen::Matrix<double, 6, 1>& x, const Eigen::Matrix<double, 6, 1>& s,
+                                    Mat6& N) {
+  Mat3 D3[3];
+  so3_djr(x.tail<3>(), D3);
+  double rv[3], pv[3];
+  for (int i = 0; i < 3; ++i) { rv[i] = -x[i]; pv[i] = -x[3 + i]; }
+  const double t2v = pv[0] * pv[0] + pv[1] * pv[1] + pv[2] * pv[2];
+  Dual c1, c2, c3;
+  se3_coupling_coefficients(Dual(t2v, 1.0), c1, c2, c3);
+  const Vec3 st = s.head<3>(), sb = s.tail<3>(), p(pv[0], pv[1], pv[2]);
+  const double sp = st.dot(p);
+  const Vec3 sxp = st.cross(p);
+  for (int j = 0; j < 3; ++j) {
+    const Vec3 e = Vec3::Unit(j);
+    const Vec3 exs = e.cross(st);
+    const double sPj = p.dot(exs);
+    Vec3 G = 0.5 * exs + c1.v * (p[j] * st + sp * e - sPj * p) + c2.v * (p[j] * sxp - sp * e.cross(p) + sPj * p) -
+             (2.0 * c3.v * sp * p[j]) * p - (2.0 * (c1.v - c3.v * t2v) * st[j]) * p;
+    for (int l = 0; l < 3; ++l) N(3 + j, l) = -G[l];
+  }
+  for (int l = 0; l < 3; ++l) N.block<3, 1>(0, l).setZero();
+  for (int k = 0; k < 3; ++k) {
+    const double dt2 = -2.0 * pv[k];  // x_(3+k) = -p_k
+    Dual r[3], pd[3];
+    for (int i = 0; i < 3; ++i) {
+      r[i] = Dual(rv[i], 0.0);
+      pd[i] = Dual(pv[i], i == k ? -1.0 : 0.0);
+    }
+    const M3<Dual> Q = se3_coupling_assemble<Dual>(r, pd, Dual(t2v, dt2), Dual(c1.v, c1.d * dt2),
+                                                   Dual(c2.v, c2.d * dt2), Dual(c3.v, c3.d * dt2));
+    Vec3 qs = Vec3::Zero();
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) qs[j] += Q.m[i][j].d * st[i];
+    N.block<3, 1>(0, 3 + k).noalias() = D3[k].transpose() * st;
+    N.block<3, 1>(3, 3 + k).noalias() = qs + D3[k].transpose() * sb;
+  }
+}
+
 // Structure constants of so(3) and se(3): [x, y]_i = sum_{p, q} C[i](p, q) x_p y_q
 // (geoddp.configuration._SO3_C, _SE3_C: ad of se(3) in [linear; angular] order).
 inline void so3_structure(Mat3 C[3]) {

@@ -208,7 +208,7 @@ struct FixedLie<6> {
   typedef Eigen::Matrix<double, 6, 1> Vec;
   static Mat jr(const Vec& x) { return lie::se3_jr(x); }
   static Mat inverse(const Mat& J) { return lie::se3_jr_inverse(J); }
-  static void djr(const Vec& x, Mat D[6]) { lie::se3_djr(x, D); }
+  static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N) { lie::se3_djr_transpose_apply(x, s, N); }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp6(pinocchio::Motion(-x)).toActionMatrix(); }
 };
 template <>
@@ -217,7 +217,11 @@ struct FixedLie<3> {
   typedef lie::Vec3 Vec;
   static Mat jr(const Vec& x) { return lie::so3_jr(x); }
   static Mat inverse(const Mat& J) { return J.inverse(); }
-  static void djr(const Vec& x, Mat D[3]) { lie::so3_djr(x, D); }
+  static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N) {
+    Mat D[3];
+    lie::so3_djr(x, D);
+    for (int l = 0; l < 3; ++l) N.col(l).noalias() = D[l].transpose() * s;
+  }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp3(x).transpose(); }
 };
 
@@ -228,9 +232,8 @@ typename FixedLie<N>::Mat phi_jacobian_K(const typename FixedLie<N>::Mat& M, con
                                          double c, const typename FixedLie<N>::Mat& K) {
   typedef FixedLie<N> L;
   const typename L::Vec s = K.transpose() * (M * p);
-  typename L::Mat D[N], Nm;
-  L::djr(c * p, D);
-  for (int l = 0; l < N; ++l) Nm.col(l).noalias() = D[l].transpose() * s;
+  typename L::Mat Nm;
+  L::djr_transpose_apply(c * p, s, Nm);
   return K.transpose() * (M - c * Nm);
 }
 
