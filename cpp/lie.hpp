@@ -13,6 +13,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // cross
+#include <Eigen/LU>        // 3x3 inverse
 #include <cmath>
 
 namespace geoddp {
@@ -277,46 +279,52 @@ inline void se3_djr(const Eigen::Matrix<double, 6, 1>& x, Mat6 D[6]) {
 
 // N(:, l) = dJr(x)/dx_l^T s of SE(3) (6, 6), what se3_djr's D[l]^T s gives, without forming D:
 // D[l] = [[D3, Qd], [0, D3]] (D3 = 0 along the translation), so D[l]^T s = [D3^T s_t; Qd^T s_t +
-// D3^T s_b]. Along the translation (x_l = -r_l) Q is linear in r and s_t^T Q(r, p) has the
-// gradient G(j, .) in r below (from the closed form above, d = p.r, w = p x r, m2 = -2 c3 d):
-//   1/2 (e_j x s) + c1 (p_j s + (s.p) e_j - (s^T P)_j p) + c2 (p_j (s x p) - (s.p)(e_j x p)
-//   + (s^T P)_j p) - 2 c3 (s.p) p_j p - 2 (c1 - c3 t2) s_j p,   (s^T P)_j = p.(e_j x s),
-// so N(3 + j, l) = -G(j, l); along the rotation, Qd by dual numbers as in se3_djr.
+// D3^T s_b], and Qd^T s_t is a derivative of f_j = (s_t^T Q(r, p))_j, r = -x_lin, p = -x_ang. From
+// the closed form above (d = p.r, w = p x r, s = s_t, (s^T P)_j = (s x p)_j):
+//   f_j = 1/2 (s x r)_j + c1 X1_j + c2 X2_j - 2 c3 d (s.p) p_j - 2 (c1 - c3 t2) d s_j,
+//   X1_j = (s.r) p_j + (s.p) r_j - d (s x p)_j,   X2_j = (s.w) p_j - (s.p) w_j + d (s x p)_j,
+// linear in r, and a polynomial in p times c1, c2, c3 (functions of t2 = |p|^2, derivatives c'
+// from one dual evaluation), so both gradients are closed forms (N = -gradient: x = -(r, p)):
+//   grad_r f_j = 1/2 (e_j x s) + c1 (p_j s + (s.p) e_j - (s x p)_j p)
+//                + c2 (p_j (s x p) - (s.p)(e_j x p) + (s x p)_j p) - 2 c3 (s.p) p_j p - 2 (c1 - c3 t2) s_j p,
+//   grad_p f_j = 2 c1' X1_j p + c1 ((s.r) e_j + r_j s - (s x p)_j r - d (e_j x s))
+//                + 2 c2' X2_j p + c2 ((r x s) p_j + (s.w) e_j - w_j s - (s.p)(r x e_j) + (s x p)_j r + d (e_j x s))
+//                - 2 (2 c3' Y_j p + c3 ((s.p) p_j r + d p_j s + d (s.p) e_j)),  Y_j = d (s.p) p_j,
+//                - 2 s_j (2 d (c1' - c3' t2 - c3) p + (c1 - c3 t2) r).
+// Equal to se3_djr's D[l]^T s to round-off (the variational tests check F1 against the Python
+// oracle to 1e-10 through it).
 inline void se3_djr_transpose_apply(const Eigen::Matrix<double, 6, 1>& x, const Eigen::Matrix<double, 6, 1>& s,
                                     Mat6& N) {
   Mat3 D3[3];
   so3_djr(x.tail<3>(), D3);
-  double rv[3], pv[3];
-  for (int i = 0; i < 3; ++i) { rv[i] = -x[i]; pv[i] = -x[3 + i]; }
-  const double t2v = pv[0] * pv[0] + pv[1] * pv[1] + pv[2] * pv[2];
-  Dual c1, c2, c3;
-  se3_coupling_coefficients(Dual(t2v, 1.0), c1, c2, c3);
-  const Vec3 st = s.head<3>(), sb = s.tail<3>(), p(pv[0], pv[1], pv[2]);
-  const double sp = st.dot(p);
-  const Vec3 sxp = st.cross(p);
+  const Vec3 r = -x.head<3>(), p = -x.tail<3>();
+  const double t2 = p.squaredNorm();
+  Dual c1d, c2d, c3d;
+  se3_coupling_coefficients(Dual(t2, 1.0), c1d, c2d, c3d);
+  const double c1 = c1d.v, c2 = c2d.v, c3 = c3d.v, c1p = c1d.d, c2p = c2d.d, c3p = c3d.d;
+  const Vec3 st = s.head<3>(), sb = s.tail<3>();
+  const double sp = st.dot(p), sr = st.dot(r), d = p.dot(r);
+  const Vec3 sxp = st.cross(p), w = p.cross(r), rxs = r.cross(st);
+  const double sw = st.dot(w), Z = c1 - c3 * t2, Zp = c1p - c3p * t2 - c3;
   for (int j = 0; j < 3; ++j) {
     const Vec3 e = Vec3::Unit(j);
     const Vec3 exs = e.cross(st);
-    const double sPj = p.dot(exs);
-    Vec3 G = 0.5 * exs + c1.v * (p[j] * st + sp * e - sPj * p) + c2.v * (p[j] * sxp - sp * e.cross(p) + sPj * p) -
-             (2.0 * c3.v * sp * p[j]) * p - (2.0 * (c1.v - c3.v * t2v) * st[j]) * p;
-    for (int l = 0; l < 3; ++l) N(3 + j, l) = -G[l];
-  }
-  for (int l = 0; l < 3; ++l) N.block<3, 1>(0, l).setZero();
-  for (int k = 0; k < 3; ++k) {
-    const double dt2 = -2.0 * pv[k];  // x_(3+k) = -p_k
-    Dual r[3], pd[3];
-    for (int i = 0; i < 3; ++i) {
-      r[i] = Dual(rv[i], 0.0);
-      pd[i] = Dual(pv[i], i == k ? -1.0 : 0.0);
+    const Vec3 gr = 0.5 * exs + c1 * (p[j] * st + sp * e - sxp[j] * p) + c2 * (p[j] * sxp - sp * e.cross(p) + sxp[j] * p) -
+                    (2.0 * c3 * sp * p[j]) * p - (2.0 * Z * st[j]) * p;
+    const double X1 = sr * p[j] + sp * r[j] - d * sxp[j], X2 = sw * p[j] - sp * w[j] + d * sxp[j], Y = d * sp * p[j];
+    const Vec3 gp = (2.0 * c1p * X1) * p + c1 * (sr * e + r[j] * st - sxp[j] * r - d * exs) + (2.0 * c2p * X2) * p +
+                    c2 * (p[j] * rxs + sw * e - w[j] * st - sp * r.cross(e) + sxp[j] * r + d * exs) -
+                    2.0 * ((2.0 * c3p * Y) * p + c3 * ((sp * p[j]) * r + (d * p[j]) * st + (d * sp) * e)) -
+                    (2.0 * st[j]) * ((2.0 * d * Zp) * p + Z * r);
+    for (int l = 0; l < 3; ++l) {
+      N(3 + j, l) = -gr[l];
+      N(3 + j, 3 + l) = -gp[l];
     }
-    const M3<Dual> Q = se3_coupling_assemble<Dual>(r, pd, Dual(t2v, dt2), Dual(c1.v, c1.d * dt2),
-                                                   Dual(c2.v, c2.d * dt2), Dual(c3.v, c3.d * dt2));
-    Vec3 qs = Vec3::Zero();
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) qs[j] += Q.m[i][j].d * st[i];
+  }
+  for (int k = 0; k < 3; ++k) {
+    N.block<3, 1>(0, k).setZero();
     N.block<3, 1>(0, 3 + k).noalias() = D3[k].transpose() * st;
-    N.block<3, 1>(3, 3 + k).noalias() = qs + D3[k].transpose() * sb;
+    N.block<3, 1>(3, 3 + k).noalias() += D3[k].transpose() * sb;
   }
 }
 

@@ -13,6 +13,7 @@
 #include "binding_checks.hpp"
 #include "contracted.hpp"
 #include "dynamics.hpp"
+#include "lie.hpp"
 #include "pin_model.hpp"
 #include "riccati.hpp"
 #include "small_gemm.hpp"
@@ -254,6 +255,22 @@ PYBIND11_MODULE(_core, m) {
       },
       py::arg("model"), py::arg("omega"),
       "Ad_exp(-omega) (nv, nv), Jr(omega) (nv, nv) and D (nv, nv, nv), D[i, j, l] = d Jr[i, j] / d omega_l.");
+
+  m.def(
+      "se3_djr_transpose_apply",
+      [](const Arr& x, const Arr& s) {
+        check_shape(x, {6}, "x");
+        check_shape(s, {6}, "s");
+        geoddp::lie::Mat6 N;
+        geoddp::lie::se3_djr_transpose_apply(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(x.data()),
+                                             Eigen::Map<const Eigen::Matrix<double, 6, 1>>(s.data()), N);
+        Arr out = empty({6, 6});
+        Eigen::Map<Eigen::Matrix<double, 6, 6, Eigen::RowMajor>>(out.mutable_data()) = N;
+        return out;
+      },
+      py::arg("x"), py::arg("s"),
+      "N (6, 6), N[:, l] = (d Jr(x) / d x_l)^T s for an SE(3) twist x = [linear; angular] (the variational\n"
+      "step's dK^T terms; cpp/lie.hpp).");
 
   m.def(
       "backward_pass",

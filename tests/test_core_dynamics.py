@@ -217,6 +217,30 @@ def test_closed_forms_equal_python(angle):
                 assert np.abs(D[g.slice, g.slice, g.idx_v + l] - d).max() < 1e-10
 
 
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 1e-2, 0.3, 0.59, 0.61, 1.0, 2.0, 3.1, np.pi - 1e-6])
+def test_se3_djr_transpose_apply_equals_the_derivative(angle):
+    """The variational step's dK^T terms take (dJr(x)/dx_l)^T s of SE(3) from closed-form gradients of
+    s^T Q(r, p) (cpp/lie.hpp, se3_djr_transpose_apply) instead of forming dJr: equal to the dual-number
+    dJr of block_ad_jr applied to s to round-off, and to O(h^4) differences of the Python closed-form
+    Jr, from the identity through both sides of the coupling's series branch (|w| = 0.6) to near pi."""
+    ff = Multibody(urdf_file("spacecraft.urdf"), root="free_flyer", dt=0.01)
+    rng = np.random.default_rng(int(angle * 1e4) + 5)
+    for _ in range(20):
+        x, s = rng.normal(size=6), rng.normal(size=6)
+        axis = rng.normal(size=3)
+        x[3:] = angle * axis / np.linalg.norm(axis)
+        N = core.se3_djr_transpose_apply(x, s)
+        _, _, D = core.block_ad_jr(ff.pin_model, x)
+        expected = np.einsum("ijl,i->jl", D, s)
+        assert np.abs(N - expected).max() <= 1e-14 * max(1.0, np.abs(expected).max())
+        h = 1e-3
+        for l in range(6):
+            e = h * np.eye(6)[l]
+            d = (8 * (SE3.right_jacobian(x + e) - SE3.right_jacobian(x - e))
+                 - (SE3.right_jacobian(x + 2 * e) - SE3.right_jacobian(x - 2 * e))) / (12 * h)
+            assert np.abs(N[:, l] - d.T @ s).max() < 1e-9 * max(1.0, np.abs(s).max())
+
+
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_expansion_equals_python(case, integrator, monkeypatch):
