@@ -12,6 +12,7 @@
 #include <pinocchio/algorithm/rnea.hpp>
 
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -73,6 +74,9 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
     w.Hkin.setZero();
   } else if (!keep_kinetic) {
     pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
+    // dM/dq(q) comes with it (d2tau_dadq(i, j, k) = dM(i, j)/dq_k): D(q, e_l) for every l, which
+    // residual_hessians reads along y instead of one RNEA derivative per direction
+    std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + (size_t)nv * nv * nv, w.dMdq.data());
     const auto& T = w.fdata.d2tau_dqdq;
     for (int i = 0; i < nv; ++i)
       for (int j = 0; j < nv; ++j) {
@@ -411,6 +415,7 @@ VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), 
   Jp.resize(nv, 3 * nv);
   zero = Eigen::VectorXd::Zero(nv);
   for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy, &xi}) v->resize(nv);
+  dMdq.assign((size_t)nv * nv * nv, 0.0);
   qn.resize(nq);
   lu = Eigen::PartialPivLU<Eigen::MatrixXd>(nv);
 }
@@ -537,6 +542,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // One body: every direction is the root's.
   const int root = vm.root_dirs;
   QplusLinear& L = nw.lin;
+  // the base call's dM/dq(q+) (its kinetic-energy Hessian's RNEA call, the last before this one)
+  if (!vm.configuration_free) nw.dMb = w.dMdq;
   L.qn = w.qn;  // the base call's q+, Sq, R_y and the terms they came from
   L.Sq0 = w.Sq;
   L.Ry0 = w.Ry;
@@ -670,10 +677,10 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   Eigen::MatrixXd &Rp = w.Kx, &Rm = w.Dx;  // the step's scratch, free here
   for (int l = 0; l < nv; ++l) {
     const int j = 2 * nv + l;
-    if (linear_D) {
-      nw.yp.setZero();
-      nw.yp[l] = 1.0;
-      Dmat(vm, w, w.qn, nw.yp, nw.Dl);  // D(q+, e_l)
+    if (linear_D) {  // D(q+, e_l)(i, k) = dM(i, l)/dq_k at q+
+      const size_t n = (size_t)nv;
+      for (int k = 0; k < nv; ++k)
+        for (int i = 0; i < nv; ++i) nw.Dl(i, k) = nw.dMb[i + n * (l + n * k)];
     }
     nw.yp = y;
     nw.yp[l] += h;

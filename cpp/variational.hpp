@@ -68,6 +68,7 @@ struct VariationalWork {
   Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx;
   Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+  std::vector<double> dMdq;  // dM/dq (nv^3, Pinocchio's d2tau_dadq) of the last kinetic-energy Hessian
   explicit VariationalWork(const VariationalModel& vm);
 };
 
@@ -103,6 +104,7 @@ struct VariationalNodeWork {
   // a copy of the model whose gravity residual_hessians turns (the root's rotation directions)
   Model gmodel;
   pinocchio::Data gdata;
+  std::vector<double> dMb;  // the base call's dM/dq(q+): D(q+, e_l) along y
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
