@@ -77,6 +77,7 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
     // dM/dq(q) comes with it (d2tau_dadq(i, j, k) = dM(i, j)/dq_k): D(q, e_l) for every l, which
     // residual_hessians reads along y instead of one RNEA derivative per direction
     std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + (size_t)nv * nv * nv, w.dMdq.data());
+    std::copy(w.fdata.d2tau_dqdq.data(), w.fdata.d2tau_dqdq.data() + (size_t)nv * nv * nv, w.d2q.data());
     const auto& T = w.fdata.d2tau_dqdq;
     for (int i = 0; i < nv; ++i)
       for (int j = 0; j < nv; ++j) {
@@ -416,6 +417,7 @@ VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), 
   zero = Eigen::VectorXd::Zero(nv);
   for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy, &xi}) v->resize(nv);
   dMdq.assign((size_t)nv * nv * nv, 0.0);
+  d2q.assign((size_t)nv * nv * nv, 0.0);
   qn.resize(nq);
   lu = Eigen::PartialPivLU<Eigen::MatrixXd>(nv);
 }
@@ -494,7 +496,7 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm), gm
   CF.resize(nv, nz);
   stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
-  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Hkinb, &Sqp, &Sqm, &Ryp, &Rym}) M->resize(nv, nv);
+  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Sqp, &Sqm, &Ryp, &Rym}) M->resize(nv, nv);
   lin.qn.resize(nq);
   lin.xi.resize(nv);
   lin.Sq0.resize(nv, nv);
@@ -543,28 +545,16 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   const int root = vm.root_dirs;
   QplusLinear& L = nw.lin;
   // the base call's dM/dq(q+) (its kinetic-energy Hessian's RNEA call, the last before this one)
-  if (!vm.configuration_free) nw.dMb = w.dMdq;
+  if (!vm.configuration_free) {
+    nw.dMb = w.dMdq;
+    nw.d2b = w.d2q;
+  }
   L.qn = w.qn;  // the base call's q+, Sq, R_y and the terms they came from
   L.Sq0 = w.Sq;
   L.Ry0 = w.Ry;
   nw.M1b = w.M1;
   nw.D1b = w.D1;
-  nw.Hkinb = w.Hkin;
   const Eigen::MatrixXd K1 = w.K1;  // K(-dt y): y is fixed throughout
-  auto sq_ry_at = [&](const Eigen::VectorXd& qn, bool rigid, Eigen::MatrixXd& Sq, Eigen::MatrixXd& Ry) {
-    if (rigid) {  // the root's pose: only the gravity terms change
-      w.D1 = nw.D1b;
-      w.Hkin = nw.Hkinb;
-      lagrangian_hessian(vm, w, qn, y, true);
-    } else {
-      mass(vm, w, qn, w.M1);
-      Dmat(vm, w, qn, y, w.D1);
-      lagrangian_hessian(vm, w, qn, y);
-      velocity_jacobian(vm, w, K1, w.D1, y, Ry);
-    }
-    Sq.noalias() = K1.transpose() * w.D1;
-    Sq -= dt * w.Hk;
-  };
   // Along the root's pose only the generalised gravity's derivative G(q+) moves (rigid: M, D and
   // the kinetic-energy Hessian do not), and Sq = ... + dt G. G depends on the root's attitude only
   // through the gravity seen from the root, g_r = W^T g (W the root's world rotation), linearly;
@@ -587,21 +577,42 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
       L.dSq[k] = dt * w.T;
     }
   }
-  for (int k = 0; k < nv; ++k) {
-    const bool rigid = k < root;
-    if (rigid && !vm.gravity_free) continue;  // exact, above
-    L.dSq_zero[k] = rigid && vm.gravity_free;
-    L.dRy_zero[k] = rigid;
-    if (L.dSq_zero[k]) continue;
+  for (int k = 0; k < root; ++k) {  // without gravity the root's pose changes nothing
+    if (!vm.gravity_free) break;
+    L.dSq_zero[k] = L.dRy_zero[k] = 1;
+  }
+  // Along a joint direction k of q+, M(q+) and D(q+, y) move with the base call's own tensors
+  // (dM/dq and d2tau/dq2 of its second-order RNEA at (q+, 0, y): d(M y)/dq = D, so d2tau/dq2 is
+  // dD/dq, in the order of differentiating the trivialised D along q+ exp(h e_k)). So
+  //   dRy[k] = K1^T dM_k - dt d/dx[K(x)^T dM_k y]|_(x = -dt y) - dt dD_k^T   (exact: R_y is linear in
+  //   M and D), and Sq = K1^T D - dt H gives dSq[k] = K1^T dD_k - dt dH_k,
+  // where only H (the kinetic-energy Hessian less the gravity's derivative) is differenced: one
+  // second-order RNEA and one gravity derivative per point instead of also M, D and R_y there.
+  const size_t n = (size_t)nv;
+  Eigen::MatrixXd &dM = nw.Ryp, &dD = nw.Rym;
+  const Eigen::VectorXd x1 = -dt * y;
+  for (int k = root; k < nv; ++k) {
+    L.dSq_zero[k] = L.dRy_zero[k] = 0;
+    for (int j = 0; j < nv; ++j)
+      for (int i = 0; i < nv; ++i) {
+        dM(i, j) = nw.dMb[i + n * (j + n * k)];
+        dD(i, j) = nw.d2b[i + n * (j + n * k)];
+      }
+    w.tmp.noalias() = dM * y;
+    dKT(vm, w, x1, K1, w.tmp, w.S);
+    L.dRy[k].noalias() = K1.transpose() * dM;
+    L.dRy[k] -= dt * w.S;
+    L.dRy[k].noalias() -= dt * dD.transpose();
     nw.e.setZero();
     nw.e[k] = h;
     pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
-    sq_ry_at(nw.qp, rigid, nw.Sqp, nw.Ryp);
+    lagrangian_hessian(vm, w, nw.qp, y);
+    nw.Sqp = w.Hk;
     nw.e[k] = -h;
     pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
-    sq_ry_at(nw.qp, rigid, nw.Sqm, nw.Rym);
-    L.dSq[k] = (nw.Sqp - nw.Sqm) / (2.0 * h);
-    if (!rigid) L.dRy[k] = (nw.Ryp - nw.Rym) / (2.0 * h);
+    lagrangian_hessian(vm, w, nw.qp, y);
+    L.dSq[k].noalias() = K1.transpose() * dD;
+    L.dSq[k] -= (dt / (2.0 * h)) * (nw.Sqp - w.Hk);
   }
   L.fixed = true;
   for (int k = 0; k < nv; ++k) L.fixed = L.fixed && L.dSq_zero[k] && L.dRy_zero[k];

@@ -68,7 +68,9 @@ struct VariationalWork {
   Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx;
   Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
-  std::vector<double> dMdq;  // dM/dq (nv^3, Pinocchio's d2tau_dadq) of the last kinetic-energy Hessian
+  // dM/dq and d2tau/dq2 at (q, 0, v) (nv^3 each, Pinocchio's d2tau_dadq, d2tau_dqdq) of the last
+  // kinetic-energy Hessian's second-order RNEA
+  std::vector<double> dMdq, d2q;
   explicit VariationalWork(const VariationalModel& vm);
 };
 
@@ -80,7 +82,9 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
 // xi = difference(q+, q+') (nv), Sq(q+') = Sq0 + sum_k xi_k dSq[k] and R_y(q+') = Ry0 + sum_k xi_k dRy[k]
 // (Sq = dR/deta+; y fixed). R_ww's differences along eta and dv move q+ only through these, so
 // their central differences equal those of the exact terms to O(h^2) (variational.cpp,
-// residual_hessians), and q+'s nv directions are differenced once instead of each of eta's and dv's.
+// residual_hessians), and q+'s nv directions are taken once instead of each of eta's and dv's:
+// dRy exactly (from the base point's dM/dq and d2tau/dq2), dSq with only its kinetic-energy
+// Hessian and gravity part differenced (exactly along the root's pose).
 struct QplusLinear {
   Eigen::VectorXd qn, xi;
   Eigen::MatrixXd Sq0, Ry0;
@@ -99,12 +103,12 @@ struct VariationalNodeWork {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_y;  // R_y at the node
   Eigen::MatrixXd Dbase, Dl, Dpm;             // D(q, v) at the base point, D(., e_l), D(q, v +- h e_l)
   QplusLinear lin;
-  // the base call's M(q+), D(q+, y) and kinetic-energy Hessian; residual_hessians' q+ differences
-  Eigen::MatrixXd M1b, D1b, Hkinb, Sqp, Sqm, Ryp, Rym;
+  // the base call's M(q+) and D(q+, y); residual_hessians' q+ differences
+  Eigen::MatrixXd M1b, D1b, Sqp, Sqm, Ryp, Rym;
   // a copy of the model whose gravity residual_hessians turns (the root's rotation directions)
   Model gmodel;
   pinocchio::Data gdata;
-  std::vector<double> dMb;  // the base call's dM/dq(q+): D(q+, e_l) along y
+  std::vector<double> dMb, d2b;  // the base call's dM/dq(q+) and dD(q+, y)/dq (d2tau/dq2 at (q+, 0, y))
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
