@@ -203,8 +203,9 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 // differences them 4 N times per node, and each step's Newton iteration solves with them. Here
 // they run on fixed-size matrices, where the general path's dynamic ones spent as long in Eigen's
 // GEMM kernels, zero D products and block copies as in the closed forms they wrap (with the SE(3)
-// inverse in closed form, lie::se3_jr_inverse: the docking and quadrotor scenes' contracted
-// expansions take 0.56-0.59x the time, their rollouts 0.58-0.61x; same results to round-off).
+// inverse and dJr^T s in closed form, lie::se3_jr_inverse and lie::se3_djr_transpose_apply, the
+// docking and quadrotor scenes' contracted expansions take 0.47x the time they took on the dynamic
+// path, their rollouts 0.45-0.47x; the same results to round-off).
 template <int N>
 struct FixedLie;
 template <>
@@ -544,7 +545,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // One body: every direction is the root's.
   const int root = vm.root_dirs;
   QplusLinear& L = nw.lin;
-  // the base call's dM/dq(q+) (its kinetic-energy Hessian's RNEA call, the last before this one)
+  // the base call's dM/dq(q+) and d2tau/dq2(q+, 0, y) (its kinetic-energy Hessian's second-order
+  // RNEA, the last before this one)
   if (!vm.configuration_free) {
     nw.dMb = w.dMdq;
     nw.d2b = w.d2q;
