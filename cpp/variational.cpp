@@ -30,6 +30,18 @@ namespace {
 const double NEWTON_TOL = 1e-9;
 const int NEWTON_MAX_ITER = 30;
 
+// The stop: a full step of at most NEWTON_TOL relative to the velocity.
+bool newton_converged(double alpha, double step, double y_norm) {
+  return alpha == 1.0 && step <= NEWTON_TOL * (1.0 + y_norm);
+}
+
+// No convergence in NEWTON_MAX_ITER steps: StepNotConverged with |v| (the Python side names dt).
+[[noreturn]] void step_not_converged(const Eigen::VectorXd& v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.3g", v.norm());
+  throw StepNotConverged(buf);
+}
+
 void mass(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q, Eigen::MatrixXd& M) {
   pinocchio::crba(*vm.model, w.data, q);
   M = w.data.M;
@@ -298,15 +310,13 @@ void one_body_step(const VariationalModel& vm, VariationalWork& w, const Eigen::
     r = rt;
     K = Kt;
     if (!y.allFinite()) break;
-    if (alpha == 1.0 && dy.norm() <= NEWTON_TOL * (1.0 + y.norm())) {
+    if (newton_converged(alpha, dy.norm(), y.norm())) {
       q1 = w.qn;
       v1 = y;
       return;
     }
   }
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.3g", v.norm());
-  throw StepNotConverged(buf);
+  step_not_converged(v);
 }
 
 // residual_hessians' columns for such a body (after the q+ model L): the same central differences
@@ -471,15 +481,13 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
     w.K1 = w.Kx;
     w.D1 = w.Dx;
     if (!y.allFinite()) break;
-    if (alpha == 1.0 && w.dy.norm() <= NEWTON_TOL * (1.0 + y.norm())) {
+    if (newton_converged(alpha, w.dy.norm(), y.norm())) {
       q1 = w.qn;
       v1 = y;
       return;
     }
   }
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.3g", v.norm());
-  throw StepNotConverged(buf);
+  step_not_converged(v);
 }
 
 VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm), gmodel(*vm.model), gdata(gmodel) {
