@@ -77,19 +77,20 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 // D(q, v)^T v = 1/2 sum_p v_p d2tau_p/dq_i dq_j (Pinocchio's second-order RNEA at (q, 0, v), no
 // gravity; the (i, j) order is that of differentiating the trivialised D along q exp(h e_j), as
 // the Python oracle's differences do), minus the generalised gravity's derivative.
-// keep_kinetic: the kinetic part w.Hkin is the previous call's (a root direction, see
-// VariationalModel::root_dirs); only the gravity part is recomputed.
+// save_tensors (the base point's call): keep the second-order RNEA's dM/dq and d2tau/dq2 in
+// w.dMdq, w.d2q, which residual_hessians reads (VariationalWork).
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
-                        const Eigen::VectorXd& v, bool keep_kinetic = false) {
+                        const Eigen::VectorXd& v, bool save_tensors = false) {
   const int nv = vm.model->nv;
   if (vm.configuration_free) {
     w.Hkin.setZero();
-  } else if (!keep_kinetic) {
+  } else {
     pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
-    // dM/dq(q) comes with it (d2tau_dadq(i, j, k) = dM(i, j)/dq_k): D(q, e_l) for every l, which
-    // residual_hessians reads along y instead of one RNEA derivative per direction
-    std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + (size_t)nv * nv * nv, w.dMdq.data());
-    std::copy(w.fdata.d2tau_dqdq.data(), w.fdata.d2tau_dqdq.data() + (size_t)nv * nv * nv, w.d2q.data());
+    if (save_tensors) {
+      const size_t n3 = (size_t)nv * nv * nv;
+      std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + n3, w.dMdq.data());
+      std::copy(w.fdata.d2tau_dqdq.data(), w.fdata.d2tau_dqdq.data() + n3, w.d2q.data());
+    }
     const auto& T = w.fdata.d2tau_dqdq;
     for (int i = 0; i < nv; ++i)
       for (int j = 0; j < nv; ++j) {
@@ -180,7 +181,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
     Kmat(vm, w, w.x, w.K1);
     mass(vm, w, w.qn, w.M1);
     Dmat(vm, w, w.qn, y, w.D1);
-    lagrangian_hessian(vm, w, w.qn, y);
+    lagrangian_hessian(vm, w, w.qn, y, true);  // the tensors residual_hessians reads
     w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
     w.Sq -= dt * w.Hk;
   }
@@ -276,8 +277,7 @@ void one_body_step(const VariationalModel& vm, VariationalWork& w, const Eigen::
   const double dt = vm.dt;
   w.omega = dt * v;
   pinocchio::integrate(model, q, w.omega, w.qn);
-  mass(vm, w, q, w.M0);  // = M(q+): constant for such a body
-  const Mat M = w.M0;
+  const Mat M = vm.M_body;  // = M(q) = M(q+)
   const Vec v0 = v;
   Vec c0 = -(L::inverse(L::jr(dt * v0)).transpose() * (M * v0)) - dt * Vec(tau);
   if (!vm.gravity_free) c0 += dt * Vec(pinocchio::computeGeneralizedGravity(model, w.data, w.qn));
@@ -417,6 +417,12 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
   gravity_free = model_.gravity.toVector().isZero(0.0);
   const int root_kind = model_.njoints > 1 ? boost::apply_visitor(GroupKindOf(), model_.joints[1].toVariant()) : -1;
   root_dirs = root_kind == SE3 ? 6 : root_kind == SO3 ? 3 : 0;
+  if (configuration_free) {  // M does not depend on q: computed once here, not once per step
+    pinocchio::Data data(model_);
+    pinocchio::crba(model_, data, pinocchio::neutral(model_));
+    M_body = data.M;
+    M_body.triangularView<Eigen::StrictlyLower>() = M_body.transpose();
+  }
 }
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {
@@ -490,7 +496,8 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   step_not_converged(v);
 }
 
-VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm), gmodel(*vm.model), gdata(gmodel) {
+VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
+  if (vm.root_dirs > 0 && !vm.gravity_free) turned = std::make_unique<TurnedGravity>(*vm.model);
   const int nq = vm.model->nq, nv = vm.model->nv, nz = 2 * nv + vm.m, nw = 3 * nv;
   qp.resize(nq);
   e.resize(2 * nv);  // a step along (eta, dv); y is differenced apart
@@ -505,7 +512,7 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm), gm
   CF.resize(nv, nz);
   stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
-  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Sqp, &Sqm, &Ryp, &Rym}) M->resize(nv, nv);
+  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Hp}) M->resize(nv, nv);
   lin.qn.resize(nq);
   lin.xi.resize(nv);
   lin.Sq0.resize(nv, nv);
@@ -553,12 +560,6 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // One body: every direction is the root's.
   const int root = vm.root_dirs;
   QplusLinear& L = nw.lin;
-  // the base call's dM/dq(q+) and d2tau/dq2(q+, 0, y) (its kinetic-energy Hessian's second-order
-  // RNEA, the last before this one)
-  if (!vm.configuration_free) {
-    nw.dMb = w.dMdq;
-    nw.d2b = w.d2q;
-  }
   L.qn = w.qn;  // the base call's q+, Sq, R_y and the terms they came from
   L.Sq0 = w.Sq;
   L.Ry0 = w.Ry;
@@ -574,16 +575,17 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // directions give exactly zero.
   const int rot0 = root == 6 ? 3 : 0;  // the root's rotation directions: rot0 .. root - 1
   if (root > 0 && !vm.gravity_free) {
-    pinocchio::forwardKinematics(nw.gmodel, nw.gdata, L.qn);
-    const Eigen::Matrix3d W = nw.gdata.oMi[1].rotation();
+    TurnedGravity& tg = *nw.turned;
+    pinocchio::forwardKinematics(tg.model, tg.data, L.qn);
+    const Eigen::Matrix3d W = tg.data.oMi[1].rotation();
     const Eigen::Vector3d g = vm.model->gravity.linear();
     for (int k = 0; k < root; ++k) {
       L.dRy_zero[k] = 1;
       L.dSq_zero[k] = k < rot0;
       if (k < rot0) continue;
-      nw.gmodel.gravity.linear() = g.cross(W.col(k - rot0));
+      tg.model.gravity.linear() = g.cross(W.col(k - rot0));
       w.T.setZero();
-      pinocchio::computeGeneralizedGravityDerivatives(nw.gmodel, nw.gdata, L.qn, w.T);
+      pinocchio::computeGeneralizedGravityDerivatives(tg.model, tg.data, L.qn, w.T);
       L.dSq[k] = dt * w.T;
     }
   }
@@ -598,16 +600,12 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   //   M and D), and Sq = K1^T D - dt H gives dSq[k] = K1^T dD_k - dt dH_k,
   // where only H (the kinetic-energy Hessian less the gravity's derivative) is differenced: one
   // second-order RNEA and one gravity derivative per point instead of also M, D and R_y there.
-  const size_t n = (size_t)nv;
-  Eigen::MatrixXd &dM = nw.Ryp, &dD = nw.Rym;
+  // (w.dMdq, w.d2q: the base call's, column-major (i, j, k); page k is the nv x nv slice at k nv^2)
+  const size_t nn = (size_t)nv * nv;
   const Eigen::VectorXd x1 = -dt * y;
   for (int k = root; k < nv; ++k) {
     L.dSq_zero[k] = L.dRy_zero[k] = 0;
-    for (int j = 0; j < nv; ++j)
-      for (int i = 0; i < nv; ++i) {
-        dM(i, j) = nw.dMb[i + n * (j + n * k)];
-        dD(i, j) = nw.d2b[i + n * (j + n * k)];
-      }
+    const Eigen::Map<const Eigen::MatrixXd> dM(w.dMdq.data() + k * nn, nv, nv), dD(w.d2q.data() + k * nn, nv, nv);
     w.tmp.noalias() = dM * y;
     dKT(vm, w, x1, K1, w.tmp, w.S);
     L.dRy[k].noalias() = K1.transpose() * dM;
@@ -617,12 +615,12 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     nw.e[k] = h;
     pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
     lagrangian_hessian(vm, w, nw.qp, y);
-    nw.Sqp = w.Hk;
+    nw.Hp = w.Hk;
     nw.e[k] = -h;
     pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
     lagrangian_hessian(vm, w, nw.qp, y);
     L.dSq[k].noalias() = K1.transpose() * dD;
-    L.dSq[k] -= (dt / (2.0 * h)) * (nw.Sqp - w.Hk);
+    L.dSq[k] -= (dt / (2.0 * h)) * (nw.Hp - w.Hk);
   }
   L.fixed = true;
   for (int k = 0; k < nv; ++k) L.fixed = L.fixed && L.dSq_zero[k] && L.dRy_zero[k];
@@ -698,11 +696,9 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   Eigen::MatrixXd &Rp = w.Kx, &Rm = w.Dx;  // the step's scratch, free here
   for (int l = 0; l < nv; ++l) {
     const int j = 2 * nv + l;
-    if (linear_D) {  // D(q+, e_l)(i, k) = dM(i, l)/dq_k at q+
-      const size_t n = (size_t)nv;
-      for (int k = 0; k < nv; ++k)
-        for (int i = 0; i < nv; ++i) nw.Dl(i, k) = nw.dMb[i + n * (l + n * k)];
-    }
+    if (linear_D)  // D(q+, e_l)(i, k) = dM(i, l)/dq_k at q+: column l of every page of w.dMdq
+      nw.Dl = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(w.dMdq.data() + (size_t)l * nv, nv, nv,
+                                                                        Eigen::OuterStride<>((Eigen::Index)nv * nv));
     nw.yp = y;
     nw.yp[l] += h;
     Ry_at(nw.yp, 1.0, Rp);

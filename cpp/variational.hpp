@@ -22,6 +22,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/LU>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -58,6 +59,7 @@ struct VariationalModel {
   // (gravity_free) R's Jacobian does not change at all. One body: all of its nv dofs.
   int root_dirs;
   bool gravity_free;
+  Eigen::MatrixXd M_body;  // configuration_free: the constant mass matrix (nv, nv)
   VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
 };
 
@@ -68,8 +70,8 @@ struct VariationalWork {
   Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx;
   Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
-  // dM/dq and d2tau/dq2 at (q, 0, v) (nv^3 each, Pinocchio's d2tau_dadq, d2tau_dqdq) of the last
-  // kinetic-energy Hessian's second-order RNEA
+  // dM/dq and d2tau/dq2 at (q+, 0, y) (nv^3 each, Pinocchio's d2tau_dadq, d2tau_dqdq, column-major)
+  // of the base point's second-order RNEA: residual_hessians' exact q+ terms and D(q+, e_l)
   std::vector<double> dMdq, d2q;
   explicit VariationalWork(const VariationalModel& vm);
 };
@@ -103,12 +105,16 @@ struct VariationalNodeWork {
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_y;  // R_y at the node
   Eigen::MatrixXd Dbase, Dl, Dpm;             // D(q, v) at the base point, D(., e_l), D(q, v +- h e_l)
   QplusLinear lin;
-  // the base call's M(q+) and D(q+, y); residual_hessians' q+ differences
-  Eigen::MatrixXd M1b, D1b, Sqp, Sqm, Ryp, Rym;
-  // a copy of the model whose gravity residual_hessians turns (the root's rotation directions)
-  Model gmodel;
-  pinocchio::Data gdata;
-  std::vector<double> dMb, d2b;  // the base call's dM/dq(q+) and dD(q+, y)/dq (d2tau/dq2 at (q+, 0, y))
+  // the base call's M(q+) and D(q+, y); the kinetic-energy Hessian at q+ exp(h e_k)
+  Eigen::MatrixXd M1b, D1b, Hp;
+  // a copy of the model whose gravity residual_hessians turns (the root's rotation directions;
+  // made only for a free-flyer or spherical root under gravity)
+  struct TurnedGravity {
+    Model model;
+    pinocchio::Data data;
+    explicit TurnedGravity(const Model& m) : model(m), data(model) {}
+  };
+  std::unique_ptr<TurnedGravity> turned;
   explicit VariationalNodeWork(const VariationalModel& vm);
 };
 
