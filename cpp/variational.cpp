@@ -575,7 +575,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // directions give exactly zero.
   const int rot0 = root == 6 ? 3 : 0;  // the root's rotation directions: rot0 .. root - 1
   if (root > 0 && !vm.gravity_free) {
-    TurnedGravity& tg = *nw.turned;
+    VariationalNodeWork::TurnedGravity& tg = *nw.turned;
     pinocchio::forwardKinematics(tg.model, tg.data, L.qn);
     const Eigen::Matrix3d W = tg.data.oMi[1].rotation();
     const Eigen::Vector3d g = vm.model->gravity.linear();
