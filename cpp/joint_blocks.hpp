@@ -53,11 +53,17 @@ inline void djr_columns(const std::vector<JointGroup>& groups, const Eigen::Vect
   for (const JointGroup& g : groups) {
     const int o = g.idx_v;
     if (g.kind == SO3) {
-      lie::Mat3 Dl[3];
-      lie::so3_djr(theta.segment<3>(o), Dl);
-      for (int l = 0; l < 3; ++l) {
-        if constexpr (Transpose) out.block<3, 1>(o, o + l) = Dl[l].transpose() * y.segment<3>(o);
-        else out.block<3, 1>(o, o + l) = Dl[l] * y.segment<3>(o);
+      if constexpr (Transpose) {
+        const lie::Vec3 x = theta.segment<3>(o);
+        double a, b, al, be;
+        lie::so3_coefficients(x.norm(), a, b, al, be);
+        lie::Mat3 Nt;
+        lie::so3_djr_transpose_apply(x, y.segment<3>(o), a, b, al, be, Nt);
+        out.block<3, 3>(o, o) = Nt;
+      } else {
+        lie::Mat3 Dl[3];
+        lie::so3_djr(theta.segment<3>(o), Dl);
+        for (int l = 0; l < 3; ++l) out.block<3, 1>(o, o + l) = Dl[l] * y.segment<3>(o);
       }
     } else if (g.kind == SE3) {
       if constexpr (Transpose) {

@@ -102,6 +102,20 @@ inline Mat3 so3_jr(const Vec3& x) {
   return Mat3::Identity() - a * K + b * (K * K);
 }
 
+// Out(:, l) = (d Jr(x) / d x_l)^T u of SO(3), l = 0..2, from Jr's coefficients a, b, alpha, beta
+// at x (so3_coefficients), without forming so3_djr's matrices: with K = hat(x), E = hat(e_l),
+// D[l]^T = alpha x_l K + a E + beta x_l K^2 + b (K E + E K) (K, E skew, K^2 symmetric), so
+//   D[l]^T u = alpha x_l (x × u) + a (e_l × u) + beta x_l (x × (x × u)) + b (x × (e_l × u) + e_l × (x × u)).
+// About a third of the arithmetic of so3_djr and three matrix-vector products; equal to them to
+// round-off (tests/test_core_dynamics.py, through se3_djr_transpose_apply).
+inline void so3_djr_transpose_apply(const Vec3& x, const Vec3& u, double a, double b, double al, double be, Mat3& out) {
+  const Vec3 xu = x.cross(u), xxu = x.cross(xu);
+  for (int l = 0; l < 3; ++l) {
+    const Vec3 eu = Vec3::Unit(l).cross(u);
+    out.col(l) = (al * x[l]) * xu + a * eu + (be * x[l]) * xxu + b * (x.cross(eu) + Vec3::Unit(l).cross(xu));
+  }
+}
+
 // D[l](i, j) = d Jr(x)(i, j) / d x_l of SO(3) (geoddp.lie.SO3.right_jacobian_derivative_batch).
 inline void so3_djr(const Vec3& x, Mat3 D[3]) {
   double a, b, al, be;
@@ -211,6 +225,40 @@ inline M3<S> se3_coupling(const S r[3], const S p[3]) {
   return se3_coupling_assemble(r, p, t2, c1, c2, c3);
 }
 
+// The scalar functions behind SE(3)'s Jr(x) and its derivative at one x: the rotation block's a, b,
+// alpha, beta (so3_coefficients at |w|) and the coupling block's c1, c2, c3 with their
+// t2-derivatives (dual parts; se3_coupling_coefficients at t2 = |w|^2). A caller that needs both
+// Jr(x) and dJr(x)^T s at one x (the variational step's phi_jacobian) computes them once instead of
+// twice; the values are bitwise those se3_jr computes (a dual's value part is the same double
+// arithmetic).
+struct Se3JrCoefficients {
+  double a, b, al, be;
+  Dual c1, c2, c3;
+};
+inline Se3JrCoefficients se3_jr_coefficients(const Eigen::Matrix<double, 6, 1>& x) {
+  Se3JrCoefficients k;
+  so3_coefficients(x.tail<3>().norm(), k.a, k.b, k.al, k.be);
+  const Vec3 p = -x.tail<3>();
+  se3_coupling_coefficients(Dual(p.squaredNorm(), 1.0), k.c1, k.c2, k.c3);
+  return k;
+}
+
+// Jr(x) of SE(3) from its coefficients at x (se3_jr_coefficients): bitwise se3_jr(x).
+inline Mat6 se3_jr(const Eigen::Matrix<double, 6, 1>& x, const Se3JrCoefficients& k) {
+  Mat6 J = Mat6::Zero();
+  const Mat3 K = hat(x.tail<3>());
+  const Mat3 J3 = Mat3::Identity() - k.a * K + k.b * (K * K);
+  J.topLeftCorner<3, 3>() = J3;
+  J.bottomRightCorner<3, 3>() = J3;
+  double r[3], p[3];
+  for (int i = 0; i < 3; ++i) { r[i] = -x[i]; p[i] = -x[3 + i]; }
+  const double t2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+  const M3<double> Q = se3_coupling_assemble<double>(r, p, t2, k.c1.v, k.c2.v, k.c3.v);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) J(i, 3 + j) = Q.m[i][j];
+  return J;
+}
+
 // Jr(x) of SE(3), x = [linear; angular]: [[Jr3(w), Q(-v, -w)], [0, Jr3(w)]].
 inline Mat6 se3_jr(const Eigen::Matrix<double, 6, 1>& x) {
   Mat6 J = Mat6::Zero();
@@ -293,15 +341,13 @@ inline void se3_djr(const Eigen::Matrix<double, 6, 1>& x, Mat6 D[6]) {
 //                - 2 s_j (2 d (c1' - c3' t2 - c3) p + (c1 - c3 t2) r).
 // Equal to se3_djr's D[l]^T s to round-off (the variational tests check F1 against the Python
 // oracle to 1e-10 through it).
+// The rotation blocks' D3^T s_t and D3^T s_b come from so3_djr_transpose_apply. k: the
+// coefficients at x (se3_jr_coefficients).
 inline void se3_djr_transpose_apply(const Eigen::Matrix<double, 6, 1>& x, const Eigen::Matrix<double, 6, 1>& s,
-                                    Mat6& N) {
-  Mat3 D3[3];
-  so3_djr(x.tail<3>(), D3);
+                                    Mat6& N, const Se3JrCoefficients& k) {
   const Vec3 r = -x.head<3>(), p = -x.tail<3>();
   const double t2 = p.squaredNorm();
-  Dual c1d, c2d, c3d;
-  se3_coupling_coefficients(Dual(t2, 1.0), c1d, c2d, c3d);
-  const double c1 = c1d.v, c2 = c2d.v, c3 = c3d.v, c1p = c1d.d, c2p = c2d.d, c3p = c3d.d;
+  const double c1 = k.c1.v, c2 = k.c2.v, c3 = k.c3.v, c1p = k.c1.d, c2p = k.c2.d, c3p = k.c3.d;
   const Vec3 st = s.head<3>(), sb = s.tail<3>();
   const double sp = st.dot(p), sr = st.dot(r), d = p.dot(r);
   const Vec3 sxp = st.cross(p), w = p.cross(r), rxs = r.cross(st);
@@ -321,11 +367,17 @@ inline void se3_djr_transpose_apply(const Eigen::Matrix<double, 6, 1>& x, const 
       N(3 + j, 3 + l) = -gp[l];
     }
   }
-  for (int k = 0; k < 3; ++k) {
-    N.block<3, 1>(0, k).setZero();
-    N.block<3, 1>(0, 3 + k).noalias() = D3[k].transpose() * st;
-    N.block<3, 1>(3, 3 + k).noalias() += D3[k].transpose() * sb;
-  }
+  Mat3 Dt, Db;
+  so3_djr_transpose_apply(x.tail<3>(), st, k.a, k.b, k.al, k.be, Dt);
+  so3_djr_transpose_apply(x.tail<3>(), sb, k.a, k.b, k.al, k.be, Db);
+  N.topLeftCorner<3, 3>().setZero();
+  N.topRightCorner<3, 3>() = Dt;
+  N.bottomRightCorner<3, 3>() += Db;
+}
+
+inline void se3_djr_transpose_apply(const Eigen::Matrix<double, 6, 1>& x, const Eigen::Matrix<double, 6, 1>& s,
+                                    Mat6& N) {
+  se3_djr_transpose_apply(x, s, N, se3_jr_coefficients(x));
 }
 
 // Structure constants of so(3) and se(3): [x, y]_i = sum_{p, q} C[i](p, q) x_p y_q

@@ -221,48 +221,68 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 // path, their rollouts 0.45-0.47x; the same results to round-off).
 template <int N>
 struct FixedLie;
+// Each keeps the scalar coefficients of Jr at a point (Coef) so that Jr(x) and dJr(x)^T s at one x
+// share their transcendental functions and Taylor series (lie::se3_jr_coefficients).
 template <>
 struct FixedLie<6> {
   typedef lie::Mat6 Mat;
   typedef Eigen::Matrix<double, 6, 1> Vec;
-  static Mat jr(const Vec& x) { return lie::se3_jr(x); }
+  typedef lie::Se3JrCoefficients Coef;
+  static Coef coefficients(const Vec& x) { return lie::se3_jr_coefficients(x); }
+  static Mat jr(const Vec& x, const Coef& k) { return lie::se3_jr(x, k); }
   static Mat inverse(const Mat& J) { return lie::se3_jr_inverse(J); }
-  static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N) { lie::se3_djr_transpose_apply(x, s, N); }
+  static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N, const Coef& k) {
+    lie::se3_djr_transpose_apply(x, s, N, k);
+  }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp6(pinocchio::Motion(-x)).toActionMatrix(); }
 };
 template <>
 struct FixedLie<3> {
   typedef lie::Mat3 Mat;
   typedef lie::Vec3 Vec;
-  static Mat jr(const Vec& x) { return lie::so3_jr(x); }
+  struct Coef {
+    double a, b, al, be;
+  };
+  static Coef coefficients(const Vec& x) {
+    Coef k;
+    lie::so3_coefficients(x.norm(), k.a, k.b, k.al, k.be);
+    return k;
+  }
+  static Mat jr(const Vec& x, const Coef& k) {
+    const Mat K = lie::hat(x);
+    return Mat::Identity() - k.a * K + k.b * (K * K);  // lie::so3_jr's arithmetic
+  }
   static Mat inverse(const Mat& J) { return J.inverse(); }
-  static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N) {
-    Mat D[3];
-    lie::so3_djr(x, D);
-    for (int l = 0; l < 3; ++l) N.col(l).noalias() = D[l].transpose() * s;
+  static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N, const Coef& k) {
+    lie::so3_djr_transpose_apply(x, s, k.a, k.b, k.al, k.be, N);
   }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp3(x).transpose(); }
 };
 
-// d/dp [K(c p)^T M p] = K^T M + c d/dx[K(x)^T (M p)] = K^T (M - c N), K = Jr(c p)^-1 given and
-// N(:, l) = dJr/dx_l^T K^T M p (the general path's dKT and velocity_jacobian).
+// d/dp [K(c p)^T M p] = K^T M + c d/dx[K(x)^T (M p)] = K^T (M - c N), K = Jr(c p)^-1 given with
+// Jr's coefficients k at c p, and N(:, l) = dJr/dx_l^T K^T M p (the general path's dKT and
+// velocity_jacobian).
 template <int N>
 typename FixedLie<N>::Mat phi_jacobian_K(const typename FixedLie<N>::Mat& M, const typename FixedLie<N>::Vec& p,
-                                         double c, const typename FixedLie<N>::Mat& K) {
+                                         double c, const typename FixedLie<N>::Mat& K,
+                                         const typename FixedLie<N>::Coef& k) {
   typedef FixedLie<N> L;
   const typename L::Vec s = K.transpose() * (M * p);
   typename L::Mat Nm;
-  L::djr_transpose_apply(c * p, s, Nm);
+  L::djr_transpose_apply(c * p, s, Nm, k);
   return K.transpose() * (M - c * Nm);
 }
 
-// The same with K computed; Jr(c p) into *jr.
+// The same with Jr and K computed; Jr(c p) into *jr.
 template <int N>
 typename FixedLie<N>::Mat phi_jacobian(const typename FixedLie<N>::Mat& M, const typename FixedLie<N>::Vec& p,
                                        double c, typename FixedLie<N>::Mat* jr = nullptr) {
-  const typename FixedLie<N>::Mat J = FixedLie<N>::jr(c * p);
+  typedef FixedLie<N> L;
+  const typename L::Vec x = c * p;
+  const typename L::Coef k = L::coefficients(x);
+  const typename L::Mat J = L::jr(x, k);
   if (jr) *jr = J;
-  return phi_jacobian_K<N>(M, p, c, FixedLie<N>::inverse(J));
+  return phi_jacobian_K<N>(M, p, c, L::inverse(J), k);
 }
 
 // variational_step for such a body on fixed-size matrices: the same start and damped Newton
@@ -279,36 +299,44 @@ void one_body_step(const VariationalModel& vm, VariationalWork& w, const Eigen::
   pinocchio::integrate(model, q, w.omega, w.qn);
   const Mat M = vm.M_body;  // = M(q) = M(q+)
   const Vec v0 = v;
-  Vec c0 = -(L::inverse(L::jr(dt * v0)).transpose() * (M * v0)) - dt * Vec(tau);
+  const Vec x0 = dt * v0;
+  Vec c0 = -(L::inverse(L::jr(x0, L::coefficients(x0))).transpose() * (M * v0)) - dt * Vec(tau);
   if (!vm.gravity_free) c0 += dt * Vec(pinocchio::computeGeneralizedGravity(model, w.data, w.qn));
-  auto residual = [&](const Vec& y, Mat& K) -> Vec {
-    K = L::inverse(L::jr(-dt * y));
+  // R(y) with K = Jr(-dt y)^-1 and Jr's coefficients at -dt y, which the Newton Jacobian reuses
+  typedef typename L::Coef Coef;
+  auto residual = [&](const Vec& y, Mat& K, Coef& k) -> Vec {
+    const Vec x = -dt * y;
+    k = L::coefficients(x);
+    K = L::inverse(L::jr(x, k));
     return K.transpose() * (M * y) + c0;
   };
   Mat K, Kt, Kv;
+  Coef k, kt, kv;
   Vec y = v0 + dt * Vec(geoddp::aba(model, w.data, w.qn, v, tau));
-  Vec r = residual(y, K);
-  const Vec r0 = residual(v0, Kv);
+  Vec r = residual(y, K, k);
+  const Vec r0 = residual(v0, Kv, kv);
   if (!r.allFinite() || r0.norm() < r.norm()) {
     y = v0;
     r = r0;
     K = Kv;
+    k = kv;
   }
   for (int it = 0; it < NEWTON_MAX_ITER; ++it) {
-    const Eigen::PartialPivLU<Mat> lu(phi_jacobian_K<N>(M, y, -dt, K));
+    const Eigen::PartialPivLU<Mat> lu(phi_jacobian_K<N>(M, y, -dt, K, k));
     const Vec dy = lu.solve(r);
     const double norm_r = r.norm(), tol = NEWTON_TOL * (1.0 + y.norm());
     double alpha = 1.0;
     Vec yt, rt;
     while (true) {
       yt = y - alpha * dy;
-      rt = residual(yt, Kt);
+      rt = residual(yt, Kt, kt);
       if (rt.norm() < norm_r || alpha < 1e-6 || alpha * dy.norm() <= tol) break;
       alpha *= 0.5;
     }
     y = yt;
     r = rt;
     K = Kt;
+    k = kt;
     if (!y.allFinite()) break;
     if (newton_converged(alpha, dy.norm(), y.norm())) {
       q1 = w.qn;
@@ -317,6 +345,48 @@ void one_body_step(const VariationalModel& vm, VariationalWork& w, const Eigen::
     }
   }
   step_not_converged(v);
+}
+
+// residual_jacobian at the base point for such a body, on fixed-size matrices: with M constant and
+// D = 0, Sq = dR/deta+ = dt G(q+) (G the generalised gravity's derivative; zero without gravity),
+//   J = [Sq Ad_exp(-dt v), dt Sq Jr(dt v) - d/dp[K(dt p)^T M p](v), d/dp[K(-dt p)^T M p](y)],
+// the general path's terms with its zero D products, CRBA calls and dynamic blocks dropped. Fills
+// what residual_hessians and one_body_columns read from the base call: w.qn, w.omega, w.Sq, w.Ry,
+// w.K1, w.M0 = w.M1 = M and w.D0 = w.D1 = 0, and J.
+template <int N>
+void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
+                       const Eigen::VectorXd& v, const Eigen::VectorXd& y) {
+  typedef FixedLie<N> L;
+  typedef typename L::Mat Mat;
+  typedef typename L::Vec Vec;
+  const double dt = vm.dt;
+  const Mat M = vm.M_body;
+  const Vec omega = dt * Vec(v), x1 = -dt * Vec(y);
+  w.omega = omega;
+  pinocchio::integrate(*vm.model, q, w.omega, w.qn);
+  Mat Jv, Jy;
+  const Mat Jdv = -phi_jacobian<N>(M, Vec(v), dt, &Jv);
+  const typename L::Coef k1 = L::coefficients(x1);
+  Jy = L::jr(x1, k1);
+  const Mat K1 = L::inverse(Jy);
+  const Mat Ry = phi_jacobian_K<N>(M, Vec(y), -dt, K1, k1);
+  Mat Sq = Mat::Zero();
+  if (!vm.gravity_free) {
+    w.T.setZero();
+    pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, w.qn, w.T);
+    Sq = dt * Mat(w.T);
+  }
+  if (vm.gravity_free) w.J.leftCols(N).setZero();
+  else w.J.leftCols(N) = Sq * L::ad_exp_minus(omega);
+  w.J.middleCols(N, N) = Jdv + dt * (Sq * Jv);
+  w.J.rightCols(N) = Ry;
+  w.Sq = Sq;
+  w.Ry = Ry;
+  w.K1 = K1;
+  w.M0 = M;
+  w.M1 = M;
+  w.D0.setZero();
+  w.D1.setZero();
 }
 
 // residual_hessians' columns for such a body (after the q+ model L): the same central differences
@@ -343,7 +413,7 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
     for (int i = 0; i < N; ++i) nw.T[i].leftCols(N).setZero();
   } else {
     const Vec omega0 = dt * v0;
-    const Mat A0 = L::ad_exp_minus(omega0), Jv0 = L::jr(omega0);
+    const Mat A0 = L::ad_exp_minus(omega0), Jv0 = L::jr(omega0, L::coefficients(omega0));
     w.omega = omega0;
     Mat Sqs[2];
     for (int j = 0; j < N; ++j) {
@@ -532,7 +602,12 @@ void node_first_order(const VariationalModel& vm, VariationalNodeWork& nw, const
   const int nv = vm.model->nv, m = vm.m, nz = 2 * nv + m;
   CMatMap Hm(vm.H, nv, m);
   VariationalWork& w = nw.w;
-  residual_jacobian(vm, w, q, v, y, w.J);
+  if (vm.configuration_free) {
+    if (nv == 6) one_body_jacobian<6>(vm, w, q, v, y);
+    else one_body_jacobian<3>(vm, w, q, v, y);
+  } else {
+    residual_jacobian(vm, w, q, v, y, w.J);
+  }
   nw.lu_y.compute(w.J.rightCols(nv));
   nw.Rz.leftCols(2 * nv) = w.J.leftCols(2 * nv);
   nw.Rz.rightCols(m) = -vm.dt * Hm;
