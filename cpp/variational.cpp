@@ -235,6 +235,16 @@ struct FixedLie<6> {
     lie::se3_djr_transpose_apply(x, s, N, k);
   }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp6(pinocchio::Motion(-x)).toActionMatrix(); }
+  static void djr(const Vec& x, Mat D[6]) { lie::se3_djr(x, D); }
+  // ad(xi) of se(3), xi = [v; w]: [[hat(w), hat(v)], [0, hat(w)]] (Pinocchio's motion action)
+  static Mat ad(const Vec& xi) {
+    Mat a = Mat::Zero();
+    const lie::Mat3 W = lie::hat(xi.tail<3>());
+    a.topLeftCorner<3, 3>() = W;
+    a.bottomRightCorner<3, 3>() = W;
+    a.topRightCorner<3, 3>() = lie::hat(xi.head<3>());
+    return a;
+  }
 };
 template <>
 struct FixedLie<3> {
@@ -257,6 +267,8 @@ struct FixedLie<3> {
     lie::so3_djr_transpose_apply(x, s, k.a, k.b, k.al, k.be, N);
   }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp3(x).transpose(); }
+  static void djr(const Vec& x, Mat D[3]) { lie::so3_djr(x, D); }
+  static Mat ad(const Vec& xi) { return lie::hat(xi); }
 };
 
 // d/dp [K(c p)^T M p] = K^T M + c d/dx[K(x)^T (M p)] = K^T (M - c N), K = Jr(c p)^-1 given with
@@ -389,8 +401,9 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   w.D1.setZero();
 }
 
-// residual_hessians' columns for such a body (after the q+ model L): the same central differences
-// as the general path, on fixed-size matrices. Along dv,
+// residual_hessians' columns for such a body (after the q+ model L), on fixed-size matrices: the
+// central differences of the general path for the d/dp[K(c p)^T M p] parts, and exact chain-rule
+// terms for everything Sq touches (below). Along dv,
 // J = [Sq Ad_exp(-dt v'), dt Sq Jr(dt v') - d/dp[K(dt p)^T M p](v'), R_y] with R_y fixed (the
 // root's pose moves the body rigidly: L.dRy all zero) and Sq read from L at q+' = q exp(dt v');
 // along y only R_y = d/dp[K(-dt p)^T M p](y') moves.
@@ -406,29 +419,41 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
   const Mat M = w.M0;  // M(q) = M(q+): constant for such a body
   const Vec v0 = v, y0 = y;
   const bool Sq_zero = lin.Sq_zero;
-  Mat Sq = Mat::Zero(), Jv, Jeta[2], Jdv[2];
-  // eta (the root's pose): only Sq moves, through q+ (gravity; none without it), with A and Jv
-  // those of the base point: T's column j is [dSq A, dt dSq Jv, 0], dSq its central difference
-  if (vm.gravity_free) {
+  // Sq = dR/deta+ moves only through q+ = q exp(eta) exp(dt (v + dv)), along q+'s first-order model
+  // Sq(xi) = Sq0 + sum_k xi_k dSq[k], xi = difference(q+0, q+), whose derivatives are exact closed
+  // forms (no integrate/difference per differenced point):
+  //   d xi / d eta = Ad_exp(-omega0) = A0, since exp(-omega0) exp(eta) exp(omega0) = exp(A0 eta);
+  //   d xi / d dv  = dt Jr(omega0) = dt Jv0, since exp(-omega0) exp(omega0 + dt dv) = exp(dt Jv0 dv + ...).
+  // The terms Sq multiplies are exact too: d/d dv_l Ad_exp(-dt v) = -dt A0 ad(Jr(-omega0) e_l) and
+  // d/d dv_l Jr(dt v) = dt dJr(omega0)/dx_l. Only the d/dp[K(c p)^T M p] parts are differenced.
+  const Vec omega0 = dt * v0;
+  Mat A0, Jv0, dSq_eta[N], dSq_dv[N], dA[N], dJv[N];
+  if (!Sq_zero) {
+    A0 = L::ad_exp_minus(omega0);
+    Jv0 = L::jr(omega0, L::coefficients(omega0));
+    const Vec xm = -omega0;
+    const Mat Jm = L::jr(xm, L::coefficients(xm));  // Jr(-omega0)
+    L::djr(omega0, dJv);
+    for (int l = 0; l < N; ++l) {
+      dSq_eta[l].setZero();
+      dSq_dv[l].setZero();
+      for (int k = 0; k < N; ++k) {
+        if (lin.dSq_zero[k]) continue;
+        dSq_eta[l] += A0(k, l) * lin.dSq[k];
+        dSq_dv[l] += (dt * Jv0(k, l)) * lin.dSq[k];
+      }
+      dA[l] = -dt * (A0 * L::ad(Jm.col(l)));
+      dJv[l] *= dt;
+    }
+  }
+  const Mat Sq0 = Sq_zero ? Mat::Zero() : Mat(lin.Sq0);
+  // eta (the root's pose): only Sq moves, with A and Jv those of the base point: T's column j is
+  // [dSq_j A0, dt dSq_j Jv0, 0]
+  if (Sq_zero) {
     for (int i = 0; i < N; ++i) nw.T[i].leftCols(N).setZero();
   } else {
-    const Vec omega0 = dt * v0;
-    const Mat A0 = L::ad_exp_minus(omega0), Jv0 = L::jr(omega0, L::coefficients(omega0));
-    w.omega = omega0;
-    Mat Sqs[2];
     for (int j = 0; j < N; ++j) {
-      for (int side = 0; side < 2; ++side) {
-        nw.e.setZero();
-        nw.e[j] = side == 0 ? h : -h;
-        pinocchio::integrate(*vm.model, q, nw.e.head(N), nw.qp);
-        pinocchio::integrate(*vm.model, nw.qp, w.omega, w.qn);
-        pinocchio::difference(*vm.model, lin.qn, w.qn, w.xi);
-        Sqs[side] = lin.Sq0;
-        for (int k = 0; k < N; ++k)
-          if (!lin.dSq_zero[k]) Sqs[side] += w.xi[k] * lin.dSq[k];
-      }
-      const Mat dSq = (Sqs[0] - Sqs[1]) / (2.0 * h);
-      const Mat Teta = dSq * A0, Tdv = dt * (dSq * Jv0);
+      const Mat Teta = dSq_eta[j] * A0, Tdv = dt * (dSq_eta[j] * Jv0);
       for (int i = 0; i < N; ++i) {
         Eigen::MatrixXd& T = nw.T[i];
         T.col(j).head(N) = Teta.row(i).transpose();
@@ -437,29 +462,25 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
       }
     }
   }
+  // dv: J = [Sq A, dt Sq Jv - d/dp[K(dt p)^T M p](v), R_y] with R_y fixed (the root's pose moves
+  // the body rigidly: L.dRy all zero); the product rule on Sq A and Sq Jv
   for (int l = 0; l < N; ++l) {
-    for (int side = 0; side < 2; ++side) {
-      Vec vp = v0;
-      vp[l] += side == 0 ? h : -h;
-      Jdv[side] = -phi_jacobian<N>(M, vp, dt, &Jv);
-      if (Sq_zero) continue;
-      Sq = lin.Sq0;
-      if (!lin.fixed) {
-        w.omega = dt * vp;
-        pinocchio::integrate(*vm.model, q, w.omega, w.qn);
-        pinocchio::difference(*vm.model, lin.qn, w.qn, w.xi);
-        for (int k = 0; k < N; ++k)
-          if (!lin.dSq_zero[k]) Sq += w.xi[k] * lin.dSq[k];
-      }
-      Jeta[side].noalias() = Sq * L::ad_exp_minus(dt * vp);
-      Jdv[side].noalias() += dt * (Sq * Jv);
+    Vec vp = v0, vm_ = v0;
+    vp[l] += h;
+    vm_[l] -= h;
+    Mat Tdv = (phi_jacobian<N>(M, vm_, dt) - phi_jacobian<N>(M, vp, dt)) / (2.0 * h);
+    Mat Teta;
+    if (!Sq_zero) {
+      Tdv.noalias() += dt * (dSq_dv[l] * Jv0);
+      Tdv.noalias() += dt * (Sq0 * dJv[l]);
+      Teta.noalias() = dSq_dv[l] * A0;
+      Teta.noalias() += Sq0 * dA[l];
     }
     const int j = N + l;
-    const Mat Tdv = (Jdv[0] - Jdv[1]) / (2.0 * h);
     for (int i = 0; i < N; ++i) {
       Eigen::MatrixXd& T = nw.T[i];
       if (Sq_zero) T.col(j).head(N).setZero();
-      else T.col(j).head(N) = ((Jeta[0] - Jeta[1]) / (2.0 * h)).row(i).transpose();
+      else T.col(j).head(N) = Teta.row(i).transpose();
       T.col(j).segment(N, N) = Tdv.row(i).transpose();
       T.col(j).tail(N).setZero();  // R_y does not move along dv
     }
