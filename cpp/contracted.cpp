@@ -95,8 +95,12 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
   T.resize(w, w);
   const double* ts = t.Ts.data() + (size_t)k * nt * nv;
   const double* u = mu.data();
+  // one body (t.variational_separable): the (eta, dv)-y entries are zero, neither formed nor read
+  const bool sep = t.variational_separable;
+  const int n2 = 2 * nv;
   for (int a = 0, c = 0; a < w; ++a)
     for (int b = a; b < w; ++b, ++c) {
+      if (sep && a < n2 && b >= n2) continue;
       const double* x = ts + (size_t)c * nv;
       double s = 0.0;
       for (int i = 0; i < nv; ++i) s += x[i] * u[i];
@@ -104,7 +108,7 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
       T(b, a) = s;
     }
   const CMatMap F1(t.F1.data() + (size_t)k * nv * nz, nv, nz);
-  dyn::variational_projection_upper(T, F1, G, CF, [&](int a, int b, double s) { S(a, b) += s; });
+  dyn::variational_projection_upper(T, F1, G, CF, [&](int a, int b, double s) { S(a, b) += s; }, sep);
 }
 
 // S's upper triangle (the top-right n x m block is S_ux^T); the lower triangle is left as junk.

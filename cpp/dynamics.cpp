@@ -761,6 +761,7 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
   const std::unique_ptr<VariationalModel> vmod =
       s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
   t.resize(model, m, N, dt, semi, vmod != nullptr);
+  t.variational_separable = vmod && vmod->configuration_free;
   const std::vector<JointGroup> groups = joint_groups(model);
   CMatMap Hm(s.H, nv, m);
   const size_t n3 = (size_t)nv * nv * nv, nts = (size_t)variational_upper_size(nv) * nv;

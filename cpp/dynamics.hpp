@@ -133,19 +133,24 @@ inline int variational_upper_size(int nv) { return 3 * nv * (3 * nv + 1) / 2; }
 // in coefficient-based loops (Eigen's blocked GEMM packs more than it computes at these sizes).
 // sink(a, b, value) receives the entries a <= b in row-major order; G, CF are scratch. Used per row
 // of R by the dense expansion (variational.cpp) and once per node by the contracted pass
-// (contracted.cpp, on sum_i mu_i Ts_i).
+// (contracted.cpp, on sum_i mu_i Ts_i). separable: Bm = 0 is known (one body,
+// SecondOrderTerms::variational_separable), so its product is skipped and T's Bm block not read.
 template <class F1Type, class Sink>
 inline void variational_projection_upper(const Eigen::MatrixXd& T, const F1Type& F1, Eigen::MatrixXd& G,
-                                         Eigen::MatrixXd& CF, Sink&& sink) {
+                                         Eigen::MatrixXd& CF, Sink&& sink, bool separable = false) {
   const int nv = (int)F1.rows(), nz = (int)F1.cols(), n2 = 2 * nv;
-  G.noalias() = T.topRightCorner(n2, nv).lazyProduct(F1);     // Bm F1 (2nv, nz)
-  CF.noalias() = T.bottomRightCorner(nv, nv).lazyProduct(F1);  // C F1 (nv, nz)
+  if (!separable) G.noalias() = T.topRightCorner(n2, nv).lazyProduct(F1);  // Bm F1 (2nv, nz)
+  CF.noalias() = T.bottomRightCorner(nv, nv).lazyProduct(F1);                // C F1 (nv, nz)
   for (int a = 0; a < nz; ++a)
     for (int b = a; b < nz; ++b) {
       double s = 0.0;  // (F1^T C F1)(a, b)
       for (int l = 0; l < nv; ++l) s += F1(l, a) * CF(l, b);
-      if (a < n2) s += G(a, b);
-      if (b < n2) s += G(b, a) + T(a, b);  // b < 2nv implies a < 2nv
+      if (!separable) {
+        if (a < n2) s += G(a, b);
+        if (b < n2) s += G(b, a) + T(a, b);  // b < 2nv implies a < 2nv
+      } else if (b < n2) {
+        s += T(a, b);  // what G(b, a) + T(a, b) is when G = 0
+      }
       sink(a, b, s);
     }
 }
@@ -154,6 +159,9 @@ struct SecondOrderTerms {
   int N = 0, nv = 0, m = 0;
   double dt = 0.0;
   bool semi = false, variational = false;
+  // The variational step of one body (VariationalModel::configuration_free): R_y depends on y alone,
+  // so the residual Hessians' (eta, dv)-y blocks are exactly zero and the contraction skips them.
+  bool variational_separable = false;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
   Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts;
