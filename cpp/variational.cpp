@@ -376,20 +376,20 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   const Vec omega = dt * Vec(v), x1 = -dt * Vec(y);
   w.omega = omega;
   pinocchio::integrate(*vm.model, q, w.omega, w.qn);
-  Mat Jv, Jy;
+  Mat Jv;
   const Mat Jdv = -phi_jacobian<N>(M, Vec(v), dt, &Jv);
   const typename L::Coef k1 = L::coefficients(x1);
-  Jy = L::jr(x1, k1);
-  const Mat K1 = L::inverse(Jy);
+  const Mat K1 = L::inverse(L::jr(x1, k1));
   const Mat Ry = phi_jacobian_K<N>(M, Vec(y), -dt, K1, k1);
   Mat Sq = Mat::Zero();
-  if (!vm.gravity_free) {
+  if (vm.gravity_free) {
+    w.J.leftCols(N).setZero();
+  } else {
     w.T.setZero();
     pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, w.qn, w.T);
     Sq = dt * Mat(w.T);
+    w.J.leftCols(N) = Sq * L::ad_exp_minus(omega);
   }
-  if (vm.gravity_free) w.J.leftCols(N).setZero();
-  else w.J.leftCols(N) = Sq * L::ad_exp_minus(omega);
   w.J.middleCols(N, N) = Jdv + dt * (Sq * Jv);
   w.J.rightCols(N) = Ry;
   w.Sq = Sq;
@@ -405,7 +405,7 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 // central differences of the general path for the d/dp[K(c p)^T M p] parts, and exact chain-rule
 // terms for everything Sq touches (below). Along dv,
 // J = [Sq Ad_exp(-dt v'), dt Sq Jr(dt v') - d/dp[K(dt p)^T M p](v'), R_y] with R_y fixed (the
-// root's pose moves the body rigidly: L.dRy all zero) and Sq read from L at q+' = q exp(dt v');
+// root's pose moves the body rigidly: L.dRy all zero) and Sq that of L at q+' = q exp(dt v');
 // along y only R_y = d/dp[K(-dt p)^T M p](y') moves.
 template <int N>
 void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
