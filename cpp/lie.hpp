@@ -230,7 +230,7 @@ inline M3<S> se3_coupling(const S r[3], const S p[3]) {
 // t2-derivatives (dual parts; se3_coupling_coefficients at t2 = |w|^2). A caller that needs both
 // Jr(x) and dJr(x)^T s at one x (the variational step's phi_jacobian) computes them once instead of
 // twice; the values are bitwise those se3_jr computes (a dual's value part is the same double
-// arithmetic).
+// arithmetic, on the same t2).
 struct Se3JrCoefficients {
   double a, b, al, be;
   Dual c1, c2, c3;
@@ -238,8 +238,10 @@ struct Se3JrCoefficients {
 inline Se3JrCoefficients se3_jr_coefficients(const Eigen::Matrix<double, 6, 1>& x) {
   Se3JrCoefficients k;
   so3_coefficients(x.tail<3>().norm(), k.a, k.b, k.al, k.be);
-  const Vec3 p = -x.tail<3>();
-  se3_coupling_coefficients(Dual(p.squaredNorm(), 1.0), k.c1, k.c2, k.c3);
+  double p[3];
+  for (int i = 0; i < 3; ++i) p[i] = -x[3 + i];
+  // t2 summed as se3_coupling sums it, so that the values are bitwise se3_jr's
+  se3_coupling_coefficients(Dual(p[0] * p[0] + p[1] * p[1] + p[2] * p[2], 1.0), k.c1, k.c2, k.c3);
   return k;
 }
 
