@@ -94,12 +94,17 @@ inline void so3_coefficients(double t, double& a, double& b, double& alpha, doub
   }
 }
 
+// Jr(x) of SO(3), (3, 3), from its coefficients a, b at x (so3_coefficients).
+inline Mat3 so3_jr(const Vec3& x, double a, double b) {
+  const Mat3 K = hat(x);
+  return Mat3::Identity() - a * K + b * (K * K);
+}
+
 // Jr(x) of SO(3), (3, 3).
 inline Mat3 so3_jr(const Vec3& x) {
   double a, b, al, be;
   so3_coefficients(x.norm(), a, b, al, be);
-  const Mat3 K = hat(x);
-  return Mat3::Identity() - a * K + b * (K * K);
+  return so3_jr(x, a, b);
 }
 
 // Out(:, l) = (d Jr(x) / d x_l)^T u of SO(3), l = 0..2, from Jr's coefficients a, b, alpha, beta
@@ -245,34 +250,36 @@ inline Se3JrCoefficients se3_jr_coefficients(const Eigen::Matrix<double, 6, 1>& 
   return k;
 }
 
-// Jr(x) of SE(3) from its coefficients at x (se3_jr_coefficients): bitwise se3_jr(x).
-inline Mat6 se3_jr(const Eigen::Matrix<double, 6, 1>& x, const Se3JrCoefficients& k) {
+// Jr(x) of SE(3), x = [linear; angular]: [[Jr3(w), Q(-v, -w)], [0, Jr3(w)]], from Jr3's a, b
+// and the coupling's c1, c2, c3 at x (both se3_jr below).
+inline Mat6 se3_jr_assembled(const Eigen::Matrix<double, 6, 1>& x, double a, double b, double c1, double c2,
+                             double c3) {
   Mat6 J = Mat6::Zero();
-  const Mat3 K = hat(x.tail<3>());
-  const Mat3 J3 = Mat3::Identity() - k.a * K + k.b * (K * K);
+  const Mat3 J3 = so3_jr(x.tail<3>(), a, b);
   J.topLeftCorner<3, 3>() = J3;
   J.bottomRightCorner<3, 3>() = J3;
   double r[3], p[3];
   for (int i = 0; i < 3; ++i) { r[i] = -x[i]; p[i] = -x[3 + i]; }
   const double t2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
-  const M3<double> Q = se3_coupling_assemble<double>(r, p, t2, k.c1.v, k.c2.v, k.c3.v);
+  const M3<double> Q = se3_coupling_assemble<double>(r, p, t2, c1, c2, c3);
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) J(i, 3 + j) = Q.m[i][j];
   return J;
 }
 
+// Jr(x) of SE(3) from its coefficients at x (se3_jr_coefficients): bitwise se3_jr(x).
+inline Mat6 se3_jr(const Eigen::Matrix<double, 6, 1>& x, const Se3JrCoefficients& k) {
+  return se3_jr_assembled(x, k.a, k.b, k.c1.v, k.c2.v, k.c3.v);
+}
+
 // Jr(x) of SE(3), x = [linear; angular]: [[Jr3(w), Q(-v, -w)], [0, Jr3(w)]].
 inline Mat6 se3_jr(const Eigen::Matrix<double, 6, 1>& x) {
-  Mat6 J = Mat6::Zero();
-  const Mat3 J3 = so3_jr(x.tail<3>());
-  J.topLeftCorner<3, 3>() = J3;
-  J.bottomRightCorner<3, 3>() = J3;
-  double r[3], p[3];
-  for (int i = 0; i < 3; ++i) { r[i] = -x[i]; p[i] = -x[3 + i]; }
-  const M3<double> Q = se3_coupling<double>(r, p);
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) J(i, 3 + j) = Q.m[i][j];
-  return J;
+  double a, b, al, be;
+  so3_coefficients(x.tail<3>().norm(), a, b, al, be);
+  const double t2 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5];  // |p|^2, p = -w, as se3_coupling sums it
+  double c1, c2, c3;
+  se3_coupling_coefficients<double>(t2, c1, c2, c3);
+  return se3_jr_assembled(x, a, b, c1, c2, c3);
 }
 
 // Jr(x)^-1 of SE(3) from Jr = [[J3, Q], [0, J3]]: [[A, -A Q A], [0, A]], A = J3^-1 (a 3x3

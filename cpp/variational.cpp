@@ -236,15 +236,8 @@ struct FixedLie<6> {
   }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp6(pinocchio::Motion(-x)).toActionMatrix(); }
   static void djr(const Vec& x, Mat D[6]) { lie::se3_djr(x, D); }
-  // ad(xi) of se(3), xi = [v; w]: [[hat(w), hat(v)], [0, hat(w)]] (Pinocchio's motion action)
-  static Mat ad(const Vec& xi) {
-    Mat a = Mat::Zero();
-    const lie::Mat3 W = lie::hat(xi.tail<3>());
-    a.topLeftCorner<3, 3>() = W;
-    a.bottomRightCorner<3, 3>() = W;
-    a.topRightCorner<3, 3>() = lie::hat(xi.head<3>());
-    return a;
-  }
+  // ad(xi) of se(3), xi = [v; w]: [[hat(w), hat(v)], [0, hat(w)]], Pinocchio's motion action matrix
+  static Mat ad(const Vec& xi) { return pinocchio::Motion(xi).toActionMatrix(); }
 };
 template <>
 struct FixedLie<3> {
@@ -258,10 +251,7 @@ struct FixedLie<3> {
     lie::so3_coefficients(x.norm(), k.a, k.b, k.al, k.be);
     return k;
   }
-  static Mat jr(const Vec& x, const Coef& k) {
-    const Mat K = lie::hat(x);
-    return Mat::Identity() - k.a * K + k.b * (K * K);  // lie::so3_jr's arithmetic
-  }
+  static Mat jr(const Vec& x, const Coef& k) { return lie::so3_jr(x, k.a, k.b); }
   static Mat inverse(const Mat& J) { return J.inverse(); }
   static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N, const Coef& k) {
     lie::so3_djr_transpose_apply(x, s, k.a, k.b, k.al, k.be, N);
@@ -364,7 +354,8 @@ void one_body_step(const VariationalModel& vm, VariationalWork& w, const Eigen::
 //   J = [Sq Ad_exp(-dt v), dt Sq Jr(dt v) - d/dp[K(dt p)^T M p](v), d/dp[K(-dt p)^T M p](y)],
 // the general path's terms with its zero D products, CRBA calls and dynamic blocks dropped. Fills
 // what residual_hessians and one_body_columns read from the base call: w.qn, w.omega, w.Sq, w.Ry,
-// w.K1, w.M0 = w.M1 = M and w.D0 = w.D1 = 0, and J.
+// w.K1, w.Jv = Jr(dt v), w.A = Ad_exp(-dt v) (under gravity only), w.M0 = w.M1 = M and
+// w.D0 = w.D1 = 0, and J.
 template <int N>
 void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                        const Eigen::VectorXd& v, const Eigen::VectorXd& y) {
@@ -388,13 +379,16 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
     w.T.setZero();
     pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, w.qn, w.T);
     Sq = dt * Mat(w.T);
-    w.J.leftCols(N) = Sq * L::ad_exp_minus(omega);
+    const Mat A = L::ad_exp_minus(omega);
+    w.A = A;
+    w.J.leftCols(N) = Sq * A;
   }
   w.J.middleCols(N, N) = Jdv + dt * (Sq * Jv);
   w.J.rightCols(N) = Ry;
   w.Sq = Sq;
   w.Ry = Ry;
   w.K1 = K1;
+  w.Jv = Jv;
   w.M0 = M;
   w.M1 = M;
   w.D0.setZero();
@@ -408,8 +402,8 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 // root's pose moves the body rigidly: L.dRy all zero) and Sq that of L at q+' = q exp(dt v');
 // along y only R_y = d/dp[K(-dt p)^T M p](y') moves.
 template <int N>
-void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
-                      const Eigen::VectorXd& v, const Eigen::VectorXd& y) {
+void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& v,
+                      const Eigen::VectorXd& y) {
   typedef FixedLie<N> L;
   typedef typename L::Mat Mat;
   typedef typename L::Vec Vec;
@@ -429,8 +423,8 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
   const Vec omega0 = dt * v0;
   Mat A0, Jv0, dSq_eta[N], dSq_dv[N], dA[N], dJv[N];
   if (!Sq_zero) {
-    A0 = L::ad_exp_minus(omega0);
-    Jv0 = L::jr(omega0, L::coefficients(omega0));
+    A0 = w.A;  // the base call's (one_body_jacobian)
+    Jv0 = w.Jv;
     const Vec xm = -omega0;
     const Mat Jm = L::jr(xm, L::coefficients(xm));  // Jr(-omega0)
     L::djr(omega0, dJv);
@@ -748,8 +742,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   Keep keep;
   keep.lin = &L;
   if (vm.configuration_free) {  // one body: every column on fixed-size matrices
-    if (nv == 6) one_body_columns<6>(vm, nw, q, v, y);
-    else one_body_columns<3>(vm, nw, q, v, y);
+    if (nv == 6) one_body_columns<6>(vm, nw, v, y);
+    else one_body_columns<3>(vm, nw, v, y);
     return;
   }
   for (int j = 0; j < root; ++j) {  // eta along the root's pose: M(q), D(q, v) do not change
