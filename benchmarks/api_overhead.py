@@ -42,7 +42,7 @@ def measure(scene: str, rounds: int) -> dict[str, float]:
         "solve_scene": lambda: solve_scene(spec, verbose=False),
         "from file": lambda: solve_scene(scene, verbose=False),
     }
-    for fn in routes.values():  # warm-up: numba/JIT caches, first allocations
+    for fn in routes.values():  # warm-up: imports, first allocations
         fn()
     times: dict[str, list[float]] = {k: [] for k in routes}
     names = list(routes)

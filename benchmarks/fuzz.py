@@ -172,9 +172,6 @@ def worker() -> None:
     folder = Path(tempfile.mkdtemp(prefix="geoddp-fuzz-"))
     import numpy  # noqa: F401  (import cost outside the per-case clock)
     import geoddp.cli  # noqa: F401
-    from geoddp import kernels
-
-    kernels.warm_up()
     sys.__stdout__.write("ready\n")
     sys.__stdout__.flush()
     for line in sys.stdin:

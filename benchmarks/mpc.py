@@ -114,7 +114,7 @@ def satellite(steps: int, max_iter: int) -> dict[str, Any]:
     p = paper_problem()
     plan = solve(p, SolverOptions(verbose=False))
     mpc = MPC(p, horizon=100, every=1, max_iter=max_iter, plan=plan)
-    simulate(plan, p, mpc, steps=20)  # warm-up (numba's cache, allocations)
+    simulate(plan, p, mpc, steps=20)  # warm-up (imports, allocations)
     s = simulate(plan, p, mpc, steps=steps)
     st = s.stats
     return {"geoddp": summary(st["solve_times_s"], p.dt), "iterations": st["iterations_mean"],

@@ -7,7 +7,7 @@ are interleaved (geoddp, FDDP, geoddp, FDDP, ...) after one warm-up solve each, 
 load of a shared machine hits both alike; the table gives medians.
 
 * time per solve: geoddp ``Result.solve_time_s`` (from the initial rollout to the final
-  second-order check; numba's one-off compilation excluded), Crocoddyl the wall time of
+  second-order check; the first run excluded), Crocoddyl the wall time of
   ``SolverFDDP.solve`` (``multibody_peers.solve_crocoddyl``);
 * time per iteration: time per solve / accepted iterations (geoddp's includes its final check);
 * ratio: geoddp / FDDP.
@@ -48,7 +48,7 @@ def measure(name: str, runs: int, expansion: str, with_crocoddyl: bool) -> dict:
     if with_crocoddyl:
         import multibody_peers as peers
     geo, cro = [], []
-    for i in range(runs + 1):  # run 0: warm-up (numba, caches), not recorded
+    for i in range(runs + 1):  # run 0: warm-up (imports, caches), not recorded
         r = solve(p, opts, initial_controls=guess)
         c = peers.solve_crocoddyl(p, "fddp", initial_controls=guess) if with_crocoddyl else None
         if i:

@@ -27,7 +27,6 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peers  # noqa: E402  (the peers' side, independent of geoddp)
 
-from geoddp import kernels  # noqa: E402
 from geoddp.problem import satellite_problem  # noqa: E402
 from geoddp.solver import SolverOptions, cost_gradient, solve  # noqa: E402
 
@@ -66,7 +65,6 @@ def solvers(params: dict, problem, include_lbfgs: bool) -> dict:
 def benchmark(horizon: int, repeats: int, include_lbfgs: bool) -> tuple[list[dict], dict]:
     params = peers.satellite_params(horizon=horizon)
     problem = geoddp_problem(params)
-    kernels.warm_up()
     table = solvers(params, problem, include_lbfgs)
     runs: dict[str, list[dict]] = {name: [] for name in table}
     for rep in range(repeats):  # interleaved

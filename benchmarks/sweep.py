@@ -88,7 +88,7 @@ def main() -> None:
         path.write_text(textwrap.dedent(SWEEP.format(cases=args.cases, tf=args.steps * 0.002)))
         cases = expand(load_sweep(path))
         specs = [parse_scene(c.scene, c.source) for c in cases]
-        solve_scene(specs[0], verbose=False)  # warm: numba caches
+        solve_scene(specs[0], verbose=False)  # warm: imports
         # warm: the sweep's one-off imports (pandas, pyarrow: ~0.3 s, paid once per run, not per case)
         t0 = time.perf_counter()
         run_sweep(path, tmp / "imports", serial=True, limit=1)
@@ -105,7 +105,7 @@ def main() -> None:
         with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as p1, \
                 ProcessPoolExecutor(2, mp_context=get_context("spawn")) as p2:
             pools = {1: p1, 2: p2}
-            for n in (1, 2):  # warm: the processes import geoddp and load numba's caches
+            for n in (1, 2):  # warm: the processes import geoddp
                 pool_wall(pools[n], jobs[:2 * n], n)
             # Every route once a round, interleaved, so a slow spell of this shared machine hits
             # them all alike; the figures are medians of the per-round ratios.
@@ -121,7 +121,7 @@ def main() -> None:
                 for n in (1, 2):
                     out = tmp / f"dask{n}-{r}"
                     # run_sweep's own LocalCluster (profiler off, GEODDP_THREADS = cores // workers),
-                    # warm (imports, numba caches) before the timed sweep, the only cluster up
+                    # warm (imports) before the timed sweep, the only cluster up
                     with local_cluster(n) as cluster:
                         run_sweep(path, tmp / f"warm{n}-{r}", scheduler=cluster.scheduler_address, limit=4 * n)
                         t0 = time.perf_counter()

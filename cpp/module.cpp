@@ -23,6 +23,7 @@ namespace geoddp {
 void bind_costs(pybind11::module_& m);  // costs_bindings.cpp
 void bind_contracted(pybind11::module_& m);  // contracted_bindings.cpp
 void bind_cost_sum(pybind11::module_& m);  // cost_sum.cpp
+void bind_tso3(pybind11::module_& m);  // tso3_bindings.cpp
 }
 
 namespace py = pybind11;
@@ -399,5 +400,6 @@ PYBIND11_MODULE(_core, m) {
 
   geoddp::bind_costs(m);  // cost terms: cost_frame_term, cost_state_regularisation, ...
   geoddp::bind_cost_sum(m);  // a whole cost sum in one call: cost_sum, CostWorkspace
+  geoddp::bind_tso3(m);  // the satellite's TSO(3) closed forms: satellite_rollout, satellite_linearise, ...
   geoddp::bind_contracted(m);  // SecondOrderTerms, expansion_contracted, backward_pass_contracted
 }

@@ -49,15 +49,22 @@ inline void add_xt_y_upper(double alpha, const RowMat& X, const RowMat& Y, RowMa
 // (Remark rem:theta).
 inline void add_dense_second_order(int n, int m, const double* Theta, const double* Gamma, const double* Xi, int k,
                                    const Eigen::VectorXd& Vx, RowMat& Qxx, RowMat& Qux, RowMat& Quu) {
+  // plain loops over the row-major blocks: at n = 6 (the satellite) Eigen's dynamic-size
+  // expressions cost more in dispatch than their arithmetic (the same sums either way)
   const double* Th = Theta + (size_t)k * n * n * n;
   const double* Ga = Gamma + (size_t)k * n * n * m;
   const double* X = Xi + (size_t)k * n * m * m;
+  double *qxx = Qxx.data(), *qux = Qux.data(), *quu = Quu.data();
   for (int i = 0; i < n; ++i) {
     const double v = Vx[i];
     if (v == 0.0) continue;
-    Qxx += v * CMatMap(Th + (size_t)i * n * n, n, n);
-    Qux += v * CMatMap(Ga + (size_t)i * n * m, n, m).transpose();
-    Quu += v * CMatMap(X + (size_t)i * m * m, m, m);
+    const double* Ti = Th + (size_t)i * n * n;
+    for (int a = 0; a < n * n; ++a) qxx[a] += v * Ti[a];
+    const double* Gi = Ga + (size_t)i * n * m;  // (n, m): Qux(a, b) += v Gamma_i(b, a)
+    for (int a = 0; a < m; ++a)
+      for (int b = 0; b < n; ++b) qux[a * n + b] += v * Gi[b * m + a];
+    const double* Xi_ = X + (size_t)i * m * m;
+    for (int a = 0; a < m * m; ++a) quu[a] += v * Xi_[a];
   }
 }
 

@@ -1,14 +1,15 @@
-"""The compiled backward pass (geoddp._core.backward_pass) against the numba kernel
-(geoddp.kernels.backward_pass): the same failed node, d1, d2, gains k, K and Q_uu eigenvalue
-proxy, to 1e-12 relative, first and second order, with and without regularisation, on random
-problems of several sizes (symmetric blocks given with a non-symmetric lower triangle: both read
-the upper one only) and on one where Q_uu is indefinite part-way."""
+"""The compiled backward pass (geoddp._core.backward_pass, also geoddp.kernels.backward_pass)
+against a numpy transcription of the recursion (paper eqs. Qfunctions, dustar, backv; Remark
+rem:theta): the same failed node, d1, d2, gains k, K and Q_uu eigenvalue proxy, to 1e-12
+relative, first and second order, with and without regularisation, on random problems of several
+sizes (n = 6 runs the pass with its sizes fixed at compile time, m = 3 and m = 2; symmetric blocks
+are given with a non-symmetric lower triangle: the pass reads the upper one only) and on one where
+Q_uu is indefinite part-way."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from geoddp import kernels
 from geoddp.models import compiled
 
 pytestmark = pytest.mark.skipif(not compiled.available(), reason=f"geoddp._core not built: {compiled.IMPORT_ERROR}")
@@ -39,34 +40,69 @@ def _run(fn, args, second, reg, H, n, m):
     return (int(out[0]), float(out[1]), float(out[2])), k, K, eig
 
 
+def _reference_pass(Phi, B, lx, lu, lxx, lux, luu, Vx, Vxx, Theta, Gamma, Xi, second, reg, k_ff, K_fb, eig):
+    """numpy, node by node: Q blocks, their second-order terms, Cholesky of Q_uu + reg I, gains and
+    the value backup, reading the symmetric inputs' upper triangles (the kernels' documented rule)."""
+    def sym(A):
+        return np.triu(A) + np.triu(A, 1).swapaxes(-1, -2)
+
+    H, n, m = B.shape
+    Vx, Vxx = Vx.copy(), Vxx.copy()
+    d1 = d2 = 0.0
+    for k in range(H - 1, -1, -1):
+        P, Bk = Phi[k], B[k]
+        Qx, Qu = lx[k] + P.T @ Vx, lu[k] + Bk.T @ Vx
+        Qxx = sym(lxx[k]) + P.T @ Vxx @ P
+        Qux = lux[k] + Bk.T @ Vxx @ P
+        Quu = sym(luu[k]) + Bk.T @ Vxx @ Bk
+        if second:
+            Qxx = Qxx + np.einsum("i,iab->ab", Vx, sym(Theta[k]))
+            Qux = Qux + np.einsum("i,iac->ca", Vx, Gamma[k])
+            Quu = Quu + np.einsum("i,iab->ab", Vx, sym(Xi[k]))
+        try:
+            L = np.linalg.cholesky(Quu + reg * np.eye(m))
+        except np.linalg.LinAlgError:
+            return k, d1, d2
+        eig[k] = np.min(np.diag(L) ** 2)
+        kk = np.linalg.solve(Quu + reg * np.eye(m), Qu)
+        KK = np.linalg.solve(Quu + reg * np.eye(m), Qux)
+        k_ff[k], K_fb[k] = kk, KK
+        d1 += Qu @ kk
+        d2 += kk @ Quu @ kk
+        Vx = Qx - Qux.T @ kk
+        Vxx = Qxx - Qux.T @ KK
+        Vxx = np.triu(Vxx) + np.triu(Vxx, 1).T
+    return -1, d1, d2
+
+
 def _rel(a, b):
     return np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300)
 
 
-@pytest.mark.parametrize("n, m", [(6, 3), (12, 4), (12, 6), (18, 3), (30, 12)])
+@pytest.mark.parametrize("n, m", [(6, 3), (6, 2), (12, 4), (12, 6), (18, 3), (30, 12)])
 @pytest.mark.parametrize("second", [False, True])
 @pytest.mark.parametrize("reg", [0.0, 1e-3])
-def test_backward_pass_equals_numba(n, m, second, reg):
+def test_backward_pass_equals_the_numpy_recursion(n, m, second, reg):
     rng = np.random.default_rng(1000 * n + 10 * m + second)
     H = 40
     args = _problem(rng, H, n, m)
     (fc, d1c, d2c), kc, Kc, ec = _run(compiled._core.backward_pass, args, second, reg, H, n, m)
-    (fp, d1p, d2p), kp, Kp, ep = _run(kernels.backward_pass, args, second, reg, H, n, m)
+    (fp, d1p, d2p), kp, Kp, ep = _run(_reference_pass, args, second, reg, H, n, m)
     assert fc == fp == -1
     assert abs(d1c - d1p) <= 1e-12 * abs(d1p) and abs(d2c - d2p) <= 1e-12 * abs(d2p)
-    # measured: <= 3e-15
     assert _rel(kc, kp) <= 1e-12 and _rel(Kc, Kp) <= 1e-12 and _rel(ec, ep) <= 1e-12
 
 
 @pytest.mark.parametrize("second", [False, True])
-def test_backward_pass_stops_at_the_same_node(second):
+@pytest.mark.parametrize("n, m", [(12, 4), (6, 3)])
+def test_backward_pass_stops_at_the_same_node(second, n, m):
     rng = np.random.default_rng(7)
-    H, n, m = 30, 12, 4
+    H = 30
     args = list(_problem(rng, H, n, m))
     args[6] = args[6].copy()
     args[6][11] = -10.0 * np.eye(m)  # Q_uu indefinite at node 11
     (fc, d1c, d2c), kc, Kc, ec = _run(compiled._core.backward_pass, args, second, 0.0, H, n, m)
-    (fp, d1p, d2p), kp, Kp, ep = _run(kernels.backward_pass, args, second, 0.0, H, n, m)
+    (fp, d1p, d2p), kp, Kp, ep = _run(_reference_pass, args, second, 0.0, H, n, m)
     assert fc == fp == 11
     assert abs(d1c - d1p) <= 1e-12 * abs(d1p) and abs(d2c - d2p) <= 1e-12 * abs(d2p)
     # nodes H-1 .. 12 written, node 11 and below untouched (7.0) by both

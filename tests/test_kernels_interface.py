@@ -1,5 +1,6 @@
-"""The kernels package's documented interface: it imports nothing from geoddp (numpy and numba
-only), and its docstring documents every public kernel it exports."""
+"""The kernels module's documented interface: it imports nothing from geoddp but the compiled
+core (numpy and geoddp._core only), every kernel it exports is the core's (no Python loop behind
+a name) and its docstring documents each one with its arguments."""
 import ast
 from pathlib import Path
 
@@ -8,21 +9,24 @@ import geoddp.kernels as kernels
 KERNELS = Path(kernels.__file__).parent
 
 
-def test_kernels_import_only_numpy_numba_and_each_other():
-    for path in sorted(KERNELS.glob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Import):
-                roots = {a.name.split(".")[0] for a in node.names}
-                assert roots <= {"numpy", "numba"}, (path.name, roots)
-            elif isinstance(node, ast.ImportFrom):
-                if node.level == 0:
-                    assert node.module.split(".")[0] in {"numpy", "numba", "__future__"}, (path.name, node.module)
-                else:  # relative: a sibling module of the package, never a parent
-                    assert node.level == 1, (path.name, node.module)
+def test_kernels_import_only_numpy_pinocchio_and_the_core():
+    files = sorted(KERNELS.glob("*.py"))
+    assert [p.name for p in files] == ["__init__.py"]
+    for node in ast.walk(ast.parse(files[0].read_text())):
+        if isinstance(node, ast.Import):
+            assert {a.name.split(".")[0] for a in node.names} <= {"numpy", "pinocchio"}, node.names
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 0:
+                assert node.module == "__future__", node.module
+            else:  # from .. import _core: the extension, nothing else of geoddp
+                assert node.level == 2 and node.module is None and [a.name for a in node.names] == ["_core"]
 
 
-def test_every_exported_kernel_is_documented_with_its_arguments():
+def test_every_exported_kernel_is_documented_and_compiled():
     doc = kernels.__doc__
     for name in kernels.__all__:
-        assert callable(getattr(kernels, name))
+        f = getattr(kernels, name)
+        assert callable(f)
         assert f"``{name}(" in doc, name
+        if name not in ("so3_right_jacobian", "se3_right_jacobian"):  # choose Jr or its inverse, one call
+            assert f is getattr(kernels.core, name), name

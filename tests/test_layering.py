@@ -32,7 +32,7 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 FLOORS: dict[str, int] = {
-    # 0: leaves: input checks, compiled and numba kernels, package data
+    # 0: leaves: input checks, the compiled kernels, package data
     "geoddp.validate": 0,
     "geoddp.interrupts": 0,  # signals the CLI received, for loops to raise again; imports nothing
     "geoddp.outputs": 0,  # strict JSON and atomic writes (issue 13); imports only validate

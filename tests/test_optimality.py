@@ -142,8 +142,8 @@ def test_certificate_in_json_is_strict_and_round_trips(tmp_path):
 def test_panda_expansions_end_at_verified_minima(tmp_path, monkeypatch):
     # Non-convex: which local minimum an expansion reaches on this Panda reach depends on
     # round-off in its path (measured: J = 0.3458 for second order with the Python oracle's
-    # differenced cost Hessians and the numba backward pass; J = 0.71984 for first order, and for
-    # second order with the compiled exact Hessians or the C++ backward pass). Whatever the basin,
+    # differenced cost Hessians and the numba backward pass of before 2026-11-27; J = 0.71984 for
+    # first order, and for second order with the compiled exact Hessians or the C++ backward pass). Whatever the basin,
     # each stop is converged because it is a verified strict local minimum (Newton decrement at
     # round-off, every Q_uu positive definite), not because |dJ| got small.
     pytest.importorskip("example_robot_data")
@@ -153,7 +153,10 @@ def test_panda_expansions_end_at_verified_minima(tmp_path, monkeypatch):
     first = solve_scene(path, verbose=False, expansion="first")
     second = solve_scene(path, verbose=False, expansion="second")
     monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
-    second_oracle = solve_scene(path, verbose=False, expansion="second")
+    # The oracle crawls across a flat stretch whose length round-off decides: 167 iterations with
+    # numba's SO(3)/SE(3) right Jacobians, 204 with the compiled core's (the same J* to 3e-16,
+    # 2026-11-27): a budget above either, not the scene's 200.
+    second_oracle = solve_scene(path, verbose=False, expansion="second", max_iter=400)
     for r in (first, second, second_oracle):
         o = _opt(r)
         assert r.converged and o["hessian_positive_definite"] and o["newton_decrease"] < 1e-8, (r.status, o)

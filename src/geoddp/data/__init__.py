@@ -36,7 +36,7 @@ __all__ = ["urdf_dir", "scene_dir", "sweep_dir", "urdf_path", "builtin_urdf", "u
 def _root() -> Path:
     root = resources.files(__name__)
     # Pinocchio and the TOML reader need real files: geoddp is installed as files, never zipped
-    # (numba caches next to the modules as well), so the traversable is a plain path.
+    # (its compiled core is a shared library beside the modules), so the traversable is a plain path.
     if not isinstance(root, Path):
         raise RuntimeError(f"geoddp's package data must be installed as files, got {root!r}")
     return root

@@ -6,8 +6,8 @@ integrator. Dynamics: Omega+ = Omega + dt I^-1((I Omega) x Omega + H u) (= Omega
 R+ = R exp(dt Omega) (explicit Euler, paper eq. disceqs) or R+ = R exp(dt Omega+) (semi-implicit).
 
 This is the TSO(3) backend of a one-body model (spherical root, no gravity): the rollout, the
-closed-loop pass and the exact first- and second-order expansion run as closed forms in numba
-loops (:mod:`geoddp.kernels.rigid_body`). Any other structure runs the general path
+closed-loop pass and the exact first- and second-order expansion run as closed forms in C++
+(``cpp/tso3.cpp``, through :mod:`geoddp.kernels`). Any other structure runs the general path
 (:class:`geoddp.models.multibody.Multibody`). The numpy and Pinocchio finite-difference versions
 of the same quantities are the tests' oracles (tests/oracle_satellite.py).
 """

@@ -10,24 +10,15 @@ from ..validate import threads_from_environment
 from .ladder import LadderSearch, ladder
 from .options import SolverOptions
 
-try:  # pinocchio first: its import loads the libpinocchio geoddp._core links
-    import pinocchio  # noqa: F401
-
-    from .. import _core
-except ImportError:  # not built, or built against another pin: numba runs every pass
-    _core = None
-
-# Which backward pass runs: the C++ one (geoddp._core.backward_pass, the same recursion with Eigen
-# products; tests/test_core_riccati.py checks it against numba's to 1e-12) for nx > 6 when the
-# extension imports, numba's otherwise. At nx = 6 (the satellite on TSO(3)) numba's kernel has the
-# dimensions inlined as literals and is the faster one. A second-order Linearisation whose terms
-# are factored (lin.second_order, compiled multibody models) runs _core.backward_pass_contracted,
-# which contracts them with V_x' node by node instead of reading Theta, Gamma, Xi.
-COMPILED_MIN_NX = 7
-
-
-def _pass(nx: int):
-    return _core.backward_pass if _core is not None and nx >= COMPILED_MIN_NX else kernels.backward_pass
+# Every pass is compiled (geoddp._core, cpp/riccati.cpp, reached through geoddp.kernels): the
+# dense one (at nx = 6, the satellite's TSO(3) state, with its sizes fixed at compile time), and,
+# for a second-order Linearisation whose terms are factored (lin.second_order, compiled multibody
+# models), _core.backward_pass_contracted, which contracts them with V_x' node by node instead of
+# reading Theta, Gamma, Xi.
+_core = kernels.core
+# Below this nx a pass runs on one thread (no speculative pass beside it): at nx = 6 a whole pass
+# costs about 0.1 ms at H = 300 (0.38 us per node), as little as handing it to a second thread.
+SPECULATE_MIN_NX = 7
 
 
 class Workspace:
@@ -123,13 +114,13 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
 
 
 def _unconstrained(lin: Linearisation, ws: Workspace, reg: float) -> tuple[int, float, float]:
-    """The unconstrained pass: contracted (factored second order), C++ (nx > 6) or numba."""
+    """The unconstrained pass: contracted (factored second order) or dense."""
     second = lin.order == 2
     if second and lin.second_order is not None:  # factored terms: contracted with V_x' in the pass
         return _core.backward_pass_contracted(
             lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
             lin.second_order, reg, ws.k, ws.K, ws.quu_eig, _pass_workers(lin))
-    return _pass(lin.Phi.shape[1])(
+    return kernels.backward_pass(
         lin.Phi, lin.B, lin.l_x, lin.l_u, lin.l_xx, lin.l_ux, lin.l_uu, lin.lf_x, lin.lf_xx,
         lin.Theta if second else ws.empty_theta,
         lin.Gamma if second else ws.empty_gamma,
@@ -150,13 +141,13 @@ _SPECULATION: dict = {"pid": None, "pool": None}
 def _can_speculate(lin: Linearisation) -> bool:
     """Whether a pass may use two workers: two passes side by side after a failure, or, for the
     contracted pass, each node's contraction on the second worker (``workers``; bitwise the
-    same results). Only the compiled passes release the GIL (numba's do not), and only with two
-    or more cores and GEODDP_THREADS not set to 1 (a sweep's worker on a core of its own)."""
-    if _core is None or _core.default_threads() < 2:
+    same results). Only with two or more cores, nx >= SPECULATE_MIN_NX (or factored second-order
+    terms) and GEODDP_THREADS not set to 1 (a sweep's worker on a core of its own)."""
+    if _core.default_threads() < 2:
         return False
-    if lin.second_order is None and lin.Phi.shape[1] < COMPILED_MIN_NX:
+    if lin.second_order is None and lin.Phi.shape[1] < SPECULATE_MIN_NX:
         return False
-    return threads_from_environment() != 1  # read after the structure: numba's passes never look
+    return threads_from_environment() != 1  # read after the structure: small passes never look
 
 
 def _pass_workers(lin: Linearisation) -> int:

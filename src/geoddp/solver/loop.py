@@ -58,7 +58,6 @@ from typing import TextIO
 
 import numpy as np
 
-from .. import kernels
 from ..contract import Linearisation, OptimalControlProblem, Trajectory
 from ..result import Result
 from ..validate import InputError
@@ -575,7 +574,6 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
     # zeros by default (the paper's guess), projected into the limits
     U = (np.zeros((problem.horizon, problem.nu)) if bounds is None else np.clip(0.0, *bounds)) \
         if initial_controls is None else problem.check_controls(initial_controls)
-    kernels.warm_up()  # before the clock starts: solve_time_s measures the solve, not numba's loading
     # Overflow and invalid operations are detected by the explicit finiteness checks of the loop
     # (cost, gradient, backward pass): numpy's warnings would only duplicate them on stderr.
     with np.errstate(all="ignore"):

@@ -1,0 +1,116 @@
+"""The satellite's TSO(3) kernels: this checkout against another (e.g. the last one on numba),
+interleaved in ONE process (issue 12, item 5: one compiled core).
+
+The other checkout's package (its ``src/geoddp`` with its built ``_core``) is copied to a temporary
+directory as ``geoddp_ref`` (benchmarks/speed_vs_main.py's loader). Both build every satellite
+scene (``examples/satellite_*.toml``) and the 13 hard cases (``examples/hard``) from the same TOML
+file and solve them with the same expansion, alternating per solve: [ref, new] x (warm-up +
+``--runs``) for first, second and switch on the satellite scenes (timed: medians of the solve's
+wall time), once each on the hard cases (the guard only). Reported per row: iterations, J*, the
+largest relative difference of the J, gradient-norm, regularisation and step histories between the
+two (issue 11's guard: 1e-12), and for the timed rows ms per solve and new / ref. Timings on a
+shared machine mean little: compare the ratios of one run.
+
+    python benchmarks/satellite_core.py --ref /tmp/ref_checkout [--runs 11] [--no-hard]
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+EXAMPLES = HERE.parent / "examples"
+EXPANSIONS = ("first", "second", "switch")
+
+
+def load_reference(checkout: Path, workdir: Path):
+    """The other checkout's package as ``geoddp_ref`` (its compiled core must import)."""
+    src = checkout / "src" / "geoddp"
+    if not list(src.glob("_core*.so")):
+        raise SystemExit(f"{src} has no built _core extension")
+    shutil.copytree(src, workdir / "geoddp_ref", ignore=shutil.ignore_patterns("__pycache__"))
+    sys.path.insert(0, str(workdir))
+    return importlib.import_module("geoddp_ref")
+
+
+def histories_differ(a, b) -> float:
+    """Largest relative difference of the four solver histories (inf if their lengths differ)."""
+    worst = 0.0
+    for name in ("cost_history", "grad_norm_history", "reg_history", "step_history"):
+        x, y = np.asarray(getattr(a, name), float), np.asarray(getattr(b, name), float)
+        if x.shape != y.shape:
+            return float("inf")
+        if x.size:
+            worst = max(worst, float(np.max(np.abs(x - y) / np.maximum(np.abs(y), 1e-300))))
+    return worst
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--ref", type=Path, required=True, help="the other checkout (its src/geoddp built)")
+    ap.add_argument("--runs", type=int, default=11)
+    ap.add_argument("--no-hard", action="store_true", help="skip the 13 hard cases' history check")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        load_reference(args.ref.resolve(), Path(tmp))
+        import geoddp
+        import geoddp_ref.api as ref_api
+        import geoddp_ref.scene as ref_scene
+        import geoddp_ref.solver as ref_solver
+        from geoddp import api, scene, solver
+
+        print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; new: {Path(geoddp.__file__).parent}; "
+              f"ref: {args.ref} (as geoddp_ref); python benchmarks/satellite_core.py --runs {args.runs}")
+        print("\n| scene | expansion | iterations ref / new | J* ref | J* new | histories, max rel. diff | "
+              "ms / solve ref | new | new / ref |")
+        print("|---|---|---|---:|---:|---:|---:|---:|---:|")
+        scenes = sorted(EXAMPLES.glob("satellite_*.toml"))
+        hard = [] if args.no_hard else sorted((EXAMPLES / "hard").glob("*.toml"))
+        ratios = []
+        for path in scenes + hard:
+            timed = path in scenes
+            for expansion in EXPANSIONS if timed else ("switch",):
+                new_p = scene.build_problem(api.load_scene(path))
+                ref_p = ref_scene.build_problem(ref_api.load_scene(path))
+                new_o = solver.SolverOptions(**{**_options(api.load_scene(path)), "expansion": expansion})
+                ref_o = ref_solver.SolverOptions(**{**_options(ref_api.load_scene(path)), "expansion": expansion})
+                tn, tr = [], []
+                for rep in range(1 + (args.runs if timed else 0)):
+                    t = time.perf_counter()
+                    rr = ref_solver.solve(ref_p, ref_o)
+                    t1 = time.perf_counter()
+                    rn = solver.solve(new_p, new_o)
+                    t2 = time.perf_counter()
+                    if rep:
+                        tr.append(t1 - t)
+                        tn.append(t2 - t1)
+                diff = histories_differ(rn, rr)
+                row = (f"| {path.stem} | {expansion} | {rr.iterations} / {rn.iterations} | {rr.cost:.13g} | "
+                       f"{rn.cost:.13g} | {diff:.1e} |")
+                if timed:
+                    mr, mn = statistics.median(tr), statistics.median(tn)
+                    ratios.append(mn / mr)
+                    row += f" {mr * 1e3:.2f} | {mn * 1e3:.2f} | {mn / mr:.3f} |"
+                else:
+                    row += " | | |"
+                print(row, flush=True)
+        if ratios:
+            print(f"\nnew / ref per solve over the {len(ratios)} timed rows: {min(ratios):.3f} to {max(ratios):.3f}, "
+                  f"median {statistics.median(ratios):.3f}")
+    return 0
+
+
+def _options(spec) -> dict:
+    return dict(switch_ratio=spec.switch_ratio, tol=spec.tol, grad_tol=spec.grad_tol, max_iter=spec.max_iter)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
