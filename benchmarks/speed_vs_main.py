@@ -33,17 +33,24 @@ import robots  # noqa: E402
 EXPANSIONS = ("first", "second", "switch")
 
 
-def load_reference(checkout: Path, workdir: Path):
-    """The other checkout's robots module, importing its geoddp as ``geoddp_ref``."""
+def load_package(checkout: Path, workdir: Path):
+    """The other checkout's package (``src/geoddp`` with its built ``_core``), copied into
+    ``workdir`` and imported as ``geoddp_ref``."""
     src = checkout / "src" / "geoddp"
     if not list(src.glob("_core*.so")):
         raise SystemExit(f"{src} has no built _core extension")
     shutil.copytree(src, workdir / "geoddp_ref", ignore=shutil.ignore_patterns("__pycache__"))
+    sys.path.insert(0, str(workdir))
+    return importlib.import_module("geoddp_ref")
+
+
+def load_reference(checkout: Path, workdir: Path):
+    """The other checkout's robots module, importing its geoddp as ``geoddp_ref``."""
+    load_package(checkout, workdir)
     text = (checkout / "benchmarks" / "robots.py").read_text()
     text = re.sub(r"\bfrom geoddp(\.|\s)", lambda m: "from geoddp_ref" + m.group(1), text)
     text = re.sub(r"\bimport geoddp\b", "import geoddp_ref", text)
     (workdir / "robots_ref.py").write_text(text)
-    sys.path.insert(0, str(workdir))
     ref = importlib.import_module("robots_ref")
     assert ref.Multibody.__module__.startswith("geoddp_ref"), ref.Multibody.__module__
     # both sides must run their compiled cores: a reference whose _core failed to import would

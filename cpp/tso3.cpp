@@ -200,8 +200,8 @@ void linearise(const Body& body, int H, const double* Om, bool second_order, dou
   const double* Ii = body.inertia_inv;
   const double* Hm = body.actuation;
   // Fu = dt I^-1 H (3, m)
-  double Fu[3 * 64];
-  double* Fuh = m <= 64 ? Fu : new double[3 * m];
+  std::vector<double> Fu(3 * m);
+  double* Fuh = Fu.data();
   for (int i = 0; i < 3; ++i)
     for (int a = 0; a < m; ++a) Fuh[m * i + a] = dt * (Ii[3 * i] * Hm[a] + Ii[3 * i + 1] * Hm[m + a] + Ii[3 * i + 2] * Hm[2 * m + a]);
   // the constant second derivative of Om+ in Om: T[i, j, l] = dt I^-1((I e_j) x e_l + (I e_l) x e_j)
@@ -309,7 +309,6 @@ void linearise(const Body& body, int H, const double* Om, bool second_order, dou
       for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) Th[36 * (3 + i) + 6 * (3 + a) + 3 + b] = T[9 * i + 3 * a + b];
   }
-  if (Fuh != Fu) delete[] Fuh;
 }
 
 void geodesic_attitude_derivatives(int N, const double* E, const double* W, double* l, double* g, double* Hs) {
