@@ -41,7 +41,7 @@ static Setup make_setup(const pinocchio::Model& model, const Arr& H, double dt, 
 static Arr empty(std::vector<py::ssize_t> shape) { return Arr(shape); }
 
 PYBIND11_MODULE(_core, m) {
-  m.doc() = "geoddp's compiled multibody kernels over Pinocchio (C++17)";
+  m.doc() = "geoddp's compiled kernels: the multibody core over Pinocchio, the satellite's TSO(3) closed forms, the backward passes (C++17)";
   // The extension must run with the pin it was compiled against (pinocchio::Model's layout).
   py::module_ pin = py::module_::import("pinocchio");
   const std::string runtime = py::str(pin.attr("__version__"));

@@ -75,9 +75,7 @@ try:  # pinocchio first: its import loads the libpinocchio the extension links
 
     from .. import _core as core
 except ImportError as exc:  # not built, or built against another pin: nothing can run
-    raise ImportError(f"geoddp's compiled core (geoddp._core) does not import: {exc}. Reinstall geoddp "
-                      "against the installed pin: pip install --force-reinstall --no-deps --no-build-isolation "
-                      "<geoddp checkout>") from exc
+    raise ImportError(f"geoddp needs its compiled core, which does not import: {exc}") from exc
 
 backward_pass = core.backward_pass
 gradient = core.gradient
