@@ -30,8 +30,8 @@ differences) and SE(3)'s dJr exact (rk4: its analytic step Jacobian and, for the
 central differences of it, as below; variational: the residual's Jacobian analytic, with the
 kinetic-energy Hessian from the same second-order RNEA, and its second order one central
 difference of that Jacobian, where the Python oracle differences a difference); "python" is the
-code below, kept as the oracle. "auto" (the default) picks "compiled" when the extension imports,
-"python" otherwise; the environment variable
+code below, kept as the oracle. "auto" (the default) picks "compiled" (geoddp does not import
+without its compiled core, :mod:`geoddp.kernels`); the environment variable
 GEODDP_MULTIBODY_BACKEND=python makes "auto" pick "python".
 """
 from __future__ import annotations
