@@ -122,7 +122,8 @@ void bind_cost_sum(py::module_& m) {
             x.datas = &ws.entry(t[1], workers);
             const long fid = t[2].cast<long>(), kind = t[3].cast<long>();
             if (fid < 0) throw py::value_error("frame_id: expected a frame index");
-            if (kind < 0 || kind > 2) throw py::value_error("kind: expected 0 (placement), 1 (rotation) or 2 (translation)");
+            if (kind < 0 || kind > 3)
+              throw py::value_error("kind: expected 0 (placement), 1 (rotation), 2 (translation) or 3 (chordal rotation)");
             x.frame_id = (pinocchio::FrameIndex)fid;
             x.kind = static_cast<costs::FrameResidual>(kind);
             x.a = t[4].cast<Arr>();

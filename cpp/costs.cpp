@@ -197,7 +197,7 @@ namespace geoddp
     {
       const Eigen::Index N = Q.rows(), nv = model.nv, nx = 2 * model.nv;
       const int nr = kind == FrameResidual::Placement ? 6 : 3;
-      const int nref = kind == FrameResidual::Placement ? 16 : (kind == FrameResidual::Rotation ? 9 : 3);
+      const int nref = kind == FrameResidual::Placement ? 16 : (kind == FrameResidual::Translation ? 3 : 9);
       check(frame_id < model.frames.size(), "frame_id: not a frame of the model");
       check(data_fits(model, data), "data: expected a pinocchio::Data built for this model");
       check(Q.cols() == model.nq, "Q: expected shape (N, nq)");
@@ -253,6 +253,59 @@ namespace geoddp
             Ji6 = se3_right_jacobian_inv(r);
             Jr.noalias() = Ji6 * J;
           }
+        }
+        else if (kind == FrameResidual::RotationChordal)
+        {
+          // 1/2 tr[(I - E)^T W (I - E)] along R_f(q exp(dq)) = R_f exp(J_ang dq + O(dq^2)): in the
+          // rotation's local coordinates theta the cost is const - tr(W E exp(theta)), with
+          // gradient g = vee(W E - (W E)^T) (paper eq. gradF) and (0)-Hessian
+          // tr(W E) I - sym(W E) (eq. hessF); the chain rule through the frame's Jacobian and
+          // kinematic Hessian gives l_x = J^T g, l_xx = J^T Hth J + sum_p g_p Hess_p.
+          // (W is 3 x 3 here: Wm is the weight of each column of I - E.)
+          Matrix3 Rref;
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+              Rref(i, j) = ref[3 * i + j];
+          const Matrix3 E =
+            oMf.rotation() == Rref ? Matrix3::Identity() : Matrix3(Rref.transpose() * oMf.rotation());
+          const Matrix3 D = Matrix3::Identity() - E;
+          l[k] += 0.5 * (D.transpose() * Wm * D).trace();
+          if (!derivatives)
+            continue;
+          const Matrix3 WE = Wm * E;
+          const Eigen::Vector3d g(WE(2, 1) - WE(1, 2), WE(0, 2) - WE(2, 0), WE(1, 0) - WE(0, 1));
+          const auto Ja = J.bottomRows<3>();
+          lx.row(k).head(nv) += (Ja.transpose() * g).transpose();
+          Matrix3 Hth;
+          if (gauss_newton)
+          {
+            // the Gauss-Newton form of the residual r = vec(I - E exp(theta)), weight W on each
+            // column: dr/dtheta_a = -vec(E hat(e_a)), so Hth(a, b) = <E hat(e_a), W E hat(e_b)>
+            // (positive semidefinite; no kinematic Hessian)
+            Matrix3 A[3];
+            for (int a = 0; a < 3; ++a)
+              A[a] = E * lie::hat(Eigen::Vector3d::Unit(a));
+            for (int a = 0; a < 3; ++a)
+              for (int b = 0; b < 3; ++b)
+                Hth(a, b) = A[a].cwiseProduct(Wm * A[b]).sum();
+          }
+          else
+            Hth = WE.trace() * Matrix3::Identity() - 0.5 * (WE + WE.transpose());
+          S.noalias() = Ja.transpose() * (Hth * Ja);
+          // exactly zero at the reference (g = 0): the kinematic Hessians only where g is not
+          if (!gauss_newton && !g.isZero(0.0))
+          {
+            pinocchio::computeJointKinematicHessians(model, data);
+            H.setZero();
+            pinocchio::getFrameKinematicHessian(model, data, frame_id, pinocchio::LOCAL, H);
+            Eigen::Map<const Eigen::MatrixXd> Hm(H.data(), 6, nv * nv);
+            Vector6 g6 = Vector6::Zero();
+            g6.tail<3>() = g;
+            Eigen::Matrix<double, 1, Eigen::Dynamic> gH = g6.transpose() * Hm;
+            S += Eigen::Map<const Eigen::MatrixXd>(gH.data(), nv, nv);
+          }
+          add_sym(lxx, k, nx, 0, S);
+          continue;
         }
         else if (kind == FrameResidual::Rotation)
         {

@@ -67,7 +67,10 @@ namespace geoddp
     {
       Placement,   // r = log6(M_ref^-1 oMf(q)) (6,), refs (K, 16): homogeneous 4x4, row-major
       Rotation,    // r = log3(R_ref^T R_f(q)) (3,), refs (K, 9): 3x3 row-major
-      Translation  // r = p_f(q) - p_ref (3,),      refs (K, 3)
+      Translation,  // r = p_f(q) - p_ref (3,),      refs (K, 3)
+      // not a residual: 1/2 tr[(I - E)^T W (I - E)], E = R_ref^T R_f(q) (the paper's chordal
+      // attitude cost, eq. costR, on any frame), refs (K, 9) as Rotation, W (3, 3)
+      RotationChordal
     };
 
     /// 1/2 r^T W r of a frame residual on N nodes: Q (N, nq), W (nr, nr) symmetric PSD.

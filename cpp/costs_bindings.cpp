@@ -20,8 +20,8 @@ namespace geoddp
         py::handle model, int frame_id, int kind, const ConstRowRef & Q, const ConstRowRef & refs,
         const ConstRowRef & W, bool gauss_newton, bool derivatives, VecRef l, RowRef lx, RowRef lxx) {
         const pinocchio::Model & mdl = model_from_python(model);
-        if (kind < 0 || kind > 2)
-          throw std::invalid_argument("kind: expected 0 (placement), 1 (rotation) or 2 (translation)");
+        if (kind < 0 || kind > 3)
+          throw std::invalid_argument("kind: expected 0 (placement), 1 (rotation), 2 (translation) or 3 (chordal rotation)");
         if (frame_id < 0)
           throw std::invalid_argument("frame_id: expected a frame index");
         py::gil_scoped_release release;
@@ -32,7 +32,8 @@ namespace geoddp
       },
       py::arg("model"), py::arg("frame_id"), py::arg("kind"), py::arg("Q"), py::arg("refs"), py::arg("W"),
       py::arg("gauss_newton"), py::arg("derivatives"), py::arg("l"), py::arg("lx"), py::arg("lxx"),
-      "Add 1/2 r^T W r of a frame residual (kind 0 placement log6, 1 rotation log3, 2 translation) and,\n"
+      "Add 1/2 r^T W r of a frame residual (kind 0 placement log6, 1 rotation log3, 2 translation; 3: the chordal\n"
+      "rotation cost 1/2 tr[(I - E)^T W (I - E)], E = R_ref^T R_f) and,\n"
       "with derivatives, its gradient and exact (0)-Hessian into l (N,), lx (N, 2 nv), lxx (N, 4 nv^2).\n"
       "Q (N, nq); refs (K, 16 | 9 | 3) row-major, K = 1 or N; W (nr, nr). float64, C-contiguous.");
     m.def(

@@ -103,7 +103,7 @@ BAD = {
     "attitude_weight_not_symmetric": (
         _sub("attitude = 1e4", "attitude = [[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]"), "[cost].attitude"),
     "unknown_expansion": (_sub('expansion = "switch"', 'expansion = "third"'), "[solver].expansion"),
-    "unknown_integrator": (_sub('integrator = "euler"', 'integrator = "rk4"'), "[horizon].integrator"),
+    "unknown_integrator": (_sub('integrator = "euler"', 'integrator = "rk5"'), "[horizon].integrator"),
     "unknown_attitude_kind": (_sub('attitude_kind = "chordal"', 'attitude_kind = "quat"'), "[cost].attitude_kind"),
     "negative_tol": (_sub("tol = 1e-8", "tol = -1e-8"), "[solver].tol"),
     "max_iter_zero": (_sub("max_iter = 200", "max_iter = 0"), "[solver].max_iter"),

@@ -21,6 +21,7 @@ from geoddp.multibody_costs import (
     ControlRegularisation,
     FramePlacement,
     FrameRotation,
+    FrameRotationChordal,
     FrameTranslation,
     MultibodyCostSum,
     MultibodyCostTerm,
@@ -53,7 +54,7 @@ MODELS = {
     "satellite": (_load("satellite", pin.JointModelSpherical()), "bus"),
 }
 # "state_diagonal": per-coordinate weights, the compiled kernel's scaling path (some zero)
-KINDS = ["placement", "rotation", "translation", "state", "state_diagonal", "control"]
+KINDS = ["placement", "rotation", "chordal", "translation", "state", "state_diagonal", "control"]
 
 
 def _random_q(model, rng, scale=1.5):
@@ -88,6 +89,9 @@ def _term(kind, model, frame, Q, rng, per_node, angle=1.2, gauss_newton=False):
     if kind == "rotation":
         return FrameRotation(model, frame, one(np.array([M.rotation for M in Ms])), _spd(3, rng),
                              gauss_newton=gauss_newton)
+    if kind == "chordal":
+        return FrameRotationChordal(model, frame, one(np.array([M.rotation for M in Ms])), _spd(3, rng),
+                                    gauss_newton=gauss_newton)
     if kind == "translation":
         return FrameTranslation(model, frame, one(np.array([M.translation for M in Ms])), _spd(3, rng),
                                 gauss_newton=gauss_newton)
@@ -147,7 +151,7 @@ def test_compiled_matches_the_python_oracle(name, kind, per_node):
         assert np.array_equal(dc.lxx, np.swapaxes(dc.lxx, 1, 2))  # exactly symmetric
         # Gauss-Newton Hessians involve no differences: equal to round-off
         assert _rel(dc.lxx, dp.lxx) < (VALUE_TOL if gn or kind == "control" else ORACLE_HESS_TOL), gn
-        if not gn and kind in ("placement", "rotation", "translation") and np.any(dp.lxx):
+        if not gn and kind in ("placement", "rotation", "chordal", "translation") and np.any(dp.lxx):
             assert _rel(dc.lxx, dp.lxx) > 0.0  # the oracle differences: not the same numbers
 
 
@@ -190,7 +194,7 @@ def _richardson_hessian(cost, q, v):
 
 @needs_core
 @pytest.mark.parametrize("angle", [1e-6, 0.3, 1.5, 2.6])
-@pytest.mark.parametrize("kind", ["placement", "rotation", "translation", "state"])
+@pytest.mark.parametrize("kind", ["placement", "rotation", "chordal", "translation", "state"])
 @pytest.mark.parametrize("name", ["free_flyer", "fixed", "spherical", "all_joints"])
 def test_compiled_hessian_is_exact(name, kind, angle):
     model, frame = MODELS[name]
@@ -431,8 +435,8 @@ class _term_by_term:
                                                d is not None, d.l if d else self.l, rows(d.lx) if d else e,
                                                rows(d.lxx) if d else e)
             else:
-                code, refs = _FRAME_KINDS[type(t)](t)
-                CORE.cost_frame_term(t.model, t.frame_id, code, Q, refs, t.W, t.gauss_newton or gauss_newton,
+                code, refs, W = _FRAME_KINDS[type(t)](t)
+                CORE.cost_frame_term(t.model, t.frame_id, code, Q, refs, W, t.gauss_newton or gauss_newton,
                                      d is not None, d.l if d else self.l, rows(d.lx) if d else e,
                                      rows(d.lxx) if d else e)
 

@@ -83,8 +83,9 @@ class AttitudeChordal(CostTerm):
     """1/2 ||I - R_d^T R||^2_{m, S_R} = 1/2 tr[(I - E)^T S_R (I - E)], E = R_d^T R (eq. costR).
 
     Gradient 2 vee(skew(S_R E)) (eq. gradF), (0)-Hessian sym(tr[S_R E] I - S_R E) (eq. hessF).
-    On TSO(3) R is the state's rotation; on a general model the chordal form is not available yet
-    (a :class:`geoddp.multibody_costs.MultibodyCostSum` refuses it naming ``frame``).
+    On TSO(3) R is the state's rotation; in a :class:`geoddp.multibody_costs.MultibodyCostSum` the
+    same term penalises the world rotation of ``frame`` (it becomes a
+    :class:`geoddp.multibody_costs.FrameRotationChordal` with the same S_R and R_d).
     """
 
     def __init__(self, S_R, R_d, frame: str | None = None) -> None:

@@ -79,6 +79,7 @@ __all__ = [
     "ControlRegularisation",
     "FramePlacement",
     "FrameRotation",
+    "FrameRotationChordal",
     "FrameTranslation",
     "MultibodyCostSum",
     "MultibodyCostTerm",
@@ -171,12 +172,11 @@ def _on_frames(term: Any, model: pin.Model | None, i: int) -> Any:
     TSO(3) backend and every other model)."""
     if not isinstance(term, (AttitudeGeodesic, AttitudeChordal)):
         return term
-    if isinstance(term, AttitudeChordal):
-        raise InputError(f"terms[{i}].frame", "expected a geodesic attitude term on a general model "
-                         "(the chordal form runs on TSO(3) only), got AttitudeChordal")
     if model is None or term.frame is None:
         raise InputError(f"terms[{i}].frame", "expected the name of the frame whose rotation the term "
                          "penalises (and model= on the cost sum), got none")
+    if isinstance(term, AttitudeChordal):
+        return FrameRotationChordal(model, term.frame, term.R_d, term.S)
     return FrameRotation(model, term.frame, term.R_d, term.W)
 
 
@@ -366,6 +366,45 @@ class FrameRotation(_FrameTerm):
         r = pin.log3(E)
         # R(q exp(s dq)) = R exp(s J_ang dq): the angular LOCAL rows
         return r, (SO3.right_jacobian_inv(r) @ J[3:6] if jac else None)
+
+
+class FrameRotationChordal(FrameRotation):
+    """1/2 ||I - E||^2_W = 1/2 tr[(I - E)^T W (I - E)], E = R_ref^T R_frame(q): the paper's chordal
+    attitude cost (eq. costR) on any frame of any model (:class:`geoddp.costs.AttitudeChordal` on
+    TSO(3)). Unlike the geodesic form it has no cut locus at pi, but a saddle there.
+
+    Written as the residual r = (I - E) stacked column by column (9,) with weight
+    blockdiag(W, W, W): R(q exp(s dq)) = R exp(s J_ang dq) + O(s^2) gives dr/dtheta_a =
+    -vec(E hat(e_a)), and the residual machinery of this module (Gauss-Newton part, differenced
+    second-order part) applies as it is. The compiled twin (cpp/costs.cpp) uses the closed forms of
+    eqs. gradF and hessF in the rotation's local coordinates instead, with the frame's kinematic
+    Hessian; ``gauss_newton`` keeps the residual's J_r^T W J_r in both.
+
+    Args:
+        R_ref: target world orientation (3, 3) or per node (N, 3, 3).
+        W: (3, 3) PSD weight (scalar or length-3 diagonal accepted), the paper's S_R.
+    """
+
+    nr = 9
+
+    def __init__(self, model: pin.Model, frame_name: str, R_ref: Any, W: Any = 1.0,
+                 gauss_newton: bool = False) -> None:
+        self.S = spd_matrix(W, "FrameRotationChordal.W", 3, semidefinite=True)
+        _FrameTerm.__init__(self, model, frame_name, np.kron(np.eye(3), self.S), gauss_newton)
+        R = _stack(R_ref, "FrameRotationChordal.R_ref", (3, 3))
+        for k, Rk in enumerate(R):
+            rotation_matrix(Rk, "FrameRotationChordal.R_ref" if len(R) == 1 else f"FrameRotationChordal.R_ref[{k}]")
+        self.R_ref = R  # (K, 3, 3)
+
+    def _residual(self, q, k, jac):
+        oMf, J = self._kinematics(q, jac)
+        Rref = self.R_ref[k if len(self.R_ref) > 1 else 0]
+        E = np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation
+        r = (np.eye(3) - E).T.reshape(9)  # columns of I - E, one after the other
+        if not jac:
+            return r, None
+        dr = -np.stack([(E @ pin.skew(e)).T.reshape(9) for e in np.eye(3)], axis=1)  # (9, 3)
+        return r, dr @ J[3:6]
 
 
 class FrameTranslation(_FrameTerm):
@@ -708,15 +747,16 @@ def _spec(t: MultibodyCostTerm, N: int, U: np.ndarray | None) -> tuple:
     t._check_nodes(N)
     if kind is StateRegularisation:
         return (1, t.model, t.q_ref, t.v_ref, t.W, t.gauss_newton)
-    code, refs = _FRAME_KINDS[kind](t)
-    return (0, t.model, t.frame_id, code, refs, t.W, t.gauss_newton)
+    code, refs, W = _FRAME_KINDS[kind](t)
+    return (0, t.model, t.frame_id, code, refs, W, t.gauss_newton)
 
 
-# frame term class -> (kernel code, its references as (K, 16 | 9 | 3) rows)
-_FRAME_KINDS: dict[type, Callable[[Any], tuple[int, np.ndarray]]] = {
-    FramePlacement: lambda t: (0, t.M_ref.reshape(t.M_ref.shape[0], 16)),
-    FrameRotation: lambda t: (1, t.R_ref.reshape(t.R_ref.shape[0], 9)),
-    FrameTranslation: lambda t: (2, t.p_ref),
+# frame term class -> (kernel code, its references as (K, 16 | 9 | 3) rows, its weight)
+_FRAME_KINDS: dict[type, Callable[[Any], tuple[int, np.ndarray, np.ndarray]]] = {
+    FramePlacement: lambda t: (0, t.M_ref.reshape(t.M_ref.shape[0], 16), t.W),
+    FrameRotation: lambda t: (1, t.R_ref.reshape(t.R_ref.shape[0], 9), t.W),
+    FrameTranslation: lambda t: (2, t.p_ref, t.W),
+    FrameRotationChordal: lambda t: (3, t.R_ref.reshape(t.R_ref.shape[0], 9), t.S),  # W (3, 3) per column
 }
 # the term classes with a compiled twin (exact types: a subclass may change what it computes)
 _COMPILED_KINDS = frozenset((*_FRAME_KINDS, StateRegularisation, ControlRegularisation))

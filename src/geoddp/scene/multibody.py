@@ -38,7 +38,7 @@ Schema (``?`` = optional, with its default; paths as they appear in error messag
       frame_placement     frame, weight (scalar | 6 | 6x6, [linear; angular]),
                           translation + one rotation form, or at_configuration (nq)
       frame_rotation      frame, weight (3 | 3x3), one rotation form or at_configuration,
-                          distance? = "geodesic" (geodesic | chordal: TSO(3) backend only)
+                          distance? = "geodesic" (geodesic | chordal)
       frame_translation   frame, weight (3), translation or at_configuration
       (frame terms)       gauss_newton? = false
       state_regularisation  q_reference? = "neutral" ("neutral" | "initial" | nq),
@@ -127,9 +127,8 @@ class CostTermSpec:
             (state_regularisation), (m,) input (control).
         weight: (nr, nr) PSD weight matrix.
         gauss_newton: drop the second-order part of l_xx (frame and state terms).
-        distance: of a frame_rotation term: "geodesic" (1/2 r^T W r, r = log3(R_ref^T R), on
-            every model) or "chordal" (1/2 ||I - R_ref^T R||^2_W, paper eq. costR: the TSO(3)
-            backend only, so a one-body model on a spherical root without gravity).
+        distance: of a frame_rotation term: "geodesic" (1/2 r^T W r, r = log3(R_ref^T R)) or
+            "chordal" (1/2 ||I - R_ref^T R||^2_W, paper eq. costR), each on every model.
     """
 
     type: str
@@ -149,8 +148,7 @@ class CostTermSpec:
         if self.type == "frame_placement":
             return mc.FramePlacement(model, self.frame, ref, W=W, gauss_newton=self.gauss_newton)
         if self.type == "frame_rotation" and self.distance == "chordal":
-            raise InputError(f"{self.path}.distance", '"chordal" runs on the TSO(3) backend only (one body on a '
-                             'spherical root, no gravity, integrator euler or semi_implicit); use "geodesic" here')
+            return mc.FrameRotationChordal(model, self.frame, ref, W=W, gauss_newton=self.gauss_newton)
         if self.type == "frame_rotation":
             return mc.FrameRotation(model, self.frame, ref, W=W, gauss_newton=self.gauss_newton)
         if self.type == "frame_translation":

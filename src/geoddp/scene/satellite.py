@@ -15,7 +15,7 @@ Schema (``?`` = optional, with its default)::
                angular_velocity? = [0,0,0] (rad/s)
     [target]   exactly one of rotation | quaternion | euler_intrinsic ([[axis, deg], ...]);
                angular_velocity? = [0,0,0]
-    [horizon]  tf (s), dt (s), integrator? = "euler" (euler | semi_implicit)
+    [horizon]  tf (s), dt (s), integrator? = "euler" (euler | semi_implicit | rk4 | variational)
     [cost]     control (S_u), attitude (S_R or W_R), attitude_kind? = "chordal"
                (chordal | geodesic), angular_velocity (S_Omega),
                running_attitude? = 0, running_angular_velocity? = 0
@@ -42,7 +42,9 @@ from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
 from .multibody import CostTermSpec, MultibodySceneSpec
 from .reader import Reader, Schema, check_urdf
 
-INTEGRATORS = ("euler", "semi_implicit")
+# euler and semi_implicit run on the TSO(3) closed forms; rk4 and variational on the general
+# one-body model (scene.build picks by structure), the chordal cost included
+INTEGRATORS = ("euler", "semi_implicit", "rk4", "variational")
 ATTITUDE_KINDS = ("chordal", "geodesic")
 SECOND_ORDER = ("exact", "paper")
 DEFAULT_INTEGRATOR = "euler"
@@ -81,7 +83,8 @@ class SceneSpec(CommonSpec):
         tf: final time in seconds.
         dt: time step in seconds.
         horizon: H = tf / dt (derived; an integer).
-        integrator: "euler" | "semi_implicit".
+        integrator: "euler" | "semi_implicit" (TSO(3) closed forms) | "rk4" | "variational" (the
+            general one-body model).
         S_u: (m, m) SPD control weight.
         S_R: (3, 3) PSD terminal attitude weight (S_R for chordal, W_R for geodesic).
         attitude_kind: "chordal" | "geodesic".
