@@ -16,8 +16,9 @@ from .options import SolverOptions
 # models), _core.backward_pass_contracted, which contracts them with V_x' node by node instead of
 # reading Theta, Gamma, Xi.
 _core = kernels.core
-# Below this nx a pass runs on one thread (no speculative pass beside it): at nx = 6 a whole pass
-# costs about 0.1 ms at H = 300 (0.38 us per node), as little as handing it to a second thread.
+# Below this nx a pass runs on one thread (no speculative pass beside it), as the satellite's did
+# while they were numba's, which held the GIL: its solves run as they did. (A whole pass at nx = 6
+# costs about 0.1 ms at H = 300, 0.38 us per node.)
 SPECULATE_MIN_NX = 7
 
 
