@@ -597,7 +597,9 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   CF.resize(nv, nz);
   stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
-  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Hp}) M->resize(nv, nv);
+  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Hp, &dSqj, &dRyj, &X}) M->resize(nv, nv);
+  dMq.assign((size_t)nv * nv * nv, 0.0);
+  d2qq.assign((size_t)nv * nv * nv, 0.0);
   lin.qn.resize(nq);
   lin.xi.resize(nv);
   lin.Sq0.resize(nv, nv);
@@ -746,6 +748,39 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     else one_body_columns<3>(vm, nw, v, y);
     return;
   }
+  // Along eta's joint directions, exactly, from the base call's terms (w: A = Ad_exp(-dt v),
+  // Jv = Jr(dt v), K0 = K(dt v), none of which moves with eta) and the second-order RNEA at
+  // (q, 0, v): q exp(h e_j) moves M(q) by h dM_j and D(q, v) by h dD_j (pages j of its dM/dq and
+  // d2tau/dq2, as at q+ above), and q+ = q exp(eta) exp(dt v) by xi = h Ad_exp(-dt v) e_j, so Sq
+  // and R_y by h sum_k A(k, j) dSq[k], dRy[k] (QplusLinear). Then with dSq_j, dRy_j those sums,
+  //   d_j R_eta = dSq_j A - K0^T dD_j,  d_j R_dv = dt dSq_j Jv - K0^T dM_j - dt d/dx[K(x)^T dM_j v],
+  //   d_j R_y = dRy_j,
+  // where central differences had taken two residual_jacobian calls (two mass matrices, two RNEA
+  // derivatives) per direction. The same tensors give D(q, e_l) along dv below.
+  pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
+  std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + nn * nv, nw.dMq.data());
+  std::copy(w.fdata.d2tau_dqdq.data(), w.fdata.d2tau_dqdq.data() + nn * nv, nw.d2qq.data());
+  for (int j = root; j < nv; ++j) {
+    nw.dSqj.setZero();
+    nw.dRyj.setZero();
+    for (int k = 0; k < nv; ++k) {
+      const double a = w.A(k, j);
+      if (a == 0.0) continue;
+      if (!L.dSq_zero[k]) nw.dSqj += a * L.dSq[k];
+      if (!L.dRy_zero[k]) nw.dRyj += a * L.dRy[k];
+    }
+    const Eigen::Map<const Eigen::MatrixXd> dM(nw.dMq.data() + j * nn, nv, nv), dD(nw.d2qq.data() + j * nn, nv, nv);
+    nw.X.noalias() = nw.dSqj * w.A;
+    nw.X.noalias() -= w.K0.transpose() * dD;
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j).head(nv) = nw.X.row(i).transpose();
+    w.tmp.noalias() = dM * v;
+    dKT(vm, w, w.omega, w.K0, w.tmp, w.S);
+    nw.X.noalias() = dt * (nw.dSqj * w.Jv);
+    nw.X.noalias() -= w.K0.transpose() * dM;
+    nw.X -= dt * w.S;
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j).segment(nv, nv) = nw.X.row(i).transpose();
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j).tail(nv) = nw.dRyj.row(i).transpose();
+  }
   for (int j = 0; j < root; ++j) {  // eta along the root's pose: M(q), D(q, v) do not change
     if (vm.gravity_free) {  // nor does anything else: exactly zero
       for (int i = 0; i < nv; ++i) nw.T[i].col(j).setZero();
@@ -757,16 +792,10 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   for (int l = 0; l < nv; ++l) {  // dv: q is the base's (M(q) kept; D(q, v) linear in v)
     keep.v_terms = keep.D0 = false;
     keep.M0 = true;
-    if (linear_D) {
-      nw.yp.setZero();
-      nw.yp[l] = 1.0;
-      Dmat(vm, w, q, nw.yp, nw.Dl);  // D(q, e_l)
-    }
+    if (linear_D)  // D(q, e_l)(i, k) = dM(i, l)/dq_k at q: column l of every page of nw.dMq
+      nw.Dl = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(nw.dMq.data() + (size_t)l * nv, nv, nv,
+                                                                        Eigen::OuterStride<>((Eigen::Index)nv * nv));
     difference_along(nv + l, keep, linear_D ? &nw.Dl : nullptr);
-  }
-  for (int j = root; j < nv; ++j) {  // eta along the joints: M(q), D(q, v) and the v terms anew
-    keep.v_terms = keep.M0 = keep.D0 = false;
-    difference_along(j, keep);
   }
   // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y's columns need
   // differencing: velocity_jacobian alone (one first-order RNEA derivative per point instead of

@@ -8,12 +8,13 @@
 // from Pinocchio's ComputeRNEASecondOrderDerivatives at (q, 0, y) on the gravity-free model
 // instead of central differences of D. So the residual's Jacobian [R_eta, R_dv, R_y] is analytic
 // throughout, and the second-order term R_ww is one central difference of it (not the Python
-// oracle's difference of a difference): F2 = -R_y^-1 P^T R_ww P. Along eta and dv the Jacobian is
-// differenced (4 nv evaluations per node) with its q+-dependent parts read from a first-order model
-// differenced once along q+'s own directions (QplusLinear: the chain rule, 2 nv evaluations of
-// them, fewer on a free-flyer or spherical root); along y only its R_y columns (2 nv cheap
-// evaluations: q+ does not move), the other entries of those directions being the mixed partials
-// already differenced along eta and dv.
+// oracle's difference of a difference): F2 = -R_y^-1 P^T R_ww P. Along dv and the root's pose the
+// Jacobian is differenced with its q+-dependent parts read from a first-order model differenced
+// once along q+'s own directions (QplusLinear: the chain rule, 2 nv evaluations of them, fewer on
+// a free-flyer or spherical root); along eta's joint directions its columns are exact (M(q) and
+// D(q, v) move with one more second-order RNEA's tensors at q, q+ through QplusLinear); along y
+// only its R_y columns are differenced (2 nv cheap evaluations: q+ does not move), the other
+// entries of those directions being the mixed partials already taken along eta and dv.
 //
 // Arrays as in dynamics.hpp: float64, row-major; z = (dq, dv, du), nz = 2 nv + m.
 #pragma once
@@ -107,6 +108,10 @@ struct VariationalNodeWork {
   QplusLinear lin;
   // the base call's M(q+) and D(q+, y); the kinetic-energy Hessian at q+ exp(h e_k)
   Eigen::MatrixXd M1b, D1b, Hp;
+  // dM/dq and d2tau/dq2 at (q, 0, v) (nv^3 each, as VariationalWork's at q+): the exact columns of
+  // R_ww along eta's joint directions and D(q, e_l) along dv
+  std::vector<double> dMq, d2qq;
+  Eigen::MatrixXd dSqj, dRyj, X;  // scratch of those columns
   // a copy of the model whose gravity residual_hessians turns (the root's rotation directions;
   // made only for a free-flyer or spherical root under gravity)
   struct TurnedGravity {
