@@ -544,3 +544,15 @@ def test_cost_sum_checks_sizes_itself():
     with pytest.raises(ValueError, match="V: expected"):  # chunks of V must not run past its end
         CORE.cost_sum(ws, [(1, model, Q[:1], V[:1], np.eye(nx), False)], Q, V[:20], e, False, False, 2, **out)
     assert not out["l"].any()  # nothing was added by a refused call
+
+
+def test_chordal_term_names_itself_in_its_errors():
+    model, frame = MODELS["satellite"]
+    Q = np.array([_random_q(model, np.random.default_rng(k)) for k in range(5)])
+    V = np.zeros((5, model.nv))
+    with pytest.raises(InputError, match=r"FrameRotationChordal\.W"):
+        FrameRotationChordal(model, frame, np.eye(3), W=-np.eye(3))
+    term = FrameRotationChordal(model, frame, np.stack([np.eye(3)] * 3), W=2.0)
+    for backend in ("python", "compiled"):
+        with pytest.raises(InputError, match=r"FrameRotationChordal\.R_ref"):
+            MultibodyCostSum([term], model=model, backend=backend).value(Q, V, None)

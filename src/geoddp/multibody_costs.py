@@ -396,6 +396,9 @@ class FrameRotationChordal(FrameRotation):
             rotation_matrix(Rk, "FrameRotationChordal.R_ref" if len(R) == 1 else f"FrameRotationChordal.R_ref[{k}]")
         self.R_ref = R  # (K, 3, 3)
 
+    def _check_nodes(self, N):
+        _check_count(self.R_ref, N, "FrameRotationChordal.R_ref")
+
     def _residual(self, q, k, jac):
         oMf, J = self._kinematics(q, jac)
         Rref = self.R_ref[k if len(self.R_ref) > 1 else 0]
