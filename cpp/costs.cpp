@@ -181,6 +181,19 @@ namespace geoddp
     }
 
     // ------------------------------------------------------------------ frame terms
+    // E = R_ref^T R_f, R_ref from a row-major 3 x 3 reference row; exactly I when R_f is R_ref
+    // (R_ref^T R would leave round-off: the cost and its gradient are exactly 0 at the reference,
+    // as the oracle's)
+    template<typename Row>
+    Matrix3 relative_rotation(const Row & ref, const Matrix3 & Rf)
+    {
+      Matrix3 Rref;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          Rref(i, j) = ref[3 * i + j];
+      return Rf == Rref ? Matrix3(Matrix3::Identity()) : Matrix3(Rref.transpose() * Rf);
+    }
+
     void frame_term(
       const pinocchio::Model & model,
       pinocchio::Data & data,
@@ -262,12 +275,7 @@ namespace geoddp
           // tr(W E) I - sym(W E) (eq. hessF); the chain rule through the frame's Jacobian and
           // kinematic Hessian gives l_x = J^T g, l_xx = J^T Hth J + sum_p g_p Hess_p.
           // (W is 3 x 3 here: Wm is the weight of each column of I - E.)
-          Matrix3 Rref;
-          for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-              Rref(i, j) = ref[3 * i + j];
-          const Matrix3 E =
-            oMf.rotation() == Rref ? Matrix3::Identity() : Matrix3(Rref.transpose() * oMf.rotation());
+          const Matrix3 E = relative_rotation(ref, oMf.rotation());
           const Matrix3 D = Matrix3::Identity() - E;
           l[k] += 0.5 * (D.transpose() * Wm * D).trace();
           if (!derivatives)
@@ -309,12 +317,7 @@ namespace geoddp
         }
         else if (kind == FrameResidual::Rotation)
         {
-          Matrix3 Rref;
-          for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-              Rref(i, j) = ref[3 * i + j];
-          const Matrix3 E =
-            oMf.rotation() == Rref ? Matrix3::Identity() : Matrix3(Rref.transpose() * oMf.rotation());
+          const Matrix3 E = relative_rotation(ref, oMf.rotation());
           r = pinocchio::log3(E);
           if (derivatives)
           {
