@@ -226,6 +226,17 @@ namespace geoddp
       Eigen::VectorXd r(nr), w(nr), q(model.nq);
       Eigen::MatrixXd S(nv, nv);
       const Eigen::MatrixXd Wm = W;
+      // S = sum_p g6_p Hess_p: the frame's kinematic Hessian (Pinocchio's, in frame rf) contracted
+      // with g6. H is column-major (6, nv, nv): as a (6, nv * nv) matrix, g6^T H holds S(i, k) at
+      // i + k nv.
+      const auto kinematic_hessian = [&](const Vector6 & g6, pinocchio::ReferenceFrame rf, Eigen::MatrixXd & out)
+      {
+        pinocchio::computeJointKinematicHessians(model, data);
+        H.setZero();
+        pinocchio::getFrameKinematicHessian(model, data, frame_id, rf, H);
+        Eigen::Map<const Eigen::MatrixXd> Hm(H.data(), 6, nv * nv);
+        Eigen::Map<Eigen::RowVectorXd>(out.data(), nv * nv).noalias() = g6.transpose() * Hm;
+      };
 
       for (Eigen::Index k = 0; k < N; ++k)
       {
@@ -300,19 +311,15 @@ namespace geoddp
           else
             Hth = WE.trace() * Matrix3::Identity() - 0.5 * (WE + WE.transpose());
           S.noalias() = Ja.transpose() * (Hth * Ja);
+          add_sym(lxx, k, nx, 0, S);
           // exactly zero at the reference (g = 0): the kinematic Hessians only where g is not
           if (!gauss_newton && !g.isZero(0.0))
           {
-            pinocchio::computeJointKinematicHessians(model, data);
-            H.setZero();
-            pinocchio::getFrameKinematicHessian(model, data, frame_id, pinocchio::LOCAL, H);
-            Eigen::Map<const Eigen::MatrixXd> Hm(H.data(), 6, nv * nv);
             Vector6 g6 = Vector6::Zero();
             g6.tail<3>() = g;
-            Eigen::Matrix<double, 1, Eigen::Dynamic> gH = g6.transpose() * Hm;
-            S += Eigen::Map<const Eigen::MatrixXd>(gH.data(), nv, nv);
+            kinematic_hessian(g6, pinocchio::LOCAL, S);
+            add_sym(lxx, k, nx, 0, S);
           }
-          add_sym(lxx, k, nx, 0, S);
           continue;
         }
         else if (kind == FrameResidual::Rotation)
@@ -341,13 +348,6 @@ namespace geoddp
         // exactly zero at r = 0 (as the oracle): skip the kinematic Hessians there
         if (gauss_newton || w.isZero(0.0))
           continue;
-        pinocchio::computeJointKinematicHessians(model, data);
-        H.setZero();
-        const pinocchio::ReferenceFrame rf =
-          kind == FrameResidual::Translation ? pinocchio::LOCAL_WORLD_ALIGNED : pinocchio::LOCAL;
-        pinocchio::getFrameKinematicHessian(model, data, frame_id, rf, H);
-        // H is column-major (6, nv, nv): as a (6, nv * nv) matrix, g^T H holds S(i, k) at i + k nv
-        Eigen::Map<const Eigen::MatrixXd> Hm(H.data(), 6, nv * nv);
         Vector6 g6 = Vector6::Zero();
         if (kind == FrameResidual::Placement)
           g6 = Ji6.transpose() * w;
@@ -355,7 +355,8 @@ namespace geoddp
           g6.tail<3>() = Ji3.transpose() * w;
         else
           g6.head<3>() = w;
-        Eigen::Map<Eigen::RowVectorXd>(S.data(), nv * nv).noalias() = g6.transpose() * Hm;
+        kinematic_hessian(
+          g6, kind == FrameResidual::Translation ? pinocchio::LOCAL_WORLD_ALIGNED : pinocchio::LOCAL, S);
         if (kind == FrameResidual::Placement)
           S.noalias() -= Jr.transpose() * se3_jr_derivative_contracted(r, g6) * Jr;
         else if (kind == FrameResidual::Rotation)

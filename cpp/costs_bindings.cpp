@@ -62,6 +62,9 @@ namespace geoddp
       py::arg("luu"),
       "Add 1/2 (u - u_ref)^T W (u - u_ref) into l (N,), lu (N, m), luu (N, m^2): U (N, m), u_ref (K, m).");
     m.def(
+      "so3_right_jacobian", [](const Eigen::Vector3d & x) { return so3_right_jacobian(x); }, py::arg("x"),
+      "Jr(x) (3, 3) of SO(3), exact to round-off (Taylor branches near 0).");
+    m.def(
       "so3_right_jacobian_inv", [](const Eigen::Vector3d & x) { return so3_right_jacobian_inv(x); },
       py::arg("x"), "Jr(x)^-1 (3, 3) of SO(3).");
     m.def(

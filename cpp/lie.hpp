@@ -121,16 +121,22 @@ inline void so3_djr_transpose_apply(const Vec3& x, const Vec3& u, double a, doub
   }
 }
 
-// D[l](i, j) = d Jr(x)(i, j) / d x_l of SO(3) (geoddp.lie.SO3.right_jacobian_derivative_batch).
-inline void so3_djr(const Vec3& x, Mat3 D[3]) {
-  double a, b, al, be;
-  so3_coefficients(x.norm(), a, b, al, be);
+// D[l](i, j) = d Jr(x)(i, j) / d x_l of SO(3) (geoddp.lie.SO3.right_jacobian_derivative_batch),
+// from Jr's coefficients a, b, alpha, beta at x (so3_coefficients).
+inline void so3_djr(const Vec3& x, double a, double b, double al, double be, Mat3 D[3]) {
   const Mat3 K = hat(x);
   const Mat3 K2 = K * K;
   for (int l = 0; l < 3; ++l) {
     const Mat3 E = hat(Vec3::Unit(l));
     D[l] = -al * x[l] * K - a * E + be * x[l] * K2 + b * (E * K + K * E);
   }
+}
+
+// The same with the coefficients computed.
+inline void so3_djr(const Vec3& x, Mat3 D[3]) {
+  double a, b, al, be;
+  so3_coefficients(x.norm(), a, b, al, be);
+  so3_djr(x, a, b, al, be, D);
 }
 
 // ---------------------------------------------------------------- dual numbers (one direction)

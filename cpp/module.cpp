@@ -303,8 +303,26 @@ PYBIND11_MODULE(_core, m) {
       py::arg("Vx_final"), py::arg("Vxx_final"), py::arg("Theta"), py::arg("Gamma"), py::arg("Xi"),
       py::arg("second_order"), py::arg("reg"), py::arg("k_ff").noconvert(), py::arg("K_fb").noconvert(),
       py::arg("quu_eig").noconvert(),
-      "Backward Riccati pass (twin of geoddp.kernels.backward_pass): gains into k_ff (H, m), K_fb (H, m, n), "
+      "Backward Riccati pass (geoddp.kernels.backward_pass): gains into k_ff (H, m), K_fb (H, m, n), "
       "quu_eig (H,); returns (failed node or -1, d1, d2).");
+  m.def(
+      "gradient",
+      [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lx_final, py::array_t<double> out) {
+        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
+        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
+        check_shape(Phi, {H, n, n}, "Phi");
+        check_shape(B, {H, n, mm}, "B");
+        check_shape(lx, {H, n}, "lx");
+        check_shape(lu, {H, mm}, "lu");
+        check_shape(lx_final, {n}, "lx_final");
+        geoddp::bind::check_output(out, {H, mm}, "out");
+        py::gil_scoped_release nogil;
+        geoddp::ric::gradient((int)H, (int)n, (int)mm, Phi.data(), B.data(), lx.data(), lu.data(), lx_final.data(),
+                              out.mutable_data());
+      },
+      py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lx_final"), py::arg("out").noconvert(),
+      "dJ/du_k = l_u^k + B_k^T psi^{k+1}, psi^k = l_x^k + Phi_k^T psi^{k+1}, psi^H = l_x^H (Lemma lemm:psi), "
+      "into out (H, m).");
 
   m.def(
       "backward_pass_box",

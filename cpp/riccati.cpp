@@ -163,6 +163,26 @@ int backward_pass(int H, int n, int m, const double* Phi, const double* B, const
                             quu_eig, d1, d2);
 }
 
+void gradient(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
+              const double* lx_final, double* out) {
+  std::vector<double> psi(lx_final, lx_final + n), nxt(n);
+  for (int k = H - 1; k >= 0; --k) {
+    const double* Bk = B + (size_t)n * m * k;
+    const double* Pk = Phi + (size_t)n * n * k;
+    for (int a = 0; a < m; ++a) {
+      double s = lu[(size_t)m * k + a];
+      for (int p = 0; p < n; ++p) s += Bk[(size_t)m * p + a] * psi[p];
+      out[(size_t)m * k + a] = s;
+    }
+    for (int i = 0; i < n; ++i) {
+      double s = lx[(size_t)n * k + i];
+      for (int p = 0; p < n; ++p) s += Pk[(size_t)n * p + i] * psi[p];
+      nxt[i] = s;
+    }
+    psi.swap(nxt);
+  }
+}
+
 // ------------------------------------------------------------------ box-constrained pass (issue 15)
 // Projected Newton on a box (Tassa, Mansard and Todorov, "Control-limited differential dynamic
 // programming", ICRA 2014, Algorithm 3; written from the paper): each iteration fixes the inputs

@@ -1,6 +1,6 @@
 // The backward Riccati recursion of DDP on trivialised derivatives (paper eqs. Qfunctions, dustar,
-// backv), C++ twin of geoddp.kernels.riccati.backward_pass: same inputs, outputs and semantics
-// (reads only the upper triangle of the symmetric blocks l_xx, l_uu, Vxx_final, Theta_i, Xi_i).
+// backv), geoddp.kernels.backward_pass (reads only the upper triangle of the symmetric blocks l_xx,
+// l_uu, Theta_i, Xi_i), its box-constrained twin and the cost gradient's costate recursion.
 #pragma once
 
 #include <Eigen/Core>
@@ -22,6 +22,11 @@ int backward_pass(int H, int n, int m, const double* Phi, const double* B, const
                   const double* Vxx_final, const double* Theta, const double* Gamma, const double* Xi,
                   bool second_order, double reg, double* k_ff, double* K_fb, double* quu_eig, double* d1,
                   double* d2);
+
+// dJ/du_k = l_u^k + B_k^T psi^{k+1}, psi^k = l_x^k + Phi_k^T psi^{k+1}, psi^H = l_x^H (Lemma
+// lemm:psi) into out (H, m); Phi (H, n, n), B (H, n, m), lx (H, n), lu (H, m), lx_final (n,).
+void gradient(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
+              const double* lx_final, double* out);
 
 // Box-constrained twin of backward_pass (issue 15; projected Newton after Tassa, Mansard and
 // Todorov, ICRA 2014). Same inputs plus u_bar, lower, upper (H, m): the controls of node k must stay

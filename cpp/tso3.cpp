@@ -20,16 +20,6 @@ inline void matmul33(const double* A, const double* B, double* out) {
     for (int j = 0; j < 3; ++j) out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
 }
 
-inline void hat(const double* x, double* K) {
-  K[0] = K[4] = K[8] = 0.0;
-  K[1] = -x[2];
-  K[2] = x[1];
-  K[3] = x[2];
-  K[5] = -x[0];
-  K[6] = -x[1];
-  K[7] = x[0];
-}
-
 // out = Om + dt I^-1 ((I Om) x Om + tau)   (paper eq. disceqs, velocity part).
 inline void velocity_step(const Body& b, const double* Om, const double* tau, double* out) {
   const double* I = b.inertia;
@@ -115,31 +105,17 @@ void so3_log(const double* R, double* out) {
 }
 
 void jr_and_derivative(const double* x, double* Jr, double* Dsym, bool derivative) {
-  const double t = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+  const lie::Vec3 xv(x[0], x[1], x[2]);
   double a, b, alpha, beta;
-  lie::so3_coefficients(t, a, b, alpha, beta);
-  double K[9], K2[9];
-  hat(x, K);
-  matmul33(K, K, K2);
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) Jr[3 * i + j] = (i == j ? 1.0 : 0.0) - a * K[3 * i + j] + b * K2[3 * i + j];
+  lie::so3_coefficients(xv.norm(), a, b, alpha, beta);
+  Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> J(Jr);
+  J = lie::so3_jr(xv, a, b);
   if (!derivative) return;
-  double D[27], E[9], EK[9], KE[9];  // D[i, j, l] = d Jr[i, j] / d x_l
-  for (int l = 0; l < 3; ++l) {
-    double e[3] = {0.0, 0.0, 0.0};
-    e[l] = 1.0;
-    hat(e, E);
-    matmul33(E, K, EK);
-    matmul33(K, E, KE);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        const int ij = 3 * i + j;
-        D[9 * i + 3 * j + l] = -alpha * x[l] * K[ij] - a * E[ij] + beta * x[l] * K2[ij] + b * (EK[ij] + KE[ij]);
-      }
-  }
+  lie::Mat3 D[3];  // D[l](i, j) = d Jr(i, j) / d x_l
+  lie::so3_djr(xv, a, b, alpha, beta, D);
   for (int i = 0; i < 3; ++i)
     for (int p = 0; p < 3; ++p)
-      for (int q = 0; q < 3; ++q) Dsym[9 * i + 3 * p + q] = 0.5 * (D[9 * i + 3 * p + q] + D[9 * i + 3 * q + p]);
+      for (int q = 0; q < 3; ++q) Dsym[9 * i + 3 * p + q] = 0.5 * (D[q](i, p) + D[p](i, q));
 }
 
 bool rollout(const Body& body, int H, const double* R0, const double* Om0, const double* R_bar, const double* Om_bar,
@@ -329,26 +305,6 @@ void geodesic_attitude_derivatives(int N, const double* E, const double* W, doub
       for (int b = 0; b < 3; ++b) T[3 * a + b] = M[3 * a] * Ji(0, b) + M[3 * a + 1] * Ji(1, b) + M[3 * a + 2] * Ji(2, b);
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) Hs[9 * n + 3 * a + b] += Ji(0, a) * T[b] + Ji(1, a) * T[3 + b] + Ji(2, a) * T[6 + b];
-  }
-}
-
-void gradient(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
-              const double* lx_final, double* out) {
-  std::vector<double> psi(lx_final, lx_final + n), nxt(n);
-  for (int k = H - 1; k >= 0; --k) {
-    const double* Bk = B + (size_t)n * m * k;
-    const double* Pk = Phi + (size_t)n * n * k;
-    for (int a = 0; a < m; ++a) {
-      double s = lu[(size_t)m * k + a];
-      for (int p = 0; p < n; ++p) s += Bk[(size_t)m * p + a] * psi[p];
-      out[(size_t)m * k + a] = s;
-    }
-    for (int i = 0; i < n; ++i) {
-      double s = lx[(size_t)n * k + i];
-      for (int p = 0; p < n; ++p) s += Pk[(size_t)n * p + i] * psi[p];
-      nxt[i] = s;
-    }
-    psi.swap(nxt);
   }
 }
 

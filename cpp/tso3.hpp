@@ -1,7 +1,7 @@
 // The rigid body on TSO(3) (the satellite, paper Section VI) in closed form: SO(3)'s exp, log and
 // right Jacobian with its derivative, the rollout under the feedback law of Algorithm 1, the exact
-// first- and second-order expansion along a trajectory, the geodesic attitude cost's derivatives
-// and the cost gradient's costate recursion (Lemma lemm:psi). Plain arrays in and out (row-major,
+// first- and second-order expansion along a trajectory and the geodesic attitude cost's
+// derivatives. Plain arrays in and out (row-major,
 // C-contiguous, shapes in each comment); no Pinocchio, no allocation per node.
 //
 // This is the satellite's backend (geoddp.models.satellite): a one-body model with a spherical
@@ -21,7 +21,7 @@ void so3_exp(double x0, double x1, double x2, double* out);
 void so3_log(const double* R, double* out);
 
 // Jr(x) (3, 3) and, with derivative, Dsym (3, 3, 3): Dsym[i, a, b] = sym_{a,b} d Jr[i, a] / d x_b
-// (coefficients from lie::so3_coefficients).
+// (lie::so3_jr and lie::so3_djr, row-major).
 void jr_and_derivative(const double* x, double* Jr, double* Dsym, bool derivative);
 
 // The satellite's constants: inertia I and its inverse (3, 3), actuation H (3, m), time step.
@@ -53,11 +53,6 @@ void linearise(const Body& body, int H, const double* Om, bool second_order, dou
 // Add 1/2 r^T W r, r = log(E_n), its trivialised gradient Ji^T W r and (0)-Hessian
 // Ji^T (W - sum_p g_p Dsym_p) Ji (Ji = Jr(r)^-1) into l (N,), g (N, 3), Hs (N, 3, 3); E (N, 3, 3).
 void geodesic_attitude_derivatives(int N, const double* E, const double* W, double* l, double* g, double* Hs);
-
-// dJ/du_k = l_u^k + B_k^T psi^{k+1}, psi^k = l_x^k + Phi_k^T psi^{k+1}, psi^H = l_x^H (Lemma
-// lemm:psi) into out (H, m); Phi (H, n, n), B (H, n, m), lx (H, n), lu (H, m), lx_final (n,).
-void gradient(int H, int n, int m, const double* Phi, const double* B, const double* lx, const double* lu,
-              const double* lx_final, double* out);
 
 }  // namespace tso3
 }  // namespace geoddp

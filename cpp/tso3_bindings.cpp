@@ -1,13 +1,10 @@
 // Python bindings of the TSO(3) closed forms (tso3.hpp): the satellite's rollout and expansion,
-// SO(3)'s exp, log and right Jacobian, the geodesic attitude cost's derivatives and the cost
-// gradient. Outputs are caller-owned arrays written in place (checked writeable and C-contiguous,
+// SO(3)'s exp and log, and the geodesic attitude cost's derivatives. Outputs are caller-owned arrays written in place (checked writeable and C-contiguous,
 // never converted: a converted copy would drop the writes); the Python callers validate first.
-#include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
 #include "binding_checks.hpp"
-#include "lie.hpp"
 #include "tso3.hpp"
 
 namespace geoddp {
@@ -150,9 +147,6 @@ void bind_tso3(py::module_& m) {
       "so3_log over R (N, 3, 3) into out (N, 3): accurate to ~1e-15 up to pi, where pin.log3 loses up to ~1e-10 "
       "between 150 and 180 degrees.");
   m.def(
-      "so3_right_jacobian", [](const Eigen::Vector3d& x) -> Eigen::Matrix3d { return lie::so3_jr(x); }, py::arg("x"),
-      "Jr(x) (3, 3) of SO(3), exact to round-off (Taylor branches near 0).");
-  m.def(
       "geodesic_attitude_derivatives",
       [](const Arr& E, const Arr& W, Out l, Out g, Out Hs) {
         if (E.ndim() != 3) throw py::value_error("E: expected (N, 3, 3)");
@@ -169,24 +163,6 @@ void bind_tso3(py::module_& m) {
       py::arg("E"), py::arg("W"), py::arg("l").noconvert(), py::arg("g").noconvert(), py::arg("Hs").noconvert(),
       "Add 1/2 r^T W r, r = log(E_n), its trivialised gradient Jr(r)^-T W r and (0)-Hessian into l (N,), g (N, 3), "
       "Hs (N, 3, 3).");
-  m.def(
-      "gradient",
-      [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lx_final, Out out) {
-        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
-        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
-        check_shape(Phi, {H, n, n}, "Phi");
-        check_shape(B, {H, n, mm}, "B");
-        check_shape(lx, {H, n}, "lx");
-        check_shape(lu, {H, mm}, "lu");
-        check_shape(lx_final, {n}, "lx_final");
-        check_output(out, {H, mm}, "out");
-        py::gil_scoped_release nogil;
-        tso3::gradient((int)H, (int)n, (int)mm, Phi.data(), B.data(), lx.data(), lu.data(), lx_final.data(),
-                       out.mutable_data());
-      },
-      py::arg("Phi"), py::arg("B"), py::arg("lx"), py::arg("lu"), py::arg("lx_final"), py::arg("out").noconvert(),
-      "dJ/du_k = l_u^k + B_k^T psi^{k+1}, psi^k = l_x^k + Phi_k^T psi^{k+1}, psi^H = l_x^H (Lemma lemm:psi), "
-      "into out (H, m).");
 }
 
 }  // namespace geoddp
