@@ -27,7 +27,6 @@ from geoddp.multibody_costs import (
     FrameTranslation,
     MultibodyCostSum,
     StateRegularisation,
-    compiled_module,
 )
 
 
@@ -70,8 +69,6 @@ def main() -> None:
     ap.add_argument("--nodes", type=int, default=300)
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    if compiled_module() is None:
-        raise SystemExit("geoddp._core is not built: pip install -e . first")
     rng = np.random.default_rng(0)
     N = args.nodes
     print(f"{N} nodes, median of {args.repeats} calls; times in ms\n")

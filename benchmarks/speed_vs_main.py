@@ -53,12 +53,12 @@ def load_reference(checkout: Path, workdir: Path):
     (workdir / "robots_ref.py").write_text(text)
     ref = importlib.import_module("robots_ref")
     assert ref.Multibody.__module__.startswith("geoddp_ref"), ref.Multibody.__module__
-    # both sides must run their compiled cores: a reference whose _core failed to import would
-    # silently time the Python path (as happened while SecondOrderTerms was a global pybind11 type)
-    for name in ("geoddp_ref", "geoddp"):
-        compiled = importlib.import_module(f"{name}.models.compiled")
-        if compiled.IMPORT_ERROR is not None:
-            raise SystemExit(f"{name}._core does not import ({compiled.IMPORT_ERROR}): it would run the Python path")
+    # the reference must run its compiled core: a checkout from before 2026-11-27 whose _core failed
+    # to import fell back to the Python path and would silently time it (as happened while
+    # SecondOrderTerms was a global pybind11 type); this one does not import without its core
+    compiled = importlib.import_module("geoddp_ref.models.compiled")
+    if getattr(compiled, "IMPORT_ERROR", None) is not None:
+        raise SystemExit(f"geoddp_ref._core does not import ({compiled.IMPORT_ERROR}): it would run the Python path")
     return ref
 
 

@@ -22,8 +22,6 @@ from geoddp.solver.backward import Workspace, backward, node_quu
 from geoddp.validate import InputError
 from urdfs import urdf as urdf_file
 
-if not compiled.available():  # pragma: no cover - the build is part of the install
-    pytest.fail(f"geoddp._core does not import: {compiled.IMPORT_ERROR}", pytrace=False)
 
 core = compiled._core
 CASES = [

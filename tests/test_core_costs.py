@@ -17,6 +17,7 @@ import pytest
 
 
 from geoddp.lie import SE3, SO3
+from geoddp.models import compiled
 from geoddp.multibody_costs import (
     ControlRegularisation,
     FramePlacement,
@@ -26,13 +27,11 @@ from geoddp.multibody_costs import (
     MultibodyCostSum,
     MultibodyCostTerm,
     StateRegularisation,
-    compiled_module,
 )
 from geoddp.validate import InputError
 from urdfs import urdf as urdf_file
 
-CORE = compiled_module()
-needs_core = pytest.mark.skipif(CORE is None, reason="the extension geoddp._core is not built")
+CORE = compiled._core
 
 VALUE_TOL = 1e-12      # values, gradients, GN Hessians; relative to max(1, max|oracle|); measured 2e-14
 ORACLE_HESS_TOL = 1e-7  # relative; the oracle's central differences (h = 1e-5): measured 4e-10
@@ -129,7 +128,6 @@ def _both(terms, model, **kw):
 # against the Python oracle
 
 
-@needs_core
 @pytest.mark.parametrize("per_node", [False, True], ids=["constant", "per_node"])
 @pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("name", list(MODELS))
@@ -155,7 +153,6 @@ def test_compiled_matches_the_python_oracle(name, kind, per_node):
             assert _rel(dc.lxx, dp.lxx) > 0.0  # the oracle differences: not the same numbers
 
 
-@needs_core
 def test_sum_of_every_term_matches_the_oracle():
     model, frame = MODELS["all_joints"]
     rng = np.random.default_rng(3)
@@ -192,7 +189,6 @@ def _richardson_hessian(cost, q, v):
     return 0.5 * (H + H.T)
 
 
-@needs_core
 @pytest.mark.parametrize("angle", [1e-6, 0.3, 1.5, 2.6])
 @pytest.mark.parametrize("kind", ["placement", "rotation", "chordal", "translation", "state"])
 @pytest.mark.parametrize("name", ["free_flyer", "fixed", "spherical", "all_joints"])
@@ -216,7 +212,6 @@ def _state_near(model, q, angle, rng):
     return pin.integrate(model, q, dq)
 
 
-@needs_core
 @pytest.mark.parametrize("name", ["free_flyer", "spherical"])
 @pytest.mark.parametrize("gap", [0.0, 1e-12, 1e-7, 1e-3])
 def test_residuals_near_pi_stay_finite(name, gap):
@@ -242,7 +237,6 @@ def test_residuals_near_pi_stay_finite(name, gap):
             assert _rel(d.lxx[0], 0.5 * (Dh + Dh.T)) < 1e-6, type(t).__name__
 
 
-@needs_core
 @pytest.mark.parametrize("name", ["free_flyer", "fixed", "spherical", "all_joints"])
 def test_near_identity_and_at_the_reference(name):
     """At the reference: value and gradient exactly 0 and GN == exact bit for bit; at 1e-9 rad:
@@ -277,7 +271,6 @@ def test_near_identity_and_at_the_reference(name):
 # closed forms of the Lie groups
 
 
-@needs_core
 def test_closed_forms_match_geoddp_and_differences():
     rng = np.random.default_rng(2)
     for scale in (1e-7, 0.1, 0.55, 0.65, 2.0, 3.1):
@@ -311,11 +304,8 @@ def test_backend_choice_is_validated():
     assert e.value.parameter == "backend"
     assert MultibodyCostSum([t], backend="python").backend == "python"
     for auto in (MultibodyCostSum([t]), MultibodyCostSum([t], backend="auto")):  # "auto" is the default
-        assert auto.backend == ("python" if CORE is None else "compiled")
-    if CORE is None:
-        with pytest.raises(InputError, match="geoddp._core") as e:
-            MultibodyCostSum([t], backend="compiled")
-        assert e.value.parameter == "backend"
+        assert auto.backend == "compiled"
+    assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
 
 
 def test_the_environment_forces_the_oracle(monkeypatch):
@@ -325,15 +315,13 @@ def test_the_environment_forces_the_oracle(monkeypatch):
     t = FrameTranslation(model, frame, np.zeros(3))
     monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
     assert MultibodyCostSum([t]).backend == "python"
-    if CORE is not None:
-        assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
+    assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
     monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "pyhton")
     with pytest.raises(InputError) as e:
         MultibodyCostSum([t])
     assert e.value.parameter == "GEODDP_MULTIBODY_BACKEND"
 
 
-@needs_core
 def test_terms_without_a_compiled_twin_run_their_python_code(rng):
     model, frame = MODELS["free_flyer"]
 
@@ -359,7 +347,6 @@ def test_terms_without_a_compiled_twin_run_their_python_code(rng):
     assert _rel(cc.value(Q, V, None), py.value(Q, V, None)) < VALUE_TOL
 
 
-@needs_core
 def test_bad_input_raises_the_oracles_errors(rng):
     model, frame = MODELS["free_flyer"]
     Q, V, U = _nodes(model, rng, 4)
@@ -386,7 +373,6 @@ def test_bad_input_raises_the_oracles_errors(rng):
     assert np.array_equal(cc.value(Qf, V, None), cc.value(Q, V, None))
 
 
-@needs_core
 def test_kernels_check_sizes_themselves():
     """Direct calls with inconsistent sizes raise (ValueError), never read out of bounds."""
     model, frame = MODELS["fixed"]
@@ -453,7 +439,6 @@ class _term_by_term:
         return d
 
 
-@needs_core
 @pytest.mark.parametrize("threads", [1, 2])
 def test_whole_sum_is_bitwise_the_term_by_term_kernels(threads):
     model, frame = MODELS["all_joints"]
@@ -478,7 +463,6 @@ def test_whole_sum_is_bitwise_the_term_by_term_kernels(threads):
         assert np.array_equal(dt_.lxx, dr_.lxx) and np.array_equal(dt_.l, dr_.l)
 
 
-@needs_core
 def test_whole_sum_keeps_a_data_per_model_and_remakes_it_when_the_model_grows():
     model, frame = MODELS["fixed"]
     rng = np.random.default_rng(9)
@@ -496,7 +480,6 @@ def test_whole_sum_keeps_a_data_per_model_and_remakes_it_when_the_model_grows():
     assert np.array_equal(d2.lxx, d1.lxx) and np.array_equal(d2.lx, d1.lx)
 
 
-@needs_core
 def test_whole_sum_sees_rebound_terms_and_changed_arrays():
     """The sum caches its compiled specs per (terms, N, U shape): a term attribute rebound after
     a call, an array changed in place and another node count all give the oracle's values."""
@@ -519,7 +502,6 @@ def test_whole_sum_sees_rebound_terms_and_changed_arrays():
     assert _rel(cc.value(Q[:5], V[:5], U[:5]), py.value(Q[:5], V[:5], U[:5])) < VALUE_TOL
 
 
-@needs_core
 def test_cost_sum_checks_sizes_itself():
     """Direct calls with inconsistent sizes raise ValueError before any chunk runs: a stack of
     20 references on 40 nodes must not pass as two chunks of 20."""

@@ -12,7 +12,6 @@ import pytest
 
 from geoddp.models import compiled
 
-pytestmark = pytest.mark.skipif(not compiled.available(), reason=f"geoddp._core not built: {compiled.IMPORT_ERROR}")
 
 
 def _problem(rng, H, n, m, scale_quu=1.0):

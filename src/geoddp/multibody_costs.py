@@ -49,9 +49,8 @@ Model/data separation as in Crocoddyl: each term keeps the (shared, read-only) `
 and creates its own ``pin.Data`` once at construction; nothing allocates a Data per call.
 
 Backends. The classes here are the Python implementation and the oracle. A
-:class:`MultibodyCostSum` built with ``backend="compiled"`` (or ``"auto"``, the default, when the
-extension imports) evaluates the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp):
-one call for the whole sum on all N nodes when every term has a compiled twin (cpp/cost_sum.cpp:
+:class:`MultibodyCostSum` built with ``backend="compiled"`` (or ``"auto"``, the default) evaluates
+the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp): one call for the whole sum on all N nodes when every term has a compiled twin (cpp/cost_sum.cpp:
 node chunks on the core's workers, a pinocchio Data per worker kept in the sum's workspace),
 else one such call per compiled term; same values and gradients (to round-off), and EXACT
 second-order parts (Pinocchio's kinematic Hessians and the exact derivative of the closed-form
@@ -71,6 +70,7 @@ import numpy as np
 import pinocchio as pin
 
 from .lie import product as cfg
+from . import kernels
 from .costs import AttitudeChordal, AttitudeGeodesic, CostDerivatives
 from .lie import SE3, SO3
 from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix, threads_from_environment
@@ -92,15 +92,6 @@ __all__ = [
 _FD_STEP = 1e-5
 
 BACKENDS = ("python", "compiled", "auto")
-
-
-def compiled_module() -> Any | None:
-    """The compiled extension ``geoddp._core`` if it imports (built, against the installed pin)
-    with the cost kernels, else None (see :mod:`geoddp.models.compiled`)."""
-    from .models import compiled
-
-    core = compiled._core
-    return core if core is not None and hasattr(core, "cost_frame_term") else None
 
 
 # --------------------------------------------------------------------------------------
@@ -586,10 +577,10 @@ class MultibodyCostSum:
         terms: the terms; every term with a model must share nq and nv.
         model: the model fixing nx (default: the first term's).
         terminal: if True, refuse control terms at construction (they need U).
-        backend: ``"auto"`` (default: compiled when ``geoddp._core`` imports, else python; the
-            environment variable GEODDP_MULTIBODY_BACKEND=python makes it pick python, as for
+        backend: ``"auto"`` (default: compiled; the environment variable
+            GEODDP_MULTIBODY_BACKEND=python makes it pick python, as for
             :class:`geoddp.models.multibody.Multibody`), ``"compiled"`` (the kernels of
-            ``geoddp._core``; InputError if the extension does not import) or ``"python"``
+            ``geoddp._core``) or ``"python"``
             (this module's code, the oracle). The resolved choice is in ``self.backend``.
             Terms of other (sub)classes always run their Python code.
     """
@@ -623,12 +614,7 @@ class MultibodyCostSum:
         # GEODDP_MULTIBODY_BACKEND=python forces the oracle (validated as the multibody model does)
         forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
         forced_python = backend == "auto" and forced == "python"
-        core = None if backend == "python" or forced_python else compiled_module()
-        if backend == "compiled" and core is None:
-            from .models import compiled
-
-            raise InputError("backend", "expected the compiled core geoddp._core with the cost kernels to import, "
-                             f"got: {compiled.IMPORT_ERROR or 'a build without them'}; use backend='python'")
+        core = None if backend == "python" or forced_python else kernels.core
         self._core = core
         self.backend = "python" if core is None else "compiled"
         # compiled terms run through cost_sum with the sum's own workspace (pinocchio Data per

@@ -133,7 +133,7 @@ class Multibody:
             (the paper's forward variational Euler, implicit; :mod:`geoddp.variational`).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
-        backend: "auto" (default: "compiled" when geoddp._core imports, else "python"),
+        backend: "auto" (default: "compiled", or "python" under GEODDP_MULTIBODY_BACKEND=python),
             "compiled" or "python" (the oracle). Holds the
             resolved choice after construction.
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
@@ -180,9 +180,7 @@ class Multibody:
         if self.backend == "auto":  # the core runs every integrator
             # GEODDP_MULTIBODY_BACKEND=python forces the oracle everywhere (scene files, CLI).
             forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
-            self.backend = "compiled" if compiled.available() and forced != "python" else "python"
-        elif self.backend == "compiled":
-            compiled.require()
+            self.backend = "python" if forced == "python" else "compiled"
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
         if isinstance(self.package_dirs, (str, os.PathLike)):

@@ -62,7 +62,7 @@ from ..contract import Linearisation, OptimalControlProblem, Trajectory
 from ..result import Result
 from ..validate import InputError
 from ..limits import active_set, projected_gradient
-from .backward import _core, Workspace, backward, factorisable_gains, gradient, regularised_backward
+from .backward import Workspace, backward, factorisable_gains, gradient, regularised_backward
 from .forward import line_search
 from .history import History
 from .options import SolverOptions
@@ -568,9 +568,6 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
     _check_problem(problem, options)
     opt = options or SolverOptions()
     bounds = problem.control_bounds() if hasattr(problem, "control_bounds") else None
-    if bounds is not None and _core is None:
-        raise InputError("limits", "control limits need the compiled core geoddp._core (its box-constrained "
-                         "backward pass); it did not import: rebuild with pip install -e .")
     # zeros by default (the paper's guess), projected into the limits
     U = (np.zeros((problem.horizon, problem.nu)) if bounds is None else np.clip(0.0, *bounds)) \
         if initial_controls is None else problem.check_controls(initial_controls)
