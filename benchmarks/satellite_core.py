@@ -78,11 +78,11 @@ def main(argv: list[str] | None = None) -> int:
         ratios = []
         for path in scenes + hard:
             timed = path in scenes
+            new_spec, ref_spec = api.load_scene(path), ref_api.load_scene(path)
+            new_p, ref_p = scene.build_problem(new_spec), ref_scene.build_problem(ref_spec)
             for expansion in EXPANSIONS if timed else ("switch",):
-                new_p = scene.build_problem(api.load_scene(path))
-                ref_p = ref_scene.build_problem(ref_api.load_scene(path))
-                new_o = solver.SolverOptions(**{**_options(api.load_scene(path)), "expansion": expansion})
-                ref_o = ref_solver.SolverOptions(**{**_options(ref_api.load_scene(path)), "expansion": expansion})
+                new_o = scene.solver_options(new_spec, expansion=expansion, verbose=False)
+                ref_o = ref_scene.solver_options(ref_spec, expansion=expansion, verbose=False)
                 tn, tr = [], []
                 for rep in range(1 + (args.runs if timed else 0)):
                     t = time.perf_counter()
@@ -107,11 +107,6 @@ def main(argv: list[str] | None = None) -> int:
             print(f"\nnew / ref per solve over the {len(ratios)} timed rows: {min(ratios):.3f} to {max(ratios):.3f}, "
                   f"median {statistics.median(ratios):.3f}")
     return 0
-
-
-def _options(spec) -> dict:
-    return dict(switch_ratio=spec.switch_ratio, tol=spec.tol, grad_tol=spec.grad_tol, max_iter=spec.max_iter,
-                verbose=False)
 
 
 if __name__ == "__main__":

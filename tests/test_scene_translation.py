@@ -110,16 +110,23 @@ def test_paper_scene_solves_as_before():
     np.testing.assert_array_equal(a.controls, b.controls)  # R0 = I: the same numbers bit for bit
 
 
-def test_the_general_terms_mean_the_same_on_both_backends():
-    """The translated geodesic satellite built on the general model (Pinocchio frame kinematics
-    through the compiled or python multibody path) against the TSO(3) closed forms."""
-    spec = parse_scene(_paper_dict(attitude_kind="geodesic", R0=_rot(0.4, -0.2, 0.7), Omega0=[0.1, -0.2, 0.05]))
-    g = spec.general()
+def _on_both_backends(attitude_kind):
+    """The paper's satellite (from a turning start) on the TSO(3) closed forms and on the general
+    model, and both trajectories under the same random controls, whose costs must agree."""
+    g = parse_scene(_paper_dict(attitude_kind=attitude_kind, R0=_rot(0.4, -0.2, 0.7),
+                                Omega0=[0.1, -0.2, 0.05])).general()
     tso3, general = build_problem(g), _multibody(g)
     assert isinstance(tso3.model, Satellite) and isinstance(general.model, Multibody)
     U = np.random.default_rng(5).normal(scale=2.0, size=(g.horizon, 3))
     a, b = tso3.trajectory(U), general.trajectory(U)
     assert tso3.trajectory_cost(a) == pytest.approx(general.trajectory_cost(b), rel=1e-12)
+    return tso3, general, a, b
+
+
+def test_the_general_terms_mean_the_same_on_both_backends():
+    """The translated geodesic satellite built on the general model (Pinocchio frame kinematics
+    through the compiled or python multibody path) against the TSO(3) closed forms."""
+    tso3, general, a, b = _on_both_backends("geodesic")
     la, lb = tso3.linearise(a, 1), general.linearise(b, 1)
     np.testing.assert_allclose(la.l_x, lb.l_x, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(la.lf_x, lb.lf_x, rtol=1e-9, atol=1e-9)
@@ -210,12 +217,7 @@ def test_the_papers_chordal_problem_means_the_same_on_the_general_model():
     """The paper's scene (chordal attitude cost, explicit Euler) built on the general model
     (FrameRotationChordal through the compiled frame kinematics) against the TSO(3) closed forms:
     the same cost, gradients and, with exact second order on both, the same optimum."""
-    g = parse_scene(_paper_dict(R0=_rot(0.4, -0.2, 0.7), Omega0=[0.1, -0.2, 0.05])).general()
-    tso3, general = build_problem(g), _multibody(g)
-    assert isinstance(tso3.model, Satellite) and isinstance(general.model, Multibody)
-    U = np.random.default_rng(5).normal(scale=2.0, size=(g.horizon, 3))
-    a, b = tso3.trajectory(U), general.trajectory(U)
-    assert tso3.trajectory_cost(a) == pytest.approx(general.trajectory_cost(b), rel=1e-12)
+    tso3, general, a, b = _on_both_backends("chordal")
     la, lb = tso3.linearise(a, 2), general.linearise(b, 2)
     np.testing.assert_allclose(la.lf_x, lb.lf_x, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(la.lf_xx, lb.lf_xx, rtol=1e-9, atol=1e-9 * np.abs(la.lf_xx).max())
