@@ -31,8 +31,13 @@ from geoddp.multibody_costs import (
 
 
 
+# the all-joints model is the tests' (tests/data), not package data
+TEST_URDFS = Path(__file__).resolve().parents[1] / "tests" / "data"
+
+
 def _model(name: str) -> tuple[pin.Model, str]:
-    model = pin.buildModelFromUrdf(str(urdf_path(f"{name}.urdf")), pin.JointModelFreeFlyer())
+    path = TEST_URDFS / f"{name}.urdf" if name == "test_all_joints" else urdf_path(f"{name}.urdf")
+    model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
     return model, {"space_manipulator": "ee", "test_all_joints": "payload"}[name]
 
 
