@@ -126,6 +126,14 @@ def _stack(x: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
     raise InputError(name, f"expected shape ({inner}{',' if len(shape) == 1 else ''}) or (N, {inner}), got shape {A.shape}")
 
 
+def _rotation_stack(R: Any, name: str) -> np.ndarray:
+    """One rotation (3, 3) or a stack (N, 3, 3) as (K, 3, 3), each checked a rotation (``name[k]``)."""
+    stack = _stack(R, name, (3, 3))
+    for k, Rk in enumerate(stack):
+        rotation_matrix(Rk, name if len(stack) == 1 else f"{name}[{k}]")
+    return stack
+
+
 def _se3_stack(M: Any, name: str) -> np.ndarray:
     """pin.SE3, (4, 4), a sequence of pin.SE3 or (N, 4, 4) -> (K, 4, 4) homogeneous matrices."""
     if isinstance(M, pin.SE3):
@@ -341,19 +349,20 @@ class FrameRotation(_FrameTerm):
     def __init__(self, model: pin.Model, frame_name: str, R_ref: Any, W: Any = 1.0,
                  gauss_newton: bool = False) -> None:
         super().__init__(model, frame_name, W, gauss_newton)
-        R = _stack(R_ref, "FrameRotation.R_ref", (3, 3))
-        for k, Rk in enumerate(R):
-            rotation_matrix(Rk, "FrameRotation.R_ref" if len(R) == 1 else f"FrameRotation.R_ref[{k}]")
-        self.R_ref = R  # (K, 3, 3)
+        self.R_ref = _rotation_stack(R_ref, "FrameRotation.R_ref")  # (K, 3, 3)
 
     def _check_nodes(self, N):
-        _check_count(self.R_ref, N, "FrameRotation.R_ref")
+        _check_count(self.R_ref, N, f"{type(self).__name__}.R_ref")
 
-    def _residual(self, q, k, jac):
+    def _relative(self, q, k, jac):
+        """E = R_ref^T R_frame(q) of node k and, with jac, the frame's LOCAL Jacobian."""
         oMf, J = self._kinematics(q, jac)
         Rref = self.R_ref[k if len(self.R_ref) > 1 else 0]
         # exact identity at the reference (see FramePlacement): r and l_x exactly 0 there
-        E = np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation
+        return (np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation), J
+
+    def _residual(self, q, k, jac):
+        E, J = self._relative(q, k, jac)
         r = pin.log3(E)
         # R(q exp(s dq)) = R exp(s J_ang dq): the angular LOCAL rows
         return r, (SO3.right_jacobian_inv(r) @ J[3:6] if jac else None)
@@ -382,18 +391,10 @@ class FrameRotationChordal(FrameRotation):
                  gauss_newton: bool = False) -> None:
         self.S = spd_matrix(W, "FrameRotationChordal.W", 3, semidefinite=True)
         _FrameTerm.__init__(self, model, frame_name, np.kron(np.eye(3), self.S), gauss_newton)
-        R = _stack(R_ref, "FrameRotationChordal.R_ref", (3, 3))
-        for k, Rk in enumerate(R):
-            rotation_matrix(Rk, "FrameRotationChordal.R_ref" if len(R) == 1 else f"FrameRotationChordal.R_ref[{k}]")
-        self.R_ref = R  # (K, 3, 3)
-
-    def _check_nodes(self, N):
-        _check_count(self.R_ref, N, "FrameRotationChordal.R_ref")
+        self.R_ref = _rotation_stack(R_ref, "FrameRotationChordal.R_ref")  # (K, 3, 3)
 
     def _residual(self, q, k, jac):
-        oMf, J = self._kinematics(q, jac)
-        Rref = self.R_ref[k if len(self.R_ref) > 1 else 0]
-        E = np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation
+        E, J = self._relative(q, k, jac)
         r = (np.eye(3) - E).T.reshape(9)  # columns of I - E, one after the other
         if not jac:
             return r, None
