@@ -15,6 +15,7 @@
 #include "dynamics.hpp"
 #include "lie.hpp"
 #include "pin_model.hpp"
+#include "pool.hpp"
 #include "riccati.hpp"
 #include "small_gemm.hpp"
 #include "variational.hpp"
@@ -60,6 +61,16 @@ PYBIND11_MODULE(_core, m) {
   py::register_exception<geoddp::dyn::StepNotConverged>(m, "StepDidNotConverge", PyExc_ArithmeticError);
 
   m.def("default_threads", &geoddp::dyn::default_threads, "Worker threads used when threads <= 0.");
+  m.def(
+      "spin_microseconds", []() { return geoddp::spin_microseconds(); },
+      "How long an idle worker of the pool polls for the next task before it sleeps (us; cpp/pool.hpp).");
+  m.def(
+      "set_spin_microseconds",
+      [](int us) {
+        if (us < 0 || us > 100000) throw py::value_error("us: expected 0..100000 microseconds");
+        geoddp::set_spin_microseconds(us);
+      },
+      py::arg("us"), "Sets how long an idle worker of the pool polls before it sleeps (us, 0..100000).");
   m.def("gemm_isa", &geoddp::gemm::isa, "Which build of the Riccati products runs: 'avx2+fma', 'x86-64' or 'generic'.");
   m.def("has_avx2_fma", &geoddp::gemm::has_avx2_fma, "Whether the CPU runs the AVX2/FMA build of the products.");
   m.def(

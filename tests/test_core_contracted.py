@@ -240,6 +240,76 @@ def test_worker_pool_survives_fork():
     assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)  # the parent's pool still works
 
 
+
+def test_pool_spin_changes_timing_only():
+    """How long idle workers poll before sleeping (cpp/pool.hpp, GEODDP_SPIN_US) changes when a
+    worker wakes, never what it computes: the two-worker expansions and a whole solve are bitwise
+    equal for 0 (sleep at once), the default and 100000 us; out-of-range values are refused."""
+    mb, Q, V, U, _ = _setup(CASES[3], "euler", H=48)
+    saved = core.spin_microseconds()
+    try:
+        runs = []
+        for us in (0, 1000, 100_000, 0):
+            core.set_spin_microseconds(us)
+            assert core.spin_microseconds() == us
+            e1 = mb.expansion(Q, V, U, order=1)
+            e2 = mb.expansion(Q, V, U, order=2)
+            runs.append((e1.Phi, e1.B, e2.Theta, e2.Gamma, e2.Xi))
+        for run in runs[1:]:
+            assert all(np.array_equal(a, b) for a, b in zip(run, runs[0]))
+        for bad in (-1, 100_001):
+            with pytest.raises(ValueError, match="0..100000"):
+                core.set_spin_microseconds(bad)
+        assert core.spin_microseconds() == 0
+    finally:
+        core.set_spin_microseconds(saved)
+
+
+_SPIN_CHILD = """
+import numpy as np, pinocchio as pin
+from geoddp.models import compiled
+from geoddp.models.multibody import Multibody
+core = compiled._core
+print(core.spin_microseconds())
+mb = Multibody({urdf!r}, root="free_flyer", dt=0.01, gravity=True)
+rng = np.random.default_rng(0)
+U = rng.normal(size=(32, mb.nu))
+Q, V = mb.rollout(pin.integrate(mb.pin_model, mb.neutral(), rng.normal(size=mb.nv)), rng.normal(size=mb.nv), U)
+ref = mb.expansion(Q, V, U, order=1).Phi
+# many short dispatches, each setting, the workers asleep, spinning or between the two
+for i in range(600):
+    core.set_spin_microseconds((0, 5, 1000)[i % 3])
+    assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)
+print("ok")
+"""
+
+
+@pytest.mark.parametrize("env, expected", [(None, 1000), ("0", 0), ("250", 250)])
+def test_pool_spin_from_environment(env, expected):
+    """The core reads GEODDP_SPIN_US when it loads (default 1000 us); 600 back-to-back two-worker
+    dispatches alternating sleep-at-once, short and long polls all return (no lost wake-up: a
+    deadlock would hit the timeout) with the same result."""
+    import os
+    import subprocess
+    import sys
+
+    env_vars = {k: v for k, v in os.environ.items() if k not in ("GEODDP_SPIN_US", "GEODDP_THREADS")}
+    if env is not None:
+        env_vars["GEODDP_SPIN_US"] = env
+    code = _SPIN_CHILD.format(urdf=str(urdf_file("quadrotor.urdf")))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env_vars)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == [str(expected), "ok"]
+
+
+@pytest.mark.parametrize("raw", ["-5", "abc", "100001", "1.5"])
+def test_bad_pool_spin_is_refused(monkeypatch, raw):
+    """A GEODDP_SPIN_US the core cannot use is an InputError naming it when a model is built (the
+    core alone would fall back to its default without a word)."""
+    monkeypatch.setenv("GEODDP_SPIN_US", raw)
+    with pytest.raises(InputError, match="GEODDP_SPIN_US"):
+        Multibody(urdf_file("quadrotor.urdf"), root="free_flyer", dt=0.01)
+
 def _one_rung_loop(lin, ws, lam, opt, u_bar=None):
     """The paper's loop, one pass per rung: ((lambda, d1, d2, rungs), failed node of the last pass)."""
     rungs = 0

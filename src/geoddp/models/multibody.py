@@ -51,7 +51,8 @@ from ..linalg import symmetric_from_upper
 from .. import integrators as integ
 from .. import rkmk4, variational
 from ..urdf_checks import read_urdf_text
-from ..validate import InputError, choice, finite_array, nonnegative_int, positive_float, threads_from_environment
+from ..validate import (InputError, choice, finite_array, nonnegative_int, positive_float, spin_from_environment,
+                        threads_from_environment)
 from . import compiled
 
 ROOTS = ("free_flyer", "spherical", "fixed")
@@ -175,6 +176,7 @@ class Multibody:
         self.threads = nonnegative_int(self.threads, "threads")
         if self.threads == 0:  # the environment's choice (a sweep's workers), else the core's default
             self.threads = threads_from_environment()
+        spin_from_environment()  # the core read GEODDP_SPIN_US when it loaded: refuse a bad value here
         if not isinstance(self.contract, (bool, np.bool_)):
             raise InputError("contract", f"expected True or False, got {self.contract!r}")
         if self.backend == "auto":  # the core runs every integrator
