@@ -25,7 +25,8 @@ whose thrusters are derived from the columns of geoddp's actuation matrix; the m
 J(U0) of the initial controls must agree to 1e-9 relative (else the case stops).
 
 Solvers, from the same initial controls, interleaved (one round = FDDP default threads, FDDP one
-thread, geoddp first, second, switch), one warm-up round, medians of ``--runs`` rounds:
+thread, geoddp first, second, switch; 10 ms of sleep before each, so that neither library's idle
+threads still poll beside the other's solve), one warm-up round, medians of ``--runs`` rounds:
 
 * Crocoddyl ``SolverFDDP``, ``th_stop`` 1e-9, ``ShootingProblem.nthreads`` left at its default
   and set to 1; time = wall time of ``solve``;
@@ -329,6 +330,10 @@ def run_case(case: Case, runs: int) -> dict[str, Any]:
     rec: dict[str, list] = {s: [] for s in SOLVERS}
     for i in range(runs + 1):  # round 0: warm-up
         for s in SOLVERS:
+            # every solve starts with both libraries' idle threads asleep: Crocoddyl's OpenMP
+            # threads (libgomp polls for GOMP_SPINCOUNT = 300000 pauses, a few ms) and geoddp's
+            # pool (GEODDP_SPIN_US, 1 ms) would otherwise share the cores with the next solver
+            time.sleep(0.01)
             if s == "fddp":
                 r = fddp(p, case.U0, None)
             elif s == "fddp-1t":
