@@ -34,6 +34,8 @@
 #include <exception>
 #include <functional>
 #include <mutex>
+#include <stdexcept>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -84,10 +86,11 @@ class WorkerPool {
       task(0);
       return;
     }
+    if (T > 0xffff) throw std::invalid_argument("threads: expected at most 65535 workers, got " + std::to_string(T));
     std::lock_guard<std::mutex> one_dispatch(dispatch_);
     bool wake = false;
     {
-      // the counter moves under m_, so a worker deciding to sleep (predicate checked under m_)
+      // the post moves under m_, so a worker deciding to sleep (predicate checked under m_)
       // either sees the new task or is asleep when it is notified: no lost wake-up
       std::lock_guard<std::mutex> lk(m_);
       while ((int)workers_.size() < T - 1) {
@@ -96,10 +99,12 @@ class WorkerPool {
         workers_.back().detach();
       }
       task_ = &task;
-      active_ = T;
       errors_.assign(T, nullptr);
       pending_.store(T - 1, std::memory_order_relaxed);
-      generation_.fetch_add(1, std::memory_order_release);
+      // one atomic word holds the dispatch's number and its worker count, so a worker that was not
+      // part of the last dispatch never pairs one dispatch's count with another's number
+      const std::uint64_t number = (posted_.load(std::memory_order_relaxed) >> 16) + 1;
+      posted_.store((number << 16) | (std::uint64_t)T, std::memory_order_release);
       wake = sleepers_ > 0;
     }
     if (wake) wake_.notify_all();
@@ -133,16 +138,19 @@ class WorkerPool {
   void loop(int id) {
     std::uint64_t seen = 0;
     for (;;) {
-      const auto posted = [&]() { return generation_.load(std::memory_order_acquire) != seen; };
+      const auto posted = [&]() { return posted_.load(std::memory_order_acquire) != seen; };
       if (!spin_until(posted)) {
         std::unique_lock<std::mutex> lk(m_);
         ++sleepers_;
         wake_.wait(lk, posted);
         --sleepers_;
       }
-      seen = generation_.load(std::memory_order_acquire);
-      // task_, active_ and errors_ were written before the counter moved (release/acquire)
-      if (id >= active_) continue;
+      seen = posted_.load(std::memory_order_acquire);
+      // not part of this dispatch (it asked for fewer workers than the pool has): the caller does
+      // not wait for this worker, which reads nothing else
+      if (id >= (int)(seen & 0xffff)) continue;
+      // task_ and errors_ were written before the post (release/acquire), and stay until this
+      // worker has counted itself off below
       const std::function<void(int)>* task = task_;
       try {
         (*task)(id);
@@ -163,10 +171,10 @@ class WorkerPool {
   std::condition_variable wake_, done_;
   std::vector<std::thread> workers_;
   const std::function<void(int)>* task_ = nullptr;
-  int active_ = 0, sleepers_ = 0;
+  int sleepers_ = 0;
   std::atomic<int> pending_{0};
   std::vector<std::exception_ptr> errors_;
-  std::atomic<std::uint64_t> generation_{0};
+  std::atomic<std::uint64_t> posted_{0};  // (dispatch number << 16) | its worker count
 };
 
 }  // namespace geoddp

@@ -276,9 +276,11 @@ rng = np.random.default_rng(0)
 U = rng.normal(size=(32, mb.nu))
 Q, V = mb.rollout(pin.integrate(mb.pin_model, mb.neutral(), rng.normal(size=mb.nv)), rng.normal(size=mb.nv), U)
 ref = mb.expansion(Q, V, U, order=1).Phi
-# many short dispatches, each setting, the workers asleep, spinning or between the two
+# many short dispatches, each setting, the workers asleep, spinning or between the two, on two
+# and three workers (a dispatch that leaves one of the pool's workers out)
 for i in range(600):
     core.set_spin_microseconds((0, 5, 1000)[i % 3])
+    mb.threads = (2, 3)[(i // 3) % 2]
     assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)
 print("ok")
 """
@@ -286,9 +288,9 @@ print("ok")
 
 @pytest.mark.parametrize("env, expected", [(None, 1000), ("0", 0), ("250", 250)])
 def test_pool_spin_from_environment(env, expected):
-    """The core reads GEODDP_SPIN_US when it loads (default 1000 us); 600 back-to-back two-worker
-    dispatches alternating sleep-at-once, short and long polls all return (no lost wake-up: a
-    deadlock would hit the timeout) with the same result."""
+    """The core reads GEODDP_SPIN_US when it loads (default 1000 us); 600 back-to-back dispatches
+    on two and three workers, alternating sleep-at-once, short and long polls, all return (no lost
+    wake-up: a deadlock would hit the timeout) with the same result."""
     import os
     import subprocess
     import sys
