@@ -10,8 +10,9 @@
 //   waiting for its workers) polls an atomic counter with the CPU's pause hint for up to
 //   spin_microseconds() (GEODDP_SPIN_US, default 1000 us; 0: sleep at once) before it blocks, as
 //   OpenMP runtimes do (libgomp's GOMP_SPINCOUNT, Crocoddyl's threads). Measured per solve in one
-//   process, interleaved, against sleeping at once: 300 us 0.94-0.98x, 1000 us 0.87-0.95x,
-//   5000 us no better (UR5, Panda, Hector; benchmarks/pool_spin.py). The cost: the idle worker
+//   process, interleaved, against sleeping at once (benchmarks/pool_spin_2026-11-27.log): 1000 us
+//   0.86-0.97x on 11 of 14 solver-case pairs and 0.98-1.07x on the others, 300 us less, 5000 us
+//   no better; bitwise the same results (tests/test_core_contracted.py). The cost: the idle worker
 //   keeps a core busy for up to that long after each call; on a machine shared with other work
 //   set GEODDP_SPIN_US=0 (a sweep's workers run one thread each and never spin).
 // * One dispatch at a time (a mutex): kernels may be called from several Python threads, the GIL
@@ -42,9 +43,9 @@
 namespace geoddp {
 
 // How long an idle worker (or a caller waiting for its workers) polls before it sleeps, in
-// microseconds: GEODDP_SPIN_US (an integer 0..100000) when the process starts, default 1000;
-// set_spin_microseconds changes it (geoddp.kernels.set_spin; benchmarks compare settings in one
-// process).
+// microseconds: GEODDP_SPIN_US (an integer 0..100000), read once at the first use, default 1000;
+// set_spin_microseconds changes it (geoddp._core.set_spin_microseconds: benchmarks compare
+// settings in one process).
 inline std::atomic<int>& spin_setting() {
   static std::atomic<int> us{[]() {
     const char* env = std::getenv("GEODDP_SPIN_US");

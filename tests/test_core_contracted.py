@@ -304,7 +304,7 @@ def test_pool_spin_from_environment(env, expected):
     assert out.stdout.split() == [str(expected), "ok"]
 
 
-@pytest.mark.parametrize("raw", ["-5", "abc", "100001", "1.5"])
+@pytest.mark.parametrize("raw", ["-5", "abc", "100001", "1.5", " 50", "50 ", "²"])
 def test_bad_pool_spin_is_refused(monkeypatch, raw):
     """A GEODDP_SPIN_US the core cannot use is an InputError naming it when a model is built (the
     core alone would fall back to its default without a word)."""

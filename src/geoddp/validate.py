@@ -13,6 +13,7 @@ from __future__ import annotations
 import difflib
 import numbers
 import os
+import re
 from collections.abc import Iterable
 from typing import Any
 
@@ -94,19 +95,22 @@ SPIN_ENV = "GEODDP_SPIN_US"
 
 def spin_from_environment() -> int | None:
     """How long the compiled core's idle workers poll for the next task before they sleep, in
-    microseconds, from the environment variable GEODDP_SPIN_US (the core reads it itself when it
-    loads; cpp/pool.hpp); None when it is unset or empty (the core's default, 1000 us).
+    microseconds, from the environment variable GEODDP_SPIN_US (the core reads it itself, once, at
+    its first parallel call; cpp/pool.hpp); None when it is unset or empty (the core's default,
+    1000 us).
 
     Raises:
-        InputError: naming GEODDP_SPIN_US, if it is not a whole number from 0 to 100000 (the core
-            would otherwise fall back to its default without a word).
+        InputError: naming GEODDP_SPIN_US, if it is not a whole number from 0 to 100000 written
+            with the digits 0-9 alone (the core would otherwise fall back to its default without a
+            word).
     """
-    raw = os.environ.get(SPIN_ENV, "").strip()
+    raw = os.environ.get(SPIN_ENV, "")
     if not raw:
         return None
-    if not raw.isdigit() or int(raw) > 100_000:
+    if re.fullmatch(r"[0-9]{1,6}", raw) is None or int(raw) > 100_000:
         raise InputError(SPIN_ENV, f"expected a whole number of microseconds from 0 to 100000, got {raw!r}")
     return int(raw)
+
 
 MAX_HORIZON = 10_000_000  # steps: beyond this the arrays over the horizon alone exceed any memory
 MAX_WEIGHT = 1e100  # largest accepted weight entry: J = x^T S x stays finite for |x| up to ~1e100
