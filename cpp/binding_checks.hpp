@@ -41,15 +41,23 @@ struct PassSizes {
   long H, n, m;
 };
 
-// The inputs every backward pass takes: Phi, B, the cost blocks and the final value function.
-inline PassSizes check_pass_inputs(const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx,
-                                   const Arr& lux, const Arr& luu, const Arr& Vx_final, const Arr& Vxx_final) {
+// The first-order inputs of every recursion over the horizon (the backward passes and the
+// gradient): Phi, B and the cost gradients.
+inline PassSizes check_first_order_inputs(const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu) {
   if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
   const long H = Phi.shape(0), n = Phi.shape(1), m = B.shape(2);
   check_shape(Phi, {H, n, n}, "Phi");
   check_shape(B, {H, n, m}, "B");
   check_shape(lx, {H, n}, "lx");
   check_shape(lu, {H, m}, "lu");
+  return {H, n, m};
+}
+
+// The inputs every backward pass takes: those above, the cost Hessians and the final value function.
+inline PassSizes check_pass_inputs(const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx,
+                                   const Arr& lux, const Arr& luu, const Arr& Vx_final, const Arr& Vxx_final) {
+  const PassSizes z = check_first_order_inputs(Phi, B, lx, lu);
+  const long H = z.H, n = z.n, m = z.m;
   check_shape(lxx, {H, n, n}, "lxx");
   check_shape(lux, {H, m, n}, "lux");
   check_shape(luu, {H, m, m}, "luu");

@@ -319,12 +319,8 @@ PYBIND11_MODULE(_core, m) {
   m.def(
       "gradient",
       [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lx_final, py::array_t<double> out) {
-        if (Phi.ndim() != 3 || B.ndim() != 3) throw py::value_error("Phi, B: expected (H, n, n), (H, n, m)");
-        const long H = Phi.shape(0), n = Phi.shape(1), mm = B.shape(2);
-        check_shape(Phi, {H, n, n}, "Phi");
-        check_shape(B, {H, n, mm}, "B");
-        check_shape(lx, {H, n}, "lx");
-        check_shape(lu, {H, mm}, "lu");
+        const auto z = geoddp::bind::check_first_order_inputs(Phi, B, lx, lu);
+        const long H = z.H, n = z.n, mm = z.m;
         check_shape(lx_final, {n}, "lx_final");
         geoddp::bind::check_output(out, {H, mm}, "out");
         py::gil_scoped_release nogil;
