@@ -2,8 +2,8 @@
 the expansion's time with one worker thread and with the default.
 
 * per solve: ``geoddp.api.solve_scene`` on examples/multibody/*.toml (the scenes' own solver
-  settings), ``Result.solve_time_s``, with the backend chosen by GEODDP_MULTIBODY_BACKEND
-  ("python", the oracle, or "auto" = compiled); interleaved after one warm-up each, medians;
+  settings), ``Result.solve_time_s``, on the compiled core and on the tests' Python oracle
+  (tests/oracle_multibody.py); interleaved after one warm-up each, medians;
 * per expansion: ``Multibody.expansion`` (first and second order) along the scene's initial
   rollout with ``threads=1`` and ``threads=0`` (the core's default), medians.
 
@@ -17,7 +17,7 @@ only; the tests check the numbers.
 from __future__ import annotations
 
 import argparse
-import os
+import contextlib
 import statistics
 import time
 from pathlib import Path
@@ -27,9 +27,19 @@ import numpy as np
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "multibody"
 
 
+def _oracle():
+    """Every model built inside is the tests' Python oracle (tests/oracle_multibody.py)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from oracle_multibody import oracle_models
+
+    return oracle_models()
+
+
 def _spec(scene: Path, integrator: str | None, horizon: int | None):
-    """A fresh spec per call (solve_scene builds a problem once per spec object, with the backend
-    the environment asks for at that moment)."""
+    """A fresh spec per call (solve_scene builds a problem once per spec object: the oracle's
+    models inside ``_oracle()``, the compiled ones outside)."""
     from geoddp.api import load_scene
 
     spec = load_scene(scene)
@@ -44,12 +54,11 @@ def solve_times(scene: Path, runs: int, integrator: str | None = None, horizon: 
     info = {}
     for r in range(runs + 1):  # first round: warm-up
         for backend in ("python", "compiled"):
-            os.environ["GEODDP_MULTIBODY_BACKEND"] = "python" if backend == "python" else "auto"
-            res = solve_scene(_spec(scene, integrator, horizon), verbose=False)
+            with (_oracle() if backend == "python" else contextlib.nullcontext()):
+                res = solve_scene(_spec(scene, integrator, horizon), verbose=False)
             if r > 0:
                 out[backend].append(res.solve_time_s)
             info[backend] = (res.iterations, res.cost)
-    os.environ.pop("GEODDP_MULTIBODY_BACKEND", None)
     return {b: (statistics.median(t), *info[b]) for b, t in out.items()}
 
 

@@ -226,7 +226,7 @@ PYBIND11_MODULE(_core, m) {
       py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("Q"), py::arg("V"), py::arg("V_next"),
       py::arg("order") = 1, py::arg("threads") = 0,
       "Derivatives of the variational Euler step's v+ (solved: V_next) at N nodes by implicit differentiation: "
-      "F1 (N, nv, nz), F2 (N, nv, nz, nz) or None (geoddp.variational.VariationalEuler.velocity_derivatives).");
+      "F1 (N, nv, nz), F2 (N, nv, nz, nz) or None (the tests' oracle: tests/oracle_variational.py, VariationalEuler.velocity_derivatives).");
 
   m.def(
       "expansion",

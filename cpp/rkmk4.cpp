@@ -1,4 +1,4 @@
-// RKMK4 step and derivatives (see rkmk4.hpp; twin of src/geoddp/rkmk4.py).
+// RKMK4 step and derivatives (see rkmk4.hpp; twin of the tests' oracle tests/oracle_rkmk4.py).
 #include "rkmk4.hpp"
 #include "aba_compiled.hpp"
 

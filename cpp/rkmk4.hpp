@@ -1,6 +1,6 @@
 // The fourth-order Runge-Kutta-Munthe-Kaas step (RKMK4) on a Pinocchio state space, and its
-// derivatives: C++ twin of geoddp.rkmk4 (module docstring there for the scheme) and of
-// geoddp.models.multibody.Multibody._expansion_rk4.
+// derivatives: C++ twin of the tests' oracle (tests/oracle_rkmk4.py, module docstring there for the scheme,
+// and OracleMultibody._expansion_rk4 in tests/oracle_multibody.py).
 //
 // Over one step q(t) = q_n exp(theta(t)), theta' = Jr(theta)^-1 v, v' = aba(q_n exp(theta), v, tau),
 // with the classical RK4 tableau on (theta, v) and q+ = q_n exp(theta(h)). Jr is block-diagonal over
@@ -26,7 +26,7 @@
 namespace geoddp {
 namespace dyn {
 
-// Central-difference step of the second order (geoddp.models.multibody.FD_STEP).
+// Central-difference step of the second order (the oracle's FD_STEP, tests/oracle_multibody.py).
 constexpr double RK4_FD_STEP = 1e-5;
 
 // Per-worker scratch of the RKMK4 kernels.
@@ -42,7 +42,7 @@ void rk4_step(const Model& model, pinocchio::Data& data, const std::vector<Joint
               const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& tau, double h,
               Eigen::VectorXd& q1, Eigen::VectorXd& v1);
 
-// The step Jacobian at (q, v, u = tau through H) into w.G (n, nz): geoddp.rkmk4.step_jacobian.
+// The step Jacobian at (q, v, u = tau through H) into w.G (n, nz): oracle_rkmk4.step_jacobian.
 void rk4_jacobian(const Setup& s, const std::vector<JointGroup>& groups, Rk4Work& w, const Eigen::VectorXd& q,
                   const Eigen::VectorXd& v, const Eigen::VectorXd& tau);
 

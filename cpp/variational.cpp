@@ -1,5 +1,5 @@
-// Forward variational Euler step and derivatives (see variational.hpp; twin of
-// src/geoddp/variational.py, whose names and order of operations this follows).
+// Forward variational Euler step and derivatives (see variational.hpp; twin of the tests' oracle
+// tests/oracle_variational.py, whose names and order of operations this follows).
 #include "variational.hpp"
 #include "aba_compiled.hpp"
 

@@ -1,7 +1,7 @@
 // The paper's forward variational Euler step (implicit transition dynamics, eq. disceq1/receq1/
 // dynamicseq1) on a Pinocchio model, and its derivatives by implicit differentiation (eq. firstimp
-// and the Hessian after it): C++ twin of geoddp.variational.VariationalEuler (module docstring
-// there for the residual R(q, v, y, u) = 0 that defines y = v+).
+// and the Hessian after it): C++ twin of the tests' oracle VariationalEuler (tests/oracle_variational.py;
+// geoddp.variational's docstring for the residual R(q, v, y, u) = 0 that defines y = v+).
 //
 // What the compiled version computes exactly where the Python one differences: the trivialised
 // Hessian of the kinetic energy in q (the q-derivative of D(q, y)^T y, D = d(M(q) y)/dq) comes

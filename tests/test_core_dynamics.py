@@ -33,6 +33,7 @@ from urdfs import urdf as urdf_file
 from geoddp.lie import SE3
 from geoddp.models import compiled
 from geoddp.models.multibody import Multibody
+from oracle_multibody import OracleMultibody, use_oracle
 from geoddp.validate import InputError
 
 
@@ -56,7 +57,7 @@ IDS = [f"{u.split('.')[0]}-{r}-{'g' if g else 'nog'}" for u, r, g in CASES]
 def _models(case, integrator="euler", dt=0.01):
     urdf, root, gravity = case
     kw = dict(root=root, dt=dt, integrator=integrator, gravity=gravity)
-    py = Multibody(urdf_file(urdf), backend="python", **kw)
+    py = OracleMultibody(urdf_file(urdf), **kw)
     cc = Multibody(urdf_file(urdf), **kw)
     assert cc.backend == "compiled"
     return py, cc
@@ -264,7 +265,7 @@ def test_expansion_equals_python(case, integrator, monkeypatch):
         assert _rel(a, b) < 2e-8  # the oracle's differencing error
     # the reconstruction alone, tight: the Python assembly fed the core's exact F1, F2
     exact = core.velocity_derivatives(cc.pin_model, cc.actuation, cc.dt, Q[:-1], V[:-1], U, 2, 1)
-    monkeypatch.setattr(Multibody, "velocity_derivatives", lambda self, *a, **k: exact)
+    monkeypatch.setattr(OracleMultibody, "velocity_derivatives", lambda self, *a, **k: exact)
     ef = py.expansion(Q, V, U, order=2)
     for name in ("Theta", "Gamma", "Xi"):
         assert _rel(getattr(ec, name), getattr(ef, name)) < 1e-11
@@ -273,8 +274,9 @@ def test_expansion_equals_python(case, integrator, monkeypatch):
 # ---------------------------------------------------------------------------- bad input
 def test_bad_input_names_the_parameter():
     urdf = urdf_file("quadrotor.urdf")
-    with pytest.raises(InputError, match="backend"):
-        Multibody(urdf, dt=0.01, backend="fast")
+    for backend in ("fast", "python"):  # the Python path is the tests' oracle, not a backend of the package
+        with pytest.raises(InputError, match="backend"):
+            Multibody(urdf, dt=0.01, backend=backend)
     with pytest.raises(InputError, match="threads"):
         Multibody(urdf, dt=0.01, threads=-1)
     for integrator in ("rk4", "variational"):  # compiled; rk4's second order formed, the variational factored
@@ -319,8 +321,10 @@ def test_scene_solves_equal_python(scene, monkeypatch):
 
     res = {}
     for backend in ("python", "compiled"):
-        monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", backend)
-        res[backend] = solve_scene(EXAMPLES / scene, verbose=False)
+        with pytest.MonkeyPatch.context() as mp:
+            if backend == "python":
+                use_oracle(mp)
+            res[backend] = solve_scene(EXAMPLES / scene, verbose=False)
     a, b = res["compiled"], res["python"]
     assert a.iterations == b.iterations
     assert a.expansion_history == b.expansion_history
@@ -412,10 +416,12 @@ def test_solve_equals_python(integrator, monkeypatch):
     spec = load_scene(EXAMPLES / "spacecraft_docking.toml").with_overrides(integrator=integrator, horizon=20)
     res = {}
     for backend in ("compiled", "python"):
-        monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", backend)
-        p = build_problem(spec)
-        assert p.model.backend == backend and p.model.integrator == integrator
-        res[backend] = solve(p, SolverOptions(verbose=False))
+        with pytest.MonkeyPatch.context() as mp:
+            if backend == "python":
+                use_oracle(mp)
+            p = build_problem(spec)
+            assert p.model.backend == backend and p.model.integrator == integrator
+            res[backend] = solve(p, SolverOptions(verbose=False))
     a, b = res["compiled"], res["python"]
     assert a.converged and b.converged
     assert "second" in a.expansion_history and a.expansion_history == b.expansion_history
@@ -521,8 +527,8 @@ def test_variational_step_that_cannot_converge_raises_or_rejects_the_trial():
     from geoddp.variational import StepDidNotConverge
 
     urdf = urdf_file("test_all_joints.urdf")
-    for backend in ("compiled", "python"):
-        mb = Multibody(urdf, root="free_flyer", dt=2.0, integrator="variational", backend=backend)
+    for cls in (Multibody, OracleMultibody):
+        mb = cls(urdf, root="free_flyer", dt=2.0, integrator="variational")
         with pytest.raises(StepDidNotConverge, match=r"dt = 2.0 s \(\|v\| = 155\)"):
             mb.rollout(mb.neutral(), np.full(mb.nv, 40.0), np.zeros((3, mb.nu)))
         # in a forward pass the same step is a rejected trial (False), as a non-finite state is

@@ -13,8 +13,8 @@ check keeps them one-way.
 
 The floors follow DESIGN.md, mapped onto today's module names. Where the code taught otherwise:
 
-* ``integrators``, ``rkmk4`` and ``variational`` are on floor 1, not 2: they are the models' time
-  steppers (``models/multibody.py`` and ``models/satellite.py`` import them).
+* ``integrators`` and ``variational`` are on floor 1, not 2: the models' expansion layout and the
+  implicit step's error (``models/multibody.py`` and ``models/satellite.py`` import them).
 * ``data`` (the built-in URDFs and scenes) is on floor 0, not under ``scene/``: the models read
   ``satellite.urdf`` from it.
 * ``reference`` (scipy's L-BFGS on the same problem) is a second solver: floor 3.
@@ -45,7 +45,6 @@ FLOORS: dict[str, int] = {
     # 1: Lie groups, configuration spaces, models and their time steppers
     "geoddp.lie": 1,
     "geoddp.integrators": 1,
-    "geoddp.rkmk4": 1,
     "geoddp.variational": 1,
     "geoddp.models": 1,
     # 2: costs and problems, and the contract between a problem and the solver

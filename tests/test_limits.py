@@ -91,7 +91,9 @@ def test_forward_pass_clamps_after_the_feedback_law(which, monkeypatch):
         p = paper_problem(horizon=40, limits=(-1.0, [0.5, 1.0, 2.0]))
     else:
         if which == "multibody_python":
-            monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
+            from oracle_multibody import use_oracle
+
+            use_oracle(monkeypatch)
         q = scenes.quadrotor(integrator="semi_implicit", horizon=30)
         assert q.model.backend == ("python" if which == "multibody_python" else "compiled")
         p = Problem(q.model, q.q0, q.v0, q.horizon, q.running, q.terminal, limits=(0.0, 4.0))

@@ -9,7 +9,8 @@ import pinocchio as pin
 import pytest
 
 from geoddp import lie
-from geoddp.models.multibody import FD_STEP, Multibody
+from geoddp.models.multibody import Multibody
+from oracle_multibody import FD_STEP, OracleMultibody
 from geoddp.validate import InputError
 from urdfs import urdf
 
@@ -21,8 +22,9 @@ ALL_INTEGRATORS = INTEGRATORS + ["rk4", "variational"]
 DT = 0.05
 
 
-def _model(root="free_flyer", integrator="euler", **kw):
-    return Multibody(URDF, root=root, dt=kw.pop("dt", DT), integrator=integrator, **kw)
+def _model(root="free_flyer", integrator="euler", oracle=False, **kw):
+    """The compiled model, or with ``oracle`` the tests' Python one (tests/oracle_multibody.py)."""
+    return (OracleMultibody if oracle else Multibody)(URDF, root=root, dt=kw.pop("dt", DT), integrator=integrator, **kw)
 
 
 def _trajectory(mb, rng, H=4):
@@ -247,7 +249,7 @@ def test_second_order_terms_are_symmetric(rng):
 def test_velocity_hessian_step_is_accurate(rng):
     """F2 at the default step against a Richardson extrapolation of two larger steps (where
     round-off is negligible and the h^2 truncation cancels, leaving O(h^4))."""
-    mb = _model("free_flyer", "euler")
+    mb = _model("free_flyer", "euler", oracle=True)
     Q, V, U = _trajectory(mb, rng, H=2)
     _, F2 = mb.velocity_derivatives(Q[:2], V[:2], U, order=2)
     _, Fa = mb.velocity_derivatives(Q[:2], V[:2], U, order=2, fd_step=2e-3)
@@ -288,7 +290,7 @@ def _velocity_hessian_all_directions(mb, Q, V, U, h=FD_STEP):
 def test_structured_velocity_hessian_equals_differences_along_every_direction(root, gravity, rng):
     """The structured F2 (zero u-u and v-u blocks, RNEA v-v block, differences along q only,
     none along invariant root directions) against differences along all nz directions."""
-    mb = _model(root, "euler", gravity=gravity)
+    mb = _model(root, "euler", gravity=gravity, oracle=True)
     Q, V, U = _trajectory(mb, rng, H=2)
     _, F2 = mb.velocity_derivatives(Q[:2], V[:2], U, order=2)
     ref = _velocity_hessian_all_directions(mb, Q, V, U)

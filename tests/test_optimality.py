@@ -152,7 +152,9 @@ def test_panda_expansions_end_at_verified_minima(tmp_path, monkeypatch):
     path = panda_scene(tmp_path)
     first = solve_scene(path, verbose=False, expansion="first")
     second = solve_scene(path, verbose=False, expansion="second")
-    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
+    from oracle_multibody import use_oracle
+
+    use_oracle(monkeypatch)
     # The oracle crawls across a flat stretch whose length round-off decides: 167 iterations with
     # numba's SO(3)/SE(3) right Jacobians, 204 with the compiled core's (the same J* to 3e-16,
     # 2026-11-27): a budget above either, not the scene's 200.

@@ -579,8 +579,8 @@ class MultibodyCostSum:
         model: the model fixing nx (default: the first term's).
         terminal: if True, refuse control terms at construction (they need U).
         backend: ``"auto"`` (default: compiled; the environment variable
-            GEODDP_MULTIBODY_BACKEND=python makes it pick python, as for
-            :class:`geoddp.models.multibody.Multibody`), ``"compiled"`` (the kernels of
+            GEODDP_MULTIBODY_BACKEND=python makes it pick python, which the tests' oracle
+            ``use_oracle`` sets), ``"compiled"`` (the kernels of
             ``geoddp._core``) or ``"python"``
             (this module's code, the oracle). The resolved choice is in ``self.backend``.
             Terms of other (sub)classes always run their Python code.

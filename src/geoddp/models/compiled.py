@@ -2,7 +2,7 @@
 :mod:`geoddp._core` (C++17 over the libpinocchio inside the ``pin`` wheel).
 
 Which backend runs: a multibody model uses the compiled core (any of its four integrators); the
-Python path stays as the oracle the tests compare the core against (``backend="python"``).
+Python path it replaced is the tests' oracle (tests/oracle_multibody.py).
 
 The extension must run with the very pin it was compiled against (the layout of
 ``pinocchio::Model`` is shared with the Python object): it checks ``pinocchio.__version__`` at

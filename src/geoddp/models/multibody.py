@@ -8,31 +8,22 @@ Dynamics (Pinocchio is the source of truth):
     v+ = v + dt aba(q, v, H u)                      (H: nv x m actuation, generalised forces)
     q+ = integrate(q, dt w),  w = v  (explicit Euler, paper eq. disceq)
                               w = v+ (semi-implicit Euler, Crocoddyl's).
-or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step of :mod:`geoddp.rkmk4`
-(second-order terms by central differences of its analytic step Jacobian, symmetrised).
+or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step (cpp/rkmk4.hpp, where the
+scheme is written out; second-order terms by central differences of its analytic step Jacobian,
+symmetrised), or the forward variational Euler step ("variational", :mod:`geoddp.variational`).
 
-Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m:
-* velocity update: first order from ``computeABADerivatives`` (ddq_dq, ddq_dv, Minv); second
-  order from the structure of ABA (:meth:`Multibody.velocity_derivatives`): zero in (u, u) and
-  (v, u), exact in (v, v) from RNEA's dtau_dv, and central differences of the analytic first
-  derivatives along q (through ``integrate``) for the rest, symmetrised to the (0)-connection
-  Hessian (the pip wheel has no second-order ABA derivatives);
-* reconstruction: first order from ``dIntegrate``'s ARG0 = Ad_exp(-omega), ARG1 = Jr(omega)
-  (:func:`geoddp.lie.product.block_Ad_Jr`: Pinocchio's SE(3) Jr is inaccurate at small angles);
-  second order exact per joint group (:mod:`geoddp.lie.product`): the reconstruction formula
-  written once for any product group, :func:`geoddp.integrators.expand`.
-Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
-
-Backends (chosen when the model is built, ``backend=``): "compiled" runs the rollout and the
-whole expansion in the C++ core (:mod:`geoddp.models.compiled`): the same quantities, with the
-velocity update's second order exact from Pinocchio's ``ComputeRNEASecondOrderDerivatives`` (no
-differences) and SE(3)'s dJr exact (rk4: its analytic step Jacobian and, for the second order,
-central differences of it, as below; variational: the residual's Jacobian analytic, with the
+Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m, in the compiled core
+(:mod:`geoddp.models.compiled`, cpp/): the velocity update's first order from
+``computeABADerivatives`` and its second order exact from Pinocchio's
+``ComputeRNEASecondOrderDerivatives`` (no differences); the reconstruction's first order from
+``dIntegrate``'s ARG0 = Ad_exp(-omega), ARG1 = Jr(omega) and its second order exact per joint group
+(the formula of :func:`geoddp.integrators.expand`, with SE(3)'s Jr and dJr in closed form:
+Pinocchio's SE(3) Jr is inaccurate at small angles). rk4: its analytic step Jacobian and, for the
+second order, central differences of it. variational: the residual's Jacobian analytic, with the
 kinetic-energy Hessian from the same second-order RNEA, and its second order one central
-difference of that Jacobian, where the Python oracle differences a difference); "python" is the
-code below, kept as the oracle. "auto" (the default) picks "compiled" (geoddp does not import
-without its compiled core, :mod:`geoddp.kernels`); the environment variable
-GEODDP_MULTIBODY_BACKEND=python makes "auto" pick "python".
+difference of that Jacobian. Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
+
+The Python path geoddp ran before its core is the tests' oracle (tests/oracle_multibody.py).
 """
 from __future__ import annotations
 
@@ -47,9 +38,8 @@ import pinocchio as pin
 from ..urdf_checks import build_checked_model, check_model
 
 from ..lie import product as cfg
-from ..linalg import symmetric_from_upper
 from .. import integrators as integ
-from .. import rkmk4, variational
+from .. import variational
 from ..urdf_checks import read_urdf_text
 from ..validate import (InputError, choice, finite_array, nonnegative_int, positive_float, spin_from_environment,
                         threads_from_environment)
@@ -58,11 +48,7 @@ from . import compiled
 ROOTS = ("free_flyer", "spherical", "fixed")
 INTEGRATORS = integ.INTEGRATORS + ("rk4", "variational")
 SECOND_ORDER_KINDS = ("exact",)
-BACKENDS = ("auto", "compiled", "python")
-# Central-difference step for the second derivatives of the velocity update: the error is
-# ~h^2 |f'''| / 6 + eps |f'| / h; h = 1e-5 balances them near 1e-10 relative (tested against a
-# Richardson-extrapolated difference).
-FD_STEP = 1e-5
+BACKENDS = ("auto", "compiled")
 
 
 def _root_joint(root: str):
@@ -134,9 +120,8 @@ class Multibody:
             (the paper's forward variational Euler, implicit; :mod:`geoddp.variational`).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
-        backend: "auto" (default: "compiled", or "python" under GEODDP_MULTIBODY_BACKEND=python),
-            "compiled" or "python" (the oracle). Holds the
-            resolved choice after construction.
+        backend: "auto" (the default) or "compiled": the compiled core, the only backend (the
+            Python path is the tests' oracle, tests/oracle_multibody.py). Holds "compiled".
         threads: worker threads of the compiled expansion (per-node derivatives); 0 = the
             environment variable GEODDP_THREADS if set (:func:`geoddp.validate.threads_from_environment`),
             else the core's default: ``geoddp._core.default_threads()`` (min(2, cores in the affinity
@@ -163,7 +148,6 @@ class Multibody:
     visual_model: pin.GeometryModel | None = field(default=None, kw_only=True, repr=False)
     pin_model: pin.Model = field(init=False, repr=False)
     groups: list = field(init=False, repr=False)
-    _variational: variational.VariationalEuler | None = field(init=False, repr=False, default=None)
     _data: pin.Data | None = field(init=False, repr=False, default=None)
     _urdf_record: tuple[str, str] | None = field(init=False, repr=False, default=None)  # (path, text), read at the first description
 
@@ -179,10 +163,7 @@ class Multibody:
         spin_from_environment()  # the core read GEODDP_SPIN_US when it loaded: refuse a bad value here
         if not isinstance(self.contract, (bool, np.bool_)):
             raise InputError("contract", f"expected True or False, got {self.contract!r}")
-        if self.backend == "auto":  # the core runs every integrator
-            # GEODDP_MULTIBODY_BACKEND=python forces the oracle everywhere (scene files, CLI).
-            forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
-            self.backend = "python" if forced == "python" else "compiled"
+        self.backend = "compiled"  # the core runs every integrator
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
         if isinstance(self.package_dirs, (str, os.PathLike)):
@@ -220,8 +201,6 @@ class Multibody:
             if zero.size:
                 raise InputError("actuation", f"expected every column to be non-zero, got an all-zero column {int(zero[0])}")
             self.actuation = Hm
-        if self.integrator == "variational":
-            self._variational = variational.VariationalEuler(model, self.groups, self.actuation, self.dt)
         self._data = model.createData()
 
     @classmethod
@@ -368,21 +347,11 @@ class Multibody:
         return np.concatenate([cfg.difference(self.pin_model, self.groups, q_bar, q), v - v_bar])
 
     # ------------------------------------------------------------------ dynamics
-    def _step(self, data: pin.Data, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        model = self.pin_model
-        if self.integrator == "rk4":
-            return rkmk4.step(model, data, self.groups, q, v, self.actuation @ u, self.dt)
-        if self._variational is not None:
-            return self._variational.step(data, None, q, v, self.actuation @ u)
-        v_next = v + self.dt * pin.aba(model, data, q, v, self.actuation @ u)
-        w = v_next if self.semi_implicit else v
-        # No pin.normalize: integrate already renormalises to first order, and normalize moves
-        # SO(2) coordinates by ~1e-9 (it erased 1e-9 perturbations in finite-difference checks).
-        return pin.integrate(model, q, self.dt * w), v_next
-
     def step(self, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One step: q (nq,), v (nv,) (m/s, rad/s per joint), u (m,) -> (q+, v+)."""
-        return self._step(self.pin_model.createData(), q, v, u)
+        """One step: q (nq,), v (nv,) (m/s, rad/s per joint), u (m,) -> (q+, v+): a rollout of
+        one control."""
+        Q, V = self.rollout(q, v, np.reshape(u, (1, -1)))
+        return Q[1], V[1]
 
     def check_state(self, q: np.ndarray, v: np.ndarray, name: str = "initial") -> tuple[np.ndarray, np.ndarray]:
         """Validate a state: q (nq,) with unit quaternions / (cos, sin) pairs, v (nv,)."""
@@ -408,17 +377,8 @@ class Multibody:
         """Open-loop rollout: q0 (nq,), v0 (nv,), controls (H, m) -> Q (H+1, nq), V (H+1, nv)."""
         q0, v0 = self.check_state(q0, v0)
         U = self.check_controls(controls)
-        H = U.shape[0]
-        if self.backend == "compiled":
-            with self._step_errors():
-                return compiled._core.rollout(self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, U)
-        data = self.pin_model.createData()
-        Q = np.empty((H + 1, self.nq))
-        V = np.empty((H + 1, self.nv))
-        Q[0], V[0] = q0, v0
-        for k in range(H):
-            Q[k + 1], V[k + 1] = self._step(data, Q[k], V[k], U[k])
-        return Q, V
+        with self._step_errors():
+            return compiled._core.rollout(self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, U)
 
     def rollout_closed_loop(
         self, q0: np.ndarray, v0: np.ndarray, Q_bar: np.ndarray, V_bar: np.ndarray, u_bar: np.ndarray,
@@ -432,168 +392,26 @@ class Multibody:
 
         Shapes: Q_bar, Q_out (H+1, nq); V_bar, V_out (H+1, nv); u_bar, k_ff, u_out (H, m);
         K_fb (H, m, 2 nv). With control limits lower, upper (H, m), u_k is clamped into the box
-        after the feedback law. With the compiled backend the whole pass runs in C++.
+        after the feedback law. The whole pass runs in C++.
         ``checked=True``: the caller vouches for the arrays (float64, C-contiguous, these shapes:
         a problem's own nominal, gains and fresh outputs, :meth:`geoddp.problem.Problem.rollout_policy`);
         the Python checks are skipped (the core still checks every shape)."""
         H = np.shape(u_out)[0]  # the outputs are the caller's, sized to its horizon
-        if self.backend == "compiled":
-            if not checked:
-                nq, nv, m = self.nq, self.nv, self.nu
-                ca, co = compiled.check_array, compiled.check_output
-                Q_bar, V_bar = ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv))
-                u_bar, k_ff = ca(u_bar, "u_bar", (H, m)), ca(k_ff, "k_ff", (H, m))
-                K_fb = ca(K_fb, "K_fb", (H, m, 2 * nv))
-                Q_out, V_out = co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv))
-                u_out = co(u_out, "u_out", (H, m))
-                if lower is not None:
-                    lower, upper = ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m))
-            return compiled._core.rollout_closed_loop(  # False on a step that does not converge
-                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, Q_bar, V_bar,
-                u_bar, k_ff, K_fb, float(gamma), Q_out, V_out, u_out, *(() if lower is None else (lower, upper)))
-        data = self._data
-        Q_out[0], V_out[0] = q0, v0
-        for k in range(H):
-            zeta = self.local(Q_bar[k], V_bar[k], Q_out[k], V_out[k])
-            u = u_bar[k] - gamma * k_ff[k] - K_fb[k] @ zeta
-            if lower is not None:  # np.minimum/maximum propagate NaN, as the compiled clamp does
-                u = np.minimum(np.maximum(u, lower[k]), upper[k])
-            u_out[k] = u
-            try:
-                q1, v1 = self._step(data, Q_out[k], V_out[k], u)
-            except variational.StepDidNotConverge:
-                return False  # a trial whose implicit step has no solution: rejected like a non-finite one
-            if not (np.all(np.isfinite(q1)) and np.all(np.isfinite(v1))):
-                return False
-            Q_out[k + 1], V_out[k + 1] = q1, v1
-        return True
+        if not checked:
+            nq, nv, m = self.nq, self.nv, self.nu
+            ca, co = compiled.check_array, compiled.check_output
+            Q_bar, V_bar = ca(Q_bar, "Q_bar", (H + 1, nq)), ca(V_bar, "V_bar", (H + 1, nv))
+            u_bar, k_ff = ca(u_bar, "u_bar", (H, m)), ca(k_ff, "k_ff", (H, m))
+            K_fb = ca(K_fb, "K_fb", (H, m, 2 * nv))
+            Q_out, V_out = co(Q_out, "Q_out", (H + 1, nq)), co(V_out, "V_out", (H + 1, nv))
+            u_out = co(u_out, "u_out", (H, m))
+            if lower is not None:
+                lower, upper = ca(lower, "lower", (H, m)), ca(upper, "upper", (H, m))
+        return compiled._core.rollout_closed_loop(  # False on a step that does not converge
+            self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], q0, v0, Q_bar, V_bar,
+            u_bar, k_ff, K_fb, float(gamma), Q_out, V_out, u_out, *(() if lower is None else (lower, upper)))
 
     # ------------------------------------------------------------------ derivatives
-    def _invariant_q_dirs(self) -> np.ndarray:
-        """Tangent directions of q along which the velocity update does not change at all.
-
-        A world-frame rigid motion of the whole mechanism leaves every local quantity (joint
-        configurations, body-frame velocities, torques) unchanged, so ABA's output is invariant
-        under it unless an external field breaks the symmetry. Perturbing the root joint,
-        integrate(q, dq) = q_root exp(dq_root), is such a motion: a free flyer's translational
-        directions always (gravity is uniform), its rotational directions, and a spherical root's,
-        only without gravity. Along them, ABA and its derivatives are constant: their second
-        derivatives are exactly zero (tested against differences along every direction).
-        """
-        if self.root == "fixed":
-            return np.zeros(0, dtype=int)
-        rot = slice(3, 6) if self.root == "free_flyer" else slice(0, 3)
-        dirs = [0, 1, 2] if self.root == "free_flyer" else []
-        if not np.any(self.pin_model.gravity.vector):
-            dirs += list(range(rot.start, rot.stop))
-        return np.array(dirs, dtype=int)
-
-    def velocity_derivatives(
-        self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1, fd_step: float = FD_STEP
-    ) -> tuple[np.ndarray, np.ndarray | None]:
-        """Derivatives of v+ = f(q, v, u) w.r.t. z = (dq, dv, du) at N nodes.
-
-        Q (N, nq), V (N, nv), controls (N, m) -> F1 (N, nv, nz), F2 (N, nv, nz, nz) or None,
-        nz = 2 nv + m. F2 is the symmetric (0)-Hessian of z -> f(retract(x, zeta), u + du).
-
-        F1 is Pinocchio's analytic ABA derivative. F2 uses the structure of
-        f = v + dt a,  a = Minv(q) (tau - b(q, v)),  tau = H u,  b = C(q, v) v + g(q)
-        (b: RNEA at zero acceleration) instead of differencing along all nz directions:
-        * u-u and v-u blocks: zero. a is affine in tau with slope Minv(q), which does not
-          depend on v.
-        * v-v block: b is quadratic in v and Minv does not depend on v, so
-          d2a/dv_i dv_j = -Minv (d2 b / dv_i dv_j) = -Minv dtau_dv(q, e_j, 0)[:, i], exactly:
-          RNEA's dtau_dv is linear in v and independent of the acceleration and of gravity.
-          One computeRNEADerivatives per velocity direction.
-        * q-q, q-v and q-u blocks: central differences of the analytic first derivatives
-          (ddq_dq, ddq_dv, Minv H) along integrate(q, h e_j), 2 computeABADerivatives per
-          direction. v and u enter additively, so the q-v and q-u entries are mixed partials
-          of a smooth function and differencing along q alone gives them; the q-q block is
-          symmetrised to the (0)-connection Hessian (the derivative of the right-trivialised
-          Jacobian along integrate(q, h e_j) differs from it by an antisymmetric bracket term).
-          Directions of :meth:`_invariant_q_dirs` are skipped (exactly zero there).
-        These agree with central differences along every direction of z to ~1e-9 relative (the
-        differences' own error; tested).
-        """
-        model = self.pin_model
-        data = model.createData()
-        Hm, nv, m, dt = self.actuation, self.nv, self.nu, self.dt
-        N = controls.shape[0]
-        nz = 2 * nv + m
-        Tau = controls @ Hm.T
-        # Pinocchio fills only the upper triangle of Minv: raw ABA outputs [ddq_dq | ddq_dv | Minv]
-        # are collected per node, and the arithmetic runs on whole stacks afterwards.
-        raw = np.empty((N, nv, 3 * nv))
-        for k in range(N):
-            pin.computeABADerivatives(model, data, Q[k], V[k], Tau[k])
-            raw[k, :, :nv] = data.ddq_dq
-            raw[k, :, nv : 2 * nv] = data.ddq_dv
-            raw[k, :, 2 * nv :] = data.Minv
-        Minv = symmetric_from_upper(raw[:, :, 2 * nv :])
-        F1 = np.empty((N, nv, nz))
-        F1[:, :, :nv] = dt * raw[:, :, :nv]
-        F1[:, :, nv : 2 * nv] = np.eye(nv) + dt * raw[:, :, nv : 2 * nv]
-        F1[:, :, 2 * nv :] = dt * (Minv @ Hm)
-        if order < 2:
-            return F1, None
-
-        h = fd_step
-        dirs = np.setdiff1d(np.arange(nv), self._invariant_q_dirs())
-        nd = dirs.size
-        plus = np.empty((N, nd, nv, 3 * nv))
-        minus = np.empty((N, nd, nv, 3 * nv))
-        dtau_dv = np.empty((N, nv, nv, nv))  # [k, j] = RNEA's dtau_dv at (q_k, e_j, 0)
-        steps = h * np.eye(nv)[dirs]
-        unit, zero = np.eye(nv), np.zeros(nv)
-        for k in range(N):
-            q, v, tau = Q[k], V[k], Tau[k]
-            for jd in range(nd):
-                for out, s in ((plus, steps[jd]), (minus, -steps[jd])):
-                    pin.computeABADerivatives(model, data, pin.integrate(model, q, s), v, tau)
-                    out[k, jd, :, :nv] = data.ddq_dq
-                    out[k, jd, :, nv : 2 * nv] = data.ddq_dv
-                    out[k, jd, :, 2 * nv :] = data.Minv
-            for j in range(nv):
-                pin.computeRNEADerivatives(model, data, q, unit[j], zero)
-                dtau_dv[k, j] = data.dtau_dv
-        D = (plus - minus) / (2.0 * h)  # [k, jd, p, c]: d raw[k, p, c] / d q_dirs[jd]
-        # Gq[k, p, c, j]: derivative of column c of the velocity Jacobian along q_j (zero off dirs)
-        Gq = np.zeros((N, nv, nz, nv))
-        Gq[:, :, : 2 * nv, dirs] = dt * np.moveaxis(D[..., : 2 * nv], 1, -1)
-        Gq[:, :, 2 * nv :, dirs] = dt * np.moveaxis(symmetric_from_upper(D[..., 2 * nv :]) @ Hm, 1, -1)
-        F2 = np.zeros((N, nv, nz, nz))
-        F2[:, :, :nv, :nv] = 0.5 * (Gq[:, :, :nv] + np.swapaxes(Gq[:, :, :nv], 2, 3))
-        F2[:, :, nv:, :nv] = Gq[:, :, nv:]
-        F2[:, :, :nv, nv:] = np.swapaxes(Gq[:, :, nv:], 2, 3)
-        Fvv = -dt * np.moveaxis(Minv[:, None] @ dtau_dv, 1, -1)  # [k, p, i, j]
-        F2[:, :, nv : 2 * nv, nv : 2 * nv] = 0.5 * (Fvv + np.swapaxes(Fvv, 2, 3))
-        return F1, F2
-
-    def _expansion_rk4(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray, order: int) -> integ.Expansion:
-        """RK4 on the Lie group: Phi, B from the analytic step Jacobian (stages chained); for
-        order 2, central differences of that analytic Jacobian along tangent directions of
-        z = (dq, dv, du), symmetrised. Expressing the output at the perturbed step's image instead
-        of the nominal one changes the Jacobian by 1/2 ad(G a) G b, which is antisymmetric in
-        (a, b) and so drops out of the symmetrised (0)-Hessian."""
-        model, dt, nv, m = self.pin_model, self.dt, self.nv, self.nu
-        n, nz, H = 2 * nv, 2 * nv + m, U.shape[0]
-        data = model.createData()
-        jac = lambda q, v, u: rkmk4.step_jacobian(model, data, self.groups, q, v, self.actuation @ u, self.actuation, dt)  # noqa: E731
-        G = np.stack([jac(Q[k], V[k], U[k]) for k in range(H)])
-        if order < 2:
-            return integ.Expansion.from_blocks(n, G)
-        h = FD_STEP
-        G2 = np.empty((H, n, nz, nz))
-        for k in range(H):
-            D = np.empty((n, nz, nz))
-            for j in range(nz):
-                z = np.zeros(nz)
-                z[j] = h
-                (qp, vp), (qm, vm) = self.retract(Q[k], V[k], z[:n]), self.retract(Q[k], V[k], -z[:n])
-                D[:, :, j] = (jac(qp, vp, U[k] + z[n:]) - jac(qm, vm, U[k] - z[n:])) / (2.0 * h)
-            G2[k] = 0.5 * (D + np.swapaxes(D, 1, 2))
-        return integ.Expansion.from_blocks(n, G, G2)
-
     def expansion(self, Q: np.ndarray, V: np.ndarray, controls: np.ndarray, order: int = 1,
                   contracted: bool = False, checked: bool = False) -> integ.Expansion:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
@@ -603,7 +421,7 @@ class Multibody:
         Theta (H, nx, nx, nx), Gamma (H, nx, nx, m), Xi (H, nx, m, m), nx = 2 nv, with
         zeta+_i = Phi zeta + B du + 1/2 zeta^T Theta_i zeta + zeta^T Gamma_i du + 1/2 du^T Xi_i du.
 
-        ``contracted=True`` (order 2, compiled backend only: :attr:`contracts_second_order`)
+        ``contracted=True`` (order 2; :attr:`contracts_second_order` says whether a solve uses it)
         returns the second order factored instead: ``terms`` (geoddp._core.SecondOrderTerms,
         ``terms.contract(k, Vx)`` = sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] at node k)
         with Theta, Gamma, Xi None; Phi and B are bitwise those of order 1.
@@ -623,24 +441,9 @@ class Multibody:
             if order not in (1, 2):
                 raise InputError("order", f"expected 1 or 2, got {order!r}")
         if contracted and order == 2:
-            if self.backend != "compiled":
-                raise InputError("contracted", "expected False: factored second-order terms need the compiled backend")
             Phi, B, terms = compiled._core.expansion_contracted(
                 self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, self.threads)
             return integ.Expansion(Phi=Phi, B=B, terms=terms)
-        if self.backend == "compiled":
-            Phi, B, Theta, Gamma, Xi = compiled._core.expansion(
-                self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, order, self.threads)
-            return integ.Expansion(Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi)
-        nv, m, dt = self.nv, self.nu, self.dt
-        n, nz = 2 * nv, 2 * nv + m
-        if self.integrator == "rk4":
-            return self._expansion_rk4(Q, V, U, order)
-        if self._variational is not None:
-            # Implicit velocity update, explicit-Euler reconstruction q+ = q exp(dt v).
-            F1, F2 = self._variational.velocity_derivatives(Q[:H], V[:H], V[1:], U, order)
-        else:
-            F1, F2 = self.velocity_derivatives(Q[:H], V[:H], U, order)
-        W = V[1 : H + 1] if self.semi_implicit else V[:H]  # reconstruction velocity w_bar
-        # the exact second-order reconstruction on the product of the joints' groups
-        return integ.expand(self.groups, dt, W, F1, F2, self.semi_implicit)
+        Phi, B, Theta, Gamma, Xi = compiled._core.expansion(
+            self.pin_model, self.actuation, self.dt, compiled.INTEGRATORS[self.integrator], Q, V, U, order, self.threads)
+        return integ.Expansion(Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi)

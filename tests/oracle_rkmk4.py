@@ -1,4 +1,5 @@
-"""Fourth-order Runge-Kutta-Munthe-Kaas (RKMK4) step on a Pinocchio state space, and its Jacobian.
+"""The tests' oracle of the RKMK4 step (cpp/rkmk4.cpp runs it in geoddp): the fourth-order
+Runge-Kutta-Munthe-Kaas step on a Pinocchio state space, and its Jacobian, in numpy.
 
 The continuous dynamics are q^-1 dq/dt = v (body-frame velocity, per joint group) and
 dv/dt = aba(q, v, tau) with tau held constant over the step. Over one step write
@@ -24,8 +25,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from . import lie
-from .linalg import symmetric_from_upper
+from geoddp import lie
+from geoddp.linalg import symmetric_from_upper
 
 _C = (0.0, 0.5, 0.5, 1.0)
 _W = (1.0, 2.0, 2.0, 1.0)
