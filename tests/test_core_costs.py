@@ -309,8 +309,8 @@ def test_backend_choice_is_validated():
 
 
 def test_the_environment_forces_the_oracle(monkeypatch):
-    """GEODDP_MULTIBODY_BACKEND=python makes "auto" pick python (the switch the multibody model
-    honours too); an explicit "compiled" is still compiled."""
+    """GEODDP_MULTIBODY_BACKEND=python makes "auto" pick python (the switch the tests' use_oracle
+    sets, beside the multibody oracle); an explicit "compiled" is still compiled."""
     model, frame = MODELS["fixed"]
     t = FrameTranslation(model, frame, np.zeros(3))
     monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")

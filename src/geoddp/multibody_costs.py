@@ -612,7 +612,8 @@ class MultibodyCostSum:
             guess = closest(str(backend), list(BACKENDS))
             hint = f"; did you mean {guess!r}?" if guess else ""
             raise InputError("backend", f"expected one of {', '.join(map(repr, BACKENDS))}, got {backend!r}{hint}")
-        # GEODDP_MULTIBODY_BACKEND=python forces the oracle (validated as the multibody model does)
+        # GEODDP_MULTIBODY_BACKEND=python forces the Python terms (the tests' use_oracle sets it); a
+        # value other than auto, compiled or python is an InputError naming the variable
         forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
         forced_python = backend == "auto" and forced == "python"
         core = None if backend == "python" or forced_python else kernels.core
