@@ -250,6 +250,7 @@ class OracleMultibody(Multibody):
 
 def _oracle_setup(model: Multibody) -> None:
     model.backend = "python"
+    model._data = model.pin_model.createData()  # the closed-loop pass's workspace
     model._variational = (VariationalEuler(model.pin_model, model.groups, model.actuation, model.dt)
                           if model.integrator == "variational" else None)
 

@@ -148,7 +148,6 @@ class Multibody:
     visual_model: pin.GeometryModel | None = field(default=None, kw_only=True, repr=False)
     pin_model: pin.Model = field(init=False, repr=False)
     groups: list = field(init=False, repr=False)
-    _data: pin.Data | None = field(init=False, repr=False, default=None)
     _urdf_record: tuple[str, str] | None = field(init=False, repr=False, default=None)  # (path, text), read at the first description
 
     def __post_init__(self) -> None:
@@ -201,7 +200,6 @@ class Multibody:
             if zero.size:
                 raise InputError("actuation", f"expected every column to be non-zero, got an all-zero column {int(zero[0])}")
             self.actuation = Hm
-        self._data = model.createData()
 
     @classmethod
     def from_model(cls, model: pin.Model, geometry: pin.GeometryModel | None = None, root: str | None = None, *,
