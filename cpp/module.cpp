@@ -64,13 +64,15 @@ PYBIND11_MODULE(_core, m) {
   m.def(
       "spin_microseconds", []() { return geoddp::spin_microseconds(); },
       "How long an idle worker of the pool polls for the next task before it sleeps (us; cpp/pool.hpp).");
+  m.attr("SPIN_US_MAX") = geoddp::SPIN_US_MAX;
   m.def(
       "set_spin_microseconds",
       [](int us) {
-        if (us < 0 || us > 100000) throw py::value_error("us: expected 0..100000 microseconds");
+        if (us < 0 || us > geoddp::SPIN_US_MAX)
+          throw py::value_error("us: expected 0.." + std::to_string(geoddp::SPIN_US_MAX) + " microseconds");
         geoddp::set_spin_microseconds(us);
       },
-      py::arg("us"), "Sets how long an idle worker of the pool polls before it sleeps (us, 0..100000).");
+      py::arg("us"), "Sets how long an idle worker of the pool polls before it sleeps (us, 0..SPIN_US_MAX).");
   m.def("gemm_isa", &geoddp::gemm::isa, "Which build of the Riccati products runs: 'avx2+fma', 'x86-64' or 'generic'.");
   m.def("has_avx2_fma", &geoddp::gemm::has_avx2_fma, "Whether the CPU runs the AVX2/FMA build of the products.");
   m.def(

@@ -43,16 +43,18 @@
 namespace geoddp {
 
 // How long an idle worker (or a caller waiting for its workers) polls before it sleeps, in
-// microseconds: GEODDP_SPIN_US (an integer 0..100000), read once at the first use, default 1000;
-// set_spin_microseconds changes it (geoddp._core.set_spin_microseconds: benchmarks compare
-// settings in one process).
+// microseconds: GEODDP_SPIN_US (an integer 0..SPIN_US_MAX), read once at the first use, default
+// SPIN_US_DEFAULT; set_spin_microseconds changes it (geoddp._core.set_spin_microseconds:
+// benchmarks compare settings in one process). geoddp.validate.SPIN_US_MAX is the Python twin of
+// the bound (tests/test_core_contracted.py checks they agree).
+constexpr int SPIN_US_DEFAULT = 1000, SPIN_US_MAX = 100000;
 inline std::atomic<int>& spin_setting() {
   static std::atomic<int> us{[]() {
     const char* env = std::getenv("GEODDP_SPIN_US");
-    if (env == nullptr || *env == '\0') return 1000;
+    if (env == nullptr || *env == '\0') return SPIN_US_DEFAULT;
     char* end = nullptr;
     const long v = std::strtol(env, &end, 10);
-    if (*end != '\0' || v < 0 || v > 100000) return 1000;  // geoddp.validate refuses it first
+    if (*end != '\0' || v < 0 || v > SPIN_US_MAX) return SPIN_US_DEFAULT;  // geoddp.validate refuses it first
     return (int)v;
   }()};
   return us;

@@ -22,7 +22,6 @@ from geoddp.solver.backward import Workspace, backward, node_quu
 from geoddp.validate import InputError
 from urdfs import urdf as urdf_file
 
-
 core = compiled._core
 CASES = [
     ("quadrotor.urdf", "free_flyer", True),
@@ -242,11 +241,14 @@ def test_worker_pool_survives_fork():
     assert np.array_equal(mb.expansion(Q, V, U, order=1).Phi, ref)  # the parent's pool still works
 
 
-
 def test_pool_spin_changes_timing_only():
     """How long idle workers poll before sleeping (cpp/pool.hpp, GEODDP_SPIN_US) changes when a
-    worker wakes, never what it computes: the two-worker expansions and a whole solve are bitwise
-    equal for 0 (sleep at once), the default and 100000 us; out-of-range values are refused."""
+    worker wakes, never what it computes: the two-worker expansions of orders 1 and 2 are bitwise
+    equal for 0 (sleep at once), the default and 100000 us; out-of-range values are refused, at the
+    bound the Python check of GEODDP_SPIN_US uses too."""
+    from geoddp.validate import SPIN_US_MAX
+
+    assert core.SPIN_US_MAX == SPIN_US_MAX == 100_000
     mb, Q, V, U, _ = _setup(CASES[3], "euler", H=48)
     saved = core.spin_microseconds()
     try:
@@ -313,6 +315,7 @@ def test_bad_pool_spin_is_refused(monkeypatch, raw):
     monkeypatch.setenv("GEODDP_SPIN_US", raw)
     with pytest.raises(InputError, match="GEODDP_SPIN_US"):
         Multibody(urdf_file("quadrotor.urdf"), root="free_flyer", dt=0.01)
+
 
 def _one_rung_loop(lin, ws, lam, opt, u_bar=None):
     """The paper's loop, one pass per rung: ((lambda, d1, d2, rungs), failed node of the last pass)."""

@@ -89,8 +89,8 @@ def threads_from_environment() -> int:
     return n
 
 
-
 SPIN_ENV = "GEODDP_SPIN_US"
+SPIN_US_MAX = 100_000  # the core's bound (cpp/pool.hpp, geoddp._core.SPIN_US_MAX)
 
 
 def spin_from_environment() -> int | None:
@@ -100,15 +100,15 @@ def spin_from_environment() -> int | None:
     1000 us).
 
     Raises:
-        InputError: naming GEODDP_SPIN_US, if it is not a whole number from 0 to 100000 written
+        InputError: naming GEODDP_SPIN_US, if it is not a whole number from 0 to SPIN_US_MAX written
             with the digits 0-9 alone (the core would otherwise fall back to its default without a
             word).
     """
     raw = os.environ.get(SPIN_ENV, "")
     if not raw:
         return None
-    if re.fullmatch(r"[0-9]{1,6}", raw) is None or int(raw) > 100_000:
-        raise InputError(SPIN_ENV, f"expected a whole number of microseconds from 0 to 100000, got {raw!r}")
+    if re.fullmatch(r"[0-9]{1,6}", raw) is None or int(raw) > SPIN_US_MAX:
+        raise InputError(SPIN_ENV, f"expected a whole number of microseconds from 0 to {SPIN_US_MAX}, got {raw!r}")
     return int(raw)
 
 
