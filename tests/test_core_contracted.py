@@ -441,3 +441,48 @@ def test_linearisation_tensors_materialise_the_factored_terms():
     with pytest.raises(ValueError):
         Linearisation(order=1, Phi=lt.Phi, B=lt.B, Theta=None, Gamma=None, Xi=None, l_x=lt.l_x, l_u=lt.l_u,
                       l_xx=lt.l_xx, l_ux=lt.l_ux, l_uu=lt.l_uu, lf_x=lt.lf_x, lf_xx=lt.lf_xx).tensors()
+
+
+def _revolute_tree(path, parents):
+    """A URDF of revolute links: link i + 1 hangs from link parents[i] (0 = the base), offset and
+    tilted so that no two axes align."""
+    inertial = ("<inertial><origin xyz='0.1 {y} 0.3'/><mass value='{m}'/>"
+                "<inertia ixx='0.2' ixy='0.01' ixz='0' iyy='0.3' iyz='0.02' izz='0.1'/></inertial>")
+    links = [f"<link name='l0'>{inertial.format(y=0.0, m=2.0)}</link>"]
+    joints = []
+    for i, p in enumerate(parents, start=1):
+        links.append(f"<link name='l{i}'>{inertial.format(y=0.02 * i, m=1 + 0.1 * i)}</link>")
+        axis = ("1 0 0", "0 1 0", "0 0 1")[i % 3]
+        joints.append(f"<joint name='j{i}' type='revolute'><parent link='l{p}'/><child link='l{i}'/>"
+                      f"<origin xyz='0.05 0.1 0.4' rpy='0.3 {0.1 * i} 0.2'/><axis xyz='{axis}'/>"
+                      "<limit lower='-3' upper='3' effort='10' velocity='10'/></joint>")
+    path.write_text(f"<robot name='{path.stem}'>{''.join(links)}{''.join(joints)}</robot>")
+    return path
+
+
+@pytest.mark.parametrize("root", ["fixed", "free_flyer"])
+def test_branched_tree_terms_do_not_depend_on_recycled_buffers(tmp_path, root):
+    """Pinocchio's second-order recursion never writes the entries that couple dofs on different
+    branches, and the contracted expansion's tensor buffers are recycled (cpp/dynamics.hpp, Buffer)
+    holding whatever the last user left. A chain writes every entry, so expanding a chain of the
+    same size first leaves its numbers in the buffers the tree's expansion takes next: the tree's
+    contraction must still equal its dense expansion (from Pinocchio's own zeroed tensors)."""
+    chain = Multibody(_revolute_tree(tmp_path / "chain.urdf", [0, 1, 2, 3]), root=root, dt=0.01,
+                      integrator="semi_implicit")
+    tree = Multibody(_revolute_tree(tmp_path / "tree.urdf", [0, 1, 0, 3]), root=root, dt=0.01,
+                     integrator="semi_implicit")
+    assert chain.nv == tree.nv
+    rng = np.random.default_rng(5)
+    H = 4
+    for mb in (chain, tree):
+        q0 = pin.integrate(mb.pin_model, mb.neutral(), 0.7 * rng.normal(size=mb.nv))
+        Q, V = mb.rollout(q0, 0.3 * rng.normal(size=mb.nv), U := 0.3 * rng.normal(size=(H, mb.nu)))
+        ec = mb.expansion(Q, V, U, order=2, contracted=True)
+        if mb is chain:
+            del ec  # its buffers go back to the pool, holding the chain's numbers
+            continue
+        e = mb.expansion(Q, V, U, order=2)
+        for k in range(H):
+            Vx = rng.normal(size=mb.nx)
+            ref = _dense(e, k, Vx)
+            assert np.abs(ec.terms.contract(k, Vx) - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max())
