@@ -8,7 +8,8 @@ backward pass that contracts them with V_x' (cpp/contracted.*), against the form
   spherical root (gravity on / off) and every supported joint type, both integrators;
 * the contracted backward pass gives the gains, (d1, d2), quu_eig and failed node of the tensor
   pass to round-off;
-* a whole solve (second order and switch) has the same history with either form.
+* a whole solve (second order and switch) has the same history with either form;
+* a branched tree's terms do not depend on what their recycled buffers held before.
 """
 import numpy as np
 import pinocchio as pin
