@@ -155,14 +155,14 @@ class Multibody:
         self.dt = positive_float(self.dt, "dt")
         self.integrator = choice(self.integrator, "integrator", INTEGRATORS)
         self.second_order = choice(self.second_order, "second_order", SECOND_ORDER_KINDS)
-        self.backend = choice(self.backend, "backend", BACKENDS)
+        choice(self.backend, "backend", BACKENDS)  # "python" is refused, naming backend
+        self.backend = "compiled"  # the core runs every integrator
         self.threads = nonnegative_int(self.threads, "threads")
         if self.threads == 0:  # the environment's choice (a sweep's workers), else the core's default
             self.threads = threads_from_environment()
         spin_from_environment()  # the core read GEODDP_SPIN_US when it loaded: refuse a bad value here
         if not isinstance(self.contract, (bool, np.bool_)):
             raise InputError("contract", f"expected True or False, got {self.contract!r}")
-        self.backend = "compiled"  # the core runs every integrator
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
         if isinstance(self.package_dirs, (str, os.PathLike)):
@@ -321,7 +321,7 @@ class Multibody:
     @property
     def contracts_second_order(self) -> bool:
         """True if :meth:`expansion` can return factored second-order terms (``contracted=True``)."""
-        return self.backend == "compiled" and bool(self.contract) and self.integrator in compiled.CONTRACTED_INTEGRATORS
+        return bool(self.contract) and self.integrator in compiled.CONTRACTED_INTEGRATORS
 
     @property
     def semi_implicit(self) -> bool:
