@@ -14,8 +14,7 @@ passes and expansions run in numpy over Pinocchio's Python calls, node by node:
 * variational: tests/oracle_variational.py.
 
 :func:`use_oracle` makes every ``Multibody`` built afterwards in the test (scene files, the CLI in
-process, robots by name) run this path: what ``GEODDP_MULTIBODY_BACKEND=python`` did when the oracle
-lived in the package.
+process, robots by name) run this path, and every cost sum the cost oracle (tests/oracle_costs.py).
 """
 from __future__ import annotations
 
@@ -30,6 +29,7 @@ from geoddp.models.multibody import Multibody
 from geoddp.variational import StepDidNotConverge
 
 import oracle_rkmk4 as rkmk4
+from oracle_costs import use_cost_oracle
 from oracle_variational import VariationalEuler
 
 # Central-difference step for the second derivatives of the velocity update: the error is
@@ -262,7 +262,7 @@ _METHODS = ("contracts_second_order", "_step", "step", "rollout", "rollout_close
 def use_oracle(monkeypatch) -> None:
     """Make every :class:`Multibody` built from now on in this test an oracle one, and the
     multibody cost sums Python ones (pytest's ``monkeypatch`` undoes both after the test)."""
-    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")  # the cost sums' switch
+    use_cost_oracle(monkeypatch)
     original = Multibody.__post_init__
 
     def post_init(self) -> None:

@@ -1,5 +1,5 @@
 """The compiled cost kernels (geoddp._core, cpp/costs.cpp) against the Python oracle
-(geoddp.multibody_costs) and against differences of their own gradient.
+(tests/oracle_costs.py) and against differences of their own gradient.
 
 Models: the space manipulator URDF on a free-flyer root, a fixed base and a spherical root, the
 all-joints URDF (two free flyers, an unbounded revolute, a prismatic joint) and the satellite
@@ -16,6 +16,7 @@ import pinocchio as pin
 import pytest
 
 
+from geoddp.costs import CostDerivatives
 from geoddp.lie import SE3, SO3
 from geoddp.models import compiled
 from geoddp.multibody_costs import (
@@ -29,6 +30,7 @@ from geoddp.multibody_costs import (
     StateRegularisation,
 )
 from geoddp.validate import InputError
+from oracle_costs import OracleCostSum
 from urdfs import urdf as urdf_file
 
 CORE = compiled._core
@@ -120,8 +122,7 @@ def _rel(a, b):
 
 
 def _both(terms, model, **kw):
-    return (MultibodyCostSum(terms, model=model, backend="python", **kw),
-            MultibodyCostSum(terms, model=model, backend="compiled", **kw))
+    return (OracleCostSum(terms, model=model, **kw), MultibodyCostSum(terms, model=model, **kw))
 
 
 # --------------------------------------------------------------------------------------
@@ -140,7 +141,7 @@ def test_compiled_matches_the_python_oracle(name, kind, per_node):
     for gn in (False, True):
         term = _term(kind, model, frame, Q, np.random.default_rng(7), per_node, gauss_newton=gn)
         py, cc = _both([term], model)
-        assert cc.backend == "compiled" and py.backend == "python"
+        assert type(cc) is MultibodyCostSum and cc.backend == "compiled"
         u = U if kind == "control" else None
         dp, dc = py.derivatives(Q, V, u), cc.derivatives(Q, V, u)
         assert _rel(cc.value(Q, V, u), py.value(Q, V, u)) < VALUE_TOL
@@ -297,29 +298,19 @@ def test_closed_forms_match_geoddp_and_differences():
 
 
 def test_backend_choice_is_validated():
+    """"auto" (the default) and "compiled" are the kernels; the Python code is the tests' oracle,
+    no backend of the package: "python" is refused, naming backend."""
     model, frame = MODELS["fixed"]
     t = FrameTranslation(model, frame, np.zeros(3))
     with pytest.raises(InputError, match="did you mean 'compiled'") as e:
         MultibodyCostSum([t], backend="compild")
     assert e.value.parameter == "backend"
-    assert MultibodyCostSum([t], backend="python").backend == "python"
-    for auto in (MultibodyCostSum([t]), MultibodyCostSum([t], backend="auto")):  # "auto" is the default
-        assert auto.backend == "compiled"
-    assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
-
-
-def test_the_environment_forces_the_oracle(monkeypatch):
-    """GEODDP_MULTIBODY_BACKEND=python makes "auto" pick python (the switch the tests' use_oracle
-    sets, beside the multibody oracle); an explicit "compiled" is still compiled."""
-    model, frame = MODELS["fixed"]
-    t = FrameTranslation(model, frame, np.zeros(3))
-    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
-    assert MultibodyCostSum([t]).backend == "python"
-    assert MultibodyCostSum([t], backend="compiled").backend == "compiled"
-    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "pyhton")
-    with pytest.raises(InputError) as e:
-        MultibodyCostSum([t])
-    assert e.value.parameter == "GEODDP_MULTIBODY_BACKEND"
+    with pytest.raises(InputError, match="auto | compiled") as e:
+        MultibodyCostSum([t], backend="python")
+    assert e.value.parameter == "backend"
+    for backend in ("auto", "compiled"):
+        assert MultibodyCostSum([t], backend=backend).backend == "compiled"
+    assert MultibodyCostSum([t]).backend == "compiled"
 
 
 def test_terms_without_a_compiled_twin_run_their_python_code(rng):
@@ -334,17 +325,35 @@ def test_terms_without_a_compiled_twin_run_their_python_code(rng):
             d.lx[:, model.nv:] += V
             d.lxx[:, model.nv:, model.nv:] += np.eye(model.nv)
 
-    class MyTranslation(FrameTranslation):  # a subclass may change the residual: not compiled
-        def _residual(self, q, k, jac):
-            r, J = super()._residual(q, k, jac)
-            return 2.0 * r, (None if J is None else 2.0 * J)
+    class Doubled(FrameTranslation):  # a subclass may compute something else: its own code runs
+        def value(self, Q, V, U):
+            return 2.0 * super().value(Q, V, U)
+
+        def accumulate(self, Q, V, U, d, gauss_newton=False):
+            once = CostDerivatives.zeros(Q.shape[0], 0, d.lx.shape[1])
+            super().accumulate(Q, V, U, once, gauss_newton)
+            d.l += 2.0 * once.l
+            d.lx += 2.0 * once.lx
+            d.lxx += 2.0 * once.lxx
+
+    class Renamed(FrameTranslation):  # inherits the kernels' value and accumulate
+        pass
 
     Q, V, U = _nodes(model, rng, 3)
-    terms = [Speed(), MyTranslation(model, frame, np.zeros(3)), FrameTranslation(model, frame, np.ones(3))]
+    terms = [Speed(), Doubled(model, frame, np.zeros(3)), Renamed(model, frame, 0.5 * np.ones(3)),
+             FrameTranslation(model, frame, np.ones(3))]
     py, cc = _both(terms, model)
+    assert [t for t in cc._own_terms] == terms[:3] and cc._kernel_terms == terms[3:]
     dp, dc = py.derivatives(Q, V, None), cc.derivatives(Q, V, None)
     assert _rel(dc.lx, dp.lx) < VALUE_TOL and _rel(dc.lxx, dp.lxx) < ORACLE_HESS_TOL
     assert _rel(cc.value(Q, V, None), py.value(Q, V, None)) < VALUE_TOL
+    # Doubled is twice the plain term; Renamed is the plain term, through the kernels
+    one = lambda t: MultibodyCostSum([t], model=model).derivatives(Q, V, None)  # noqa: E731
+    plain = one(FrameTranslation(model, frame, np.zeros(3)))
+    assert np.array_equal(one(terms[1]).lxx, 2.0 * plain.lxx)
+    assert np.array_equal(one(terms[2]).lx, one(FrameTranslation(model, frame, 0.5 * np.ones(3))).lx)
+    gn = cc.derivatives(Q, V, None, gauss_newton=True)
+    assert _rel(gn.lxx, py.derivatives(Q, V, None, gauss_newton=True).lxx) < VALUE_TOL
 
 
 def test_bad_input_raises_the_oracles_errors(rng):
@@ -449,7 +458,7 @@ def test_whole_sum_is_bitwise_the_term_by_term_kernels(threads):
     terms += [_term("placement", model, frame, Q, rng, per_node=True, gauss_newton=True)]
     cc = MultibodyCostSum(terms, model=model, backend="compiled")
     cc.threads = threads
-    assert cc._whole
+    assert cc._kernel_terms == terms and not cc._own_terms
     ref = _term_by_term(cc)
     assert np.array_equal(cc.value(Q, V, U), ref.value(Q, V, U))
     for gn in (False, True):
@@ -489,7 +498,7 @@ def test_whole_sum_sees_rebound_terms_and_changed_arrays():
     terms = [_term("placement", model, frame, Q, rng, per_node=False), _term("state", model, frame, Q, rng, per_node=False),
              _term("control", model, frame, Q, rng, per_node=False)]
     py, cc = _both(terms, model)
-    assert cc._whole and np.array_equal(cc.value(Q, V, U), _term_by_term(cc).value(Q, V, U))
+    assert cc._kernel_terms == terms and np.array_equal(cc.value(Q, V, U), _term_by_term(cc).value(Q, V, U))
     for change in (lambda: setattr(terms[0], "W", _spd(6, rng)),        # rebound
                    lambda: terms[1].W.__imul__(2.0),                      # in place
                    lambda: setattr(terms[2], "u_ref", rng.normal(size=(1, 3)))):
@@ -535,6 +544,6 @@ def test_chordal_term_names_itself_in_its_errors():
     with pytest.raises(InputError, match=r"FrameRotationChordal\.W"):
         FrameRotationChordal(model, frame, np.eye(3), W=-np.eye(3))
     term = FrameRotationChordal(model, frame, np.stack([np.eye(3)] * 3), W=2.0)
-    for backend in ("python", "compiled"):
+    for kind in (OracleCostSum, MultibodyCostSum):
         with pytest.raises(InputError, match=r"FrameRotationChordal\.R_ref"):
-            MultibodyCostSum([term], model=model, backend=backend).value(Q, V, None)
+            kind([term], model=model).value(Q, V, None)

@@ -27,9 +27,10 @@ from geoddp.result import STATUS_CONVERGED_COST
 from geoddp.scene import build_problem, load_scene
 from geoddp.solver import SolverOptions, solve
 from geoddp.solver.loop import ANTICIPATE, CERTIFY_EARLY
+from oracle_costs import OracleCostSum
 
 
-def _far_pose_problem(backend: str, gauss_newton: bool = False) -> Problem:
+def _far_pose_problem(sum_kind: type, gauss_newton: bool = False) -> Problem:
     """The quadrotor's free-flyer model with a far pose target and a posture term: the frame
     residual is large, so the exact and Gauss-Newton Hessians differ."""
     p = quadrotor(horizon=20)
@@ -39,18 +40,16 @@ def _far_pose_problem(backend: str, gauss_newton: bool = False) -> Problem:
     W = np.diag([1.0, 2.0, 3.0, 0.5, 0.7, 0.9])
     q_ref = pin.neutral(pm)
     q_ref[3:7] = pin.Quaternion(pin.exp3(np.array([0.4, 0.1, -0.8]))).coeffs()
-    running = MultibodyCostSum([ControlRegularisation(np.zeros(p.nu), 1e-2),
-                                StateRegularisation(pm, q_ref, None, 0.3, gauss_newton=gauss_newton)],
-                               backend=backend)
-    terminal = MultibodyCostSum([FramePlacement(pm, frame, target, W, gauss_newton=gauss_newton),
-                                 StateRegularisation(pm, q_ref, None, 0.3, gauss_newton=gauss_newton)],
-                                terminal=True, backend=backend)
+    running = sum_kind([ControlRegularisation(np.zeros(p.nu), 1e-2),
+                        StateRegularisation(pm, q_ref, None, 0.3, gauss_newton=gauss_newton)])
+    terminal = sum_kind([FramePlacement(pm, frame, target, W, gauss_newton=gauss_newton),
+                         StateRegularisation(pm, q_ref, None, 0.3, gauss_newton=gauss_newton)], terminal=True)
     return Problem(p.model, p.q0, p.v0, p.horizon, running, terminal)
 
 
-@pytest.mark.parametrize("backend", ["compiled", "python"])
-def test_order_one_takes_the_gauss_newton_cost_hessians(backend):
-    exact, gn = _far_pose_problem(backend), _far_pose_problem(backend, gauss_newton=True)
+@pytest.mark.parametrize("sum_kind", [MultibodyCostSum, OracleCostSum], ids=["compiled", "python"])
+def test_order_one_takes_the_gauss_newton_cost_hessians(sum_kind):
+    exact, gn = _far_pose_problem(sum_kind), _far_pose_problem(sum_kind, gauss_newton=True)
     U = np.random.default_rng(0).normal(scale=2.0, size=(exact.horizon, exact.nu)) + hover_controls(quadrotor(horizon=20))
     traj = exact.trajectory(U)
     first, second = exact.linearise(traj, 1), exact.linearise(traj, 2)
@@ -224,7 +223,7 @@ def test_a_cost_sum_without_gauss_newton_keeps_its_hessians_and_the_flag_stays_o
     # A user's own terminal cost sum (a derivatives() without gauss_newton) beside a
     # MultibodyCostSum: order 1 takes Gauss-Newton Hessians where offered, the user's own
     # elsewhere, and the linearisation is not flagged Gauss-Newton (the paper's switch rule).
-    p = _far_pose_problem("compiled")
+    p = _far_pose_problem(MultibodyCostSum)
 
     class OwnSum:  # duck-typed: value and derivatives only
         def __init__(self, inner):

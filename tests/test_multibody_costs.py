@@ -16,6 +16,7 @@ from geoddp.multibody_costs import (
     tracking_costs,
 )
 from geoddp.validate import InputError
+from oracle_costs import accumulate as oracle_accumulate, curved_dofs, use_cost_oracle
 
 GRAD_TOL = 1e-7  # relative to max(1, max|l_x|); measured ~1e-10
 HESS_TOL = 1e-5  # relative to max(1, max|l_xx|); measured ~1e-8 (4-point stencil, h = 3e-4)
@@ -56,11 +57,14 @@ FLOATING = floating_arm()
 FIXED = fixed_arm()
 
 
-@pytest.fixture(autouse=True)
-def _python_backend(monkeypatch):
-    """These tests check the Python terms (the oracle): keep every cost sum on the python
-    backend (the compiled kernels are compared with them in tests/test_core_costs.py)."""
-    monkeypatch.setenv("GEODDP_MULTIBODY_BACKEND", "python")
+@pytest.fixture(autouse=True, params=["kernels", "oracle"])
+def evaluation(request, monkeypatch):
+    """Every test runs twice: on the package's compiled kernels, and with every cost sum on the
+    tests' Python oracle (tests/oracle_costs.py), which the kernels are compared with in
+    tests/test_core_costs.py: both must match finite differences."""
+    if request.param == "oracle":
+        use_cost_oracle(monkeypatch)
+    return request.param
 
 
 def _random_q(model, rng):
@@ -177,11 +181,11 @@ def test_terms_match_finite_differences_fixed_base(kind, rng):
     assert eg < GRAD_TOL and eh < HESS_TOL, (eg, eh)
 
 
-def test_state_regularisation_is_closed_form_on_euclidean_configurations(rng):
-    """No finite differences on a fixed-base arm; on the floating robot only the curved dofs
-    (6 free-flyer + 1 unbounded revolute) are differenced."""
-    assert StateRegularisation(FIXED, _random_q(FIXED, rng)).curved_dofs.size == 0
-    assert list(StateRegularisation(FLOATING, _random_q(FLOATING, rng)).curved_dofs) == [0, 1, 2, 3, 4, 5, 6]
+def test_state_regularisation_is_closed_form_on_euclidean_configurations():
+    """The oracle differences no direction on a fixed-base arm; on the floating robot only the
+    curved dofs (6 free-flyer + 1 unbounded revolute)."""
+    assert curved_dofs(FIXED).size == 0
+    assert list(curved_dofs(FLOATING)) == [0, 1, 2, 3, 4, 5, 6]
 
 
 def test_sum_with_control_matches_finite_differences(rng):
@@ -316,25 +320,33 @@ def test_tracking_derivatives_match_finite_differences_per_node(rng):
         assert eg < GRAD_TOL and np.abs(hess - d.lxx[k]).max() < HESS_TOL * max(1.0, np.abs(hess).max())
 
 
-def test_derivatives_accumulate_into_given_container(rng):
+def test_derivatives_accumulate_into_given_container(rng, evaluation):
     """accumulate adds (it does not overwrite) so terms can share one CostDerivatives."""
     q, v = _random_q(FLOATING, rng), rng.normal(size=FLOATING.nv)
     t = _terms("placement", FLOATING, q, rng)
     d = CostDerivatives.zeros(1, 0, 18)
-    t.accumulate(q[None], v[None], None, d)
-    t.accumulate(q[None], v[None], None, d)
+    add = t.accumulate if evaluation == "kernels" else (lambda *a: oracle_accumulate(t, *a))
+    add(q[None], v[None], None, d)
+    add(q[None], v[None], None, d)
     d1 = MultibodyCostSum([t]).derivatives(q[None], v[None], None)
     assert np.allclose(d.lx, 2 * d1.lx, rtol=1e-15, atol=0) and np.allclose(d.lxx, 2 * d1.lxx, rtol=1e-15, atol=0)
+    assert np.allclose(t.value(q[None], v[None], None), d1.l, rtol=1e-15, atol=0)
 
 
-def test_data_is_created_once(rng, monkeypatch):
+def test_data_is_made_once(rng, monkeypatch, evaluation):
+    """The pinocchio Data are made on a sum's first call and kept: no createData after it (the
+    oracle's, one per term), and the kernels' workspace holds one model however many calls
+    follow (none on the oracle)."""
     t = FramePlacement(FLOATING, "tool", pin.SE3.Identity())
-    data = t.data
+    s = MultibodyCostSum([t])
+    q, v = _random_q(FLOATING, rng)[None], np.zeros((1, FLOATING.nv))
+    s.derivatives(q, v, None)
     calls = []
     monkeypatch.setattr(pin.Model, "createData", lambda self: calls.append(1))
-    q = _random_q(FLOATING, rng)
-    MultibodyCostSum([t]).derivatives(q[None], np.zeros((1, FLOATING.nv)), None)
-    assert t.data is data and not calls
+    for _ in range(3):
+        s.derivatives(q, v, None)
+        s.value(q, v, None)
+    assert not calls and s._workspace.models == (1 if evaluation == "kernels" else 0)
 
 
 # --------------------------------------------------------------------------------------

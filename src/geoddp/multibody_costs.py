@@ -25,17 +25,16 @@ Residual costs l = 1/2 r^T W r with a residual r(q) and Jacobian J_r = dr/d(dq) 
     l_x  = J_r^T W r
     l_xx = J_r^T W J_r  (Gauss-Newton part)  +  sum_k (W r)_k Hess r_k  (second-order part).
 
-The second-order part is obtained as central differences, along each tangent direction e_j,
-of the map q -> J_r(q)^T w with the weight-residual product w = W r(x) *frozen* at the base
-point, then symmetrised. Freezing w makes the part exactly zero where r = 0, so the exact and
-the Gauss-Newton Hessians coincide there bit for bit, and the difference error scales with
-|W r| instead of with |l_x|. Why differences: the Pinocchio 4.1.0 pip wheel *does* expose
-second-order kinematics (``computeJointKinematicHessians`` / ``getFrameKinematicHessian``,
-the derivative of the joint Jacobians), but no second derivatives of ``log6``, ``log3`` or
-``difference``, which every geodesic residual here needs as well; differencing the analytic
-gradient covers both at once (error O(h^2) with h = 1e-5, measured ~1e-8 relative against
-the 4-point value stencil of the tests). It costs 2 nv extra kinematics passes per node and
-term (~10x the Gauss-Newton cost); ``gauss_newton=True`` skips it.
+The compiled kernels of ``geoddp._core`` (cpp/costs.cpp, cpp/cost_sum.cpp) evaluate every term of
+this module: the second-order parts are exact (Pinocchio's kinematic Hessians and the exact
+derivative of the closed-form right Jacobians, no differences), skipped (hence exactly zero) where
+W r = 0, so the exact and the Gauss-Newton Hessians coincide there bit for bit;
+``gauss_newton=True`` skips them everywhere. A :class:`MultibodyCostSum` runs all its terms of this
+module in one call on all N nodes (node chunks on the core's workers, a pinocchio Data per worker
+kept in the sum's workspace); a term of another class (a :class:`MultibodyCostTerm` subclass of the
+user's) runs its own ``value`` and ``accumulate`` after them. The Python code these classes ran before
+the kernels is the tests' oracle (tests/oracle_costs.py: its second-order parts differenced, ~1e-8
+relative), and every kernel is checked against it and against differences of its own gradient.
 
 Time-varying references (tracking). Every reference argument takes either one reference
 (``pin.SE3``, an (3, 3) rotation, a (3,) point, ...) or a stack of N of them, one per node
@@ -45,24 +44,13 @@ reference k; evaluating a term with a stack of K references on N != K nodes rais
 :class:`InputError`. There is therefore no separate tracking class: a tracking term *is*
 a term with a per-node reference (see :func:`tracking_costs` for building several at once).
 
-Model/data separation as in Crocoddyl: each term keeps the (shared, read-only) ``pin.Model``
-and creates its own ``pin.Data`` once at construction; nothing allocates a Data per call.
-
-Backends. The classes here are the Python implementation and the oracle. A
-:class:`MultibodyCostSum` built with ``backend="compiled"`` (or ``"auto"``, the default) evaluates
-the same terms with the compiled kernels of ``geoddp._core`` (cpp/costs.cpp): one call for the whole sum on all N nodes when every term has a compiled twin (cpp/cost_sum.cpp:
-node chunks on the core's workers, a pinocchio Data per worker kept in the sum's workspace),
-else one such call per compiled term; same values and gradients (to round-off), and EXACT
-second-order parts (Pinocchio's kinematic Hessians and the exact derivative of the closed-form
-Jr, no differences), which agree with this module's differenced ones to their ~1e-8 relative
-error. ``gauss_newton`` and the frozen-W r rule (the second-order part is skipped, hence exactly
-zero, where W r = 0) are honoured alike.
+Model apart from data, as in Crocoddyl: a term keeps the (shared, read-only) ``pin.Model`` and
+its references; the pinocchio Data live in the compiled workspace of the sum (or of the term, when
+a term is evaluated alone), made once, never per call.
 """
 from __future__ import annotations
 
 import difflib
-
-import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -72,7 +60,6 @@ import pinocchio as pin
 from .lie import product as cfg
 from . import kernels
 from .costs import AttitudeChordal, AttitudeGeodesic, CostDerivatives
-from .lie import SE3, SO3
 from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix, threads_from_environment
 
 __all__ = [
@@ -87,11 +74,7 @@ __all__ = [
     "tracking_costs",
 ]
 
-# Central-difference step for the second-order part (rad or m of tangent motion): balances the
-# O(h^2) truncation of the analytic gradient's difference against eps/h round-off.
-_FD_STEP = 1e-5
-
-BACKENDS = ("python", "compiled", "auto")
+BACKENDS = ("auto", "compiled")  # the Python code is the tests' oracle (tests/oracle_costs.py)
 
 
 # --------------------------------------------------------------------------------------
@@ -159,12 +142,6 @@ def _check_count(ref: np.ndarray, N: int, name: str) -> None:
         raise InputError(name, f"a per-node reference of {ref.shape[0]} nodes cannot be evaluated on {N} nodes")
 
 
-def _pick(ref: np.ndarray, N: int, name: str) -> np.ndarray:
-    """Per-node references (N, ...) from a stack of 1 (broadcast) or N."""
-    _check_count(ref, N, name)
-    return np.broadcast_to(ref, (N,) + ref.shape[1:]) if ref.shape[0] == 1 else ref
-
-
 def _on_frames(term: Any, model: pin.Model | None, i: int) -> Any:
     """An attitude term of :mod:`geoddp.costs` on a general model: the same cost on the world
     rotation of its ``frame``, through the model's frame kinematics (one rotation term serves the
@@ -187,7 +164,9 @@ _ASSIGNMENTS = [0]  # attribute assignments on MultibodyCostTerm instances so fa
 
 
 class MultibodyCostTerm:
-    """Base class: ``value`` and ``accumulate`` over N nodes of a multibody state.
+    """Base class: ``value`` and ``accumulate`` over N nodes of a multibody state. Subclass it
+    for a term of your own (a cost sum runs its Python code beside the kernels); the built-in
+    terms below run in the compiled kernels.
 
     Attributes:
         model: the ``pin.Model`` (None for terms that only see the control).
@@ -213,90 +192,56 @@ class MultibodyCostTerm:
         raise NotImplementedError
 
 
-class _ResidualTerm(MultibodyCostTerm):
+class _CompiledTerm(MultibodyCostTerm):
+    """A built-in term: ``value`` and ``accumulate`` of the term alone run the compiled kernels,
+    the numbers it adds in a :class:`MultibodyCostSum`."""
+
+    def _workspace(self) -> Any:
+        # made on first use and kept (its pinocchio Data too); set past __setattr__, since a
+        # workspace is not a change of the term
+        ws = self.__dict__.get("_kernel_workspace")
+        if ws is None:
+            ws = kernels.core.CostWorkspace()
+            object.__setattr__(self, "_kernel_workspace", ws)
+        return ws
+
+    def value(self, Q, V, U):
+        N = _check_arrays(self.model, Q, V, U)
+        out = np.zeros(N)
+        _add(self._workspace(), [_spec(self, N, U)], Q, V, U, out, None, False, 1)
+        return out
+
+    def accumulate(self, Q, V, U, d, gauss_newton=False):
+        """As the base class's; ``gauss_newton`` as :meth:`MultibodyCostSum.derivatives`'s."""
+        N = _check_arrays(self.model, Q, V, U)
+        _add(self._workspace(), [_spec(self, N, U)], Q, V, U, d.l, d, gauss_newton, 1)
+
+
+class _ResidualTerm(_CompiledTerm):
     """1/2 r(q)^T W r(q) for a residual of the configuration only (subclasses: frame terms)."""
 
     nr: int = 0
 
-    def __init__(self, model: pin.Model, W: Any, gauss_newton: bool) -> None:
+    def __init__(self, model: pin.Model, frame_name: str, W: Any, gauss_newton: bool) -> None:
         cls = type(self).__name__
         self.model = _check_model(model, f"{cls}.model")
-        self.data = self.model.createData()
         self.nv = self.model.nv
         self.W = spd_matrix(W, f"{cls}.W", self.nr, semidefinite=True)
         if not isinstance(gauss_newton, (bool, np.bool_)):
             raise InputError(f"{cls}.gauss_newton", f"expected True or False, got {gauss_newton!r}")
         self.gauss_newton = bool(gauss_newton)
-
-    # subclasses: residual r (nr,) of node k, and with jac=True also J_r (nr, nv)
-    def _residual(self, q: np.ndarray, k: int, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        raise NotImplementedError
+        self.frame_name = frame_name
+        self.frame_id = _frame_id(self.model, frame_name, f"{cls}.frame_name")
 
     def _check_nodes(self, N: int) -> None:
         """Raise if a per-node reference does not match N (subclasses)."""
-
-    def residual(self, Q: np.ndarray) -> np.ndarray:
-        """(N, nr) residuals at configurations Q (N, nq)."""
-        self._check_nodes(Q.shape[0])
-        return np.array([self._residual(q, k, False)[0] for k, q in enumerate(Q)]).reshape(Q.shape[0], self.nr)
-
-    def value(self, Q, V, U):
-        r = self.residual(Q)
-        return 0.5 * np.einsum("ni,ij,nj->n", r, self.W, r)
-
-    def _second_order(self, q: np.ndarray, k: int, w: np.ndarray) -> np.ndarray:
-        """(nv, nv) sym(sum_k w_k Hess r_k): central differences of J_r(q)^T w, w frozen."""
-        nv = self.nv
-        H = np.empty((nv, nv))
-        e = np.zeros(nv)
-        for j in range(nv):
-            e[j] = _FD_STEP
-            _, Jp = self._residual(pin.integrate(self.model, q, e), k, True)
-            _, Jm = self._residual(pin.integrate(self.model, q, -e), k, True)
-            e[j] = 0.0
-            H[:, j] = (Jp - Jm).T @ w / (2.0 * _FD_STEP)
-        return 0.5 * (H + H.T)
-
-    def accumulate(self, Q, V, U, d, gauss_newton=False):
-        self._check_nodes(Q.shape[0])
-        nv = self.nv
-        for k, q in enumerate(Q):
-            r, J = self._residual(q, k, True)
-            w = self.W @ r
-            d.l[k] += 0.5 * r @ w
-            d.lx[k, :nv] += J.T @ w
-            G = J.T @ self.W @ J
-            d.lxx[k, :nv, :nv] += 0.5 * (G + G.T)  # exactly symmetric (round-off is not)
-            # exactly zero at r = 0: skip the 2 nv kinematics passes there
-            if not (self.gauss_newton or gauss_newton) and np.any(w):
-                d.lxx[k, :nv, :nv] += self._second_order(q, k, w)
-
-
-class _FrameTerm(_ResidualTerm):
-    def __init__(self, model: pin.Model, frame_name: str, W: Any, gauss_newton: bool) -> None:
-        super().__init__(model, W, gauss_newton)
-        self.frame_name = frame_name
-        self.frame_id = _frame_id(self.model, frame_name, f"{type(self).__name__}.frame_name")
-
-    def _kinematics(self, q: np.ndarray, jac: bool) -> tuple[pin.SE3, np.ndarray | None]:
-        """World placement oMf of the frame and, with jac, its LOCAL Jacobian (6, nv).
-
-        The LOCAL Jacobian is the right-trivialised one: oMf(integrate(q, s dq)) =
-        oMf(q) exp6(s J dq) + O(s^2), [linear; angular] rows (checked by the tests).
-        """
-        if jac:
-            pin.computeJointJacobians(self.model, self.data, q)  # also runs forward kinematics
-            oMf = pin.updateFramePlacement(self.model, self.data, self.frame_id)
-            return oMf, pin.getFrameJacobian(self.model, self.data, self.frame_id, pin.LOCAL)
-        pin.forwardKinematics(self.model, self.data, q)
-        return pin.updateFramePlacement(self.model, self.data, self.frame_id), None
 
 
 # --------------------------------------------------------------------------------------
 # frame terms
 
 
-class FramePlacement(_FrameTerm):
+class FramePlacement(_ResidualTerm):
     """1/2 r^T W r with r = log6(M_ref^-1 oMf(q)) (6,), [linear (m); angular (rad)].
 
     Args:
@@ -307,7 +252,8 @@ class FramePlacement(_FrameTerm):
         W: (6, 6) PSD weight (scalar or length-6 diagonal accepted), [linear; angular] order.
         gauss_newton: use only J^T W J (no second-order part) in l_xx.
 
-    The log6 has a cut locus at a relative rotation angle of pi (the gradient jumps there).
+    The log6 has a cut locus at a relative rotation angle of pi (the gradient jumps there). Where
+    the frame's rotation equals the reference's exactly, r and l_x are exactly 0 in the rotation.
     """
 
     nr = 6
@@ -316,27 +262,12 @@ class FramePlacement(_FrameTerm):
                  gauss_newton: bool = False) -> None:
         super().__init__(model, frame_name, W, gauss_newton)
         self.M_ref = _se3_stack(M_ref, "FramePlacement.M_ref")  # (K, 4, 4)
-        # inverse once: the residual needs M_ref^-1 at every evaluation
-        self._Minv = [pin.SE3(H).inverse() for H in self.M_ref]
 
     def _check_nodes(self, N):
         _check_count(self.M_ref, N, "FramePlacement.M_ref")
 
-    def _residual(self, q, k, jac):
-        oMf, J = self._kinematics(q, jac)
-        kk = k if len(self._Minv) > 1 else 0
-        Rref = self.M_ref[kk, :3, :3]
-        if np.array_equal(oMf.rotation, Rref):
-            # reference orientation reached exactly: R_ref^T R would leave ~1e-16 round-off in
-            # r; the identity makes the cost and its gradient exactly 0 at the reference
-            E = pin.SE3(np.eye(3), Rref.T @ (oMf.translation - self.M_ref[kk, :3, 3]))
-        else:
-            E = self._Minv[kk] * oMf
-        r = pin.log6(E).vector
-        return r, (SE3.right_jacobian_inv(r) @ J if jac else None)  # pin.Jlog6, exact near the target
 
-
-class FrameRotation(_FrameTerm):
+class FrameRotation(_ResidualTerm):
     """1/2 r^T W r with r = log3(R_ref^T R_frame(q)) (3,) in rad.
 
     Args:
@@ -354,31 +285,16 @@ class FrameRotation(_FrameTerm):
     def _check_nodes(self, N):
         _check_count(self.R_ref, N, f"{type(self).__name__}.R_ref")
 
-    def _relative(self, q, k, jac):
-        """E = R_ref^T R_frame(q) of node k and, with jac, the frame's LOCAL Jacobian."""
-        oMf, J = self._kinematics(q, jac)
-        Rref = self.R_ref[k if len(self.R_ref) > 1 else 0]
-        # exact identity at the reference (see FramePlacement): r and l_x exactly 0 there
-        return (np.eye(3) if np.array_equal(oMf.rotation, Rref) else Rref.T @ oMf.rotation), J
-
-    def _residual(self, q, k, jac):
-        E, J = self._relative(q, k, jac)
-        r = pin.log3(E)
-        # R(q exp(s dq)) = R exp(s J_ang dq): the angular LOCAL rows
-        return r, (SO3.right_jacobian_inv(r) @ J[3:6] if jac else None)
-
 
 class FrameRotationChordal(FrameRotation):
     """1/2 ||I - E||^2_W = 1/2 tr[(I - E)^T W (I - E)], E = R_ref^T R_frame(q): the paper's chordal
     attitude cost (eq. costR) on any frame of any model (:class:`geoddp.costs.AttitudeChordal` on
     TSO(3)). Unlike the geodesic form it has no cut locus at pi, but a saddle there.
 
-    Written as the residual r = (I - E) stacked column by column (9,) with weight
-    blockdiag(W, W, W): R(q exp(s dq)) = R exp(s J_ang dq) + O(s^2) gives dr/dtheta_a =
-    -vec(E hat(e_a)), and the residual machinery of this module (Gauss-Newton part, differenced
-    second-order part) applies as it is. The compiled twin (cpp/costs.cpp) uses the closed forms of
-    eqs. gradF and hessF in the rotation's local coordinates instead, with the frame's kinematic
-    Hessian; ``gauss_newton`` keeps the residual's J_r^T W J_r in both.
+    As a residual: r = (I - E) stacked column by column (9,) with weight blockdiag(W, W, W) (the
+    attribute ``W``; ``S`` is the given (3, 3)), whose Gauss-Newton part ``gauss_newton`` keeps.
+    The kernels use the closed forms of eqs. gradF and hessF in the rotation's local coordinates,
+    with the frame's kinematic Hessian.
 
     Args:
         R_ref: target world orientation (3, 3) or per node (N, 3, 3).
@@ -390,19 +306,11 @@ class FrameRotationChordal(FrameRotation):
     def __init__(self, model: pin.Model, frame_name: str, R_ref: Any, W: Any = 1.0,
                  gauss_newton: bool = False) -> None:
         self.S = spd_matrix(W, "FrameRotationChordal.W", 3, semidefinite=True)
-        _FrameTerm.__init__(self, model, frame_name, np.kron(np.eye(3), self.S), gauss_newton)
+        _ResidualTerm.__init__(self, model, frame_name, np.kron(np.eye(3), self.S), gauss_newton)
         self.R_ref = _rotation_stack(R_ref, "FrameRotationChordal.R_ref")  # (K, 3, 3)
 
-    def _residual(self, q, k, jac):
-        E, J = self._relative(q, k, jac)
-        r = (np.eye(3) - E).T.reshape(9)  # columns of I - E, one after the other
-        if not jac:
-            return r, None
-        dr = -np.stack([(E @ pin.skew(e)).T.reshape(9) for e in np.eye(3)], axis=1)  # (9, 3)
-        return r, dr @ J[3:6]
 
-
-class FrameTranslation(_FrameTerm):
+class FrameTranslation(_ResidualTerm):
     """1/2 r^T W r with r = p_frame(q) - p_ref (3,) in m, world frame.
 
     Args:
@@ -420,18 +328,12 @@ class FrameTranslation(_FrameTerm):
     def _check_nodes(self, N):
         _check_count(self.p_ref, N, "FrameTranslation.p_ref")
 
-    def _residual(self, q, k, jac):
-        oMf, J = self._kinematics(q, jac)
-        r = oMf.translation - self.p_ref[k if len(self.p_ref) > 1 else 0]
-        # the LOCAL linear rows give the velocity in the frame's axes; rotate to the world
-        return r, (oMf.rotation @ J[0:3] if jac else None)
-
 
 # --------------------------------------------------------------------------------------
 # state and control
 
 
-class StateRegularisation(MultibodyCostTerm):
+class StateRegularisation(_CompiledTerm):
     """1/2 r^T W r with r = (difference(q_ref, q), v - v_ref) (2 nv,), ``pin.difference`` per joint.
 
     Args:
@@ -442,15 +344,13 @@ class StateRegularisation(MultibodyCostTerm):
         gauss_newton: drop the second-order part of ``difference`` (only non-Euclidean joints
             have one: free flyer, spherical, planar, unbounded revolute).
 
-    Euclidean joints (nq_j == nv_j: revolute, prismatic, ...) have difference = q - q_ref,
-    so their Hessian is closed-form; the second-order part is differenced only along the
-    tangent directions of the non-Euclidean joints (none for a fixed-base revolute arm).
+    Euclidean joints (nq_j == nv_j: revolute, prismatic, ...) have difference = q - q_ref, whose
+    Hessian is the constant Gauss-Newton one.
     """
 
     def __init__(self, model: pin.Model, q_ref: Any, v_ref: Any = None, W: Any = 1.0,
                  gauss_newton: bool = False) -> None:
         self.model = _check_model(model, "StateRegularisation.model")
-        self.data = self.model.createData()
         nq, nv = self.model.nq, self.model.nv
         self.nv = nv
         self.q_ref = _stack(q_ref, "StateRegularisation.q_ref", (nq,))
@@ -465,63 +365,16 @@ class StateRegularisation(MultibodyCostTerm):
             raise InputError("StateRegularisation.gauss_newton", f"expected True or False, got {gauss_newton!r}")
         self.gauss_newton = bool(gauss_newton)
         try:
-            self.groups = cfg.joint_groups(self.model)
+            cfg.joint_groups(self.model)  # only joints whose groups geoddp knows
         except ValueError as exc:
             raise InputError("StateRegularisation.model", str(exc)) from None
-        # tangent indices of the joints whose configuration space is not a vector space
-        self.curved_dofs = np.array(
-            [j.idx_v + i for j in self.model.joints[1:] if j.nq != j.nv for i in range(j.nv)], dtype=int)
 
     def _check_nodes(self, N: int) -> None:
         _check_count(self.q_ref, N, "StateRegularisation.q_ref")
         _check_count(self.v_ref, N, "StateRegularisation.v_ref")
 
-    def residual(self, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
-        """(N, 2 nv) residuals."""
-        N = Q.shape[0]
-        self._check_nodes(N)
-        qr, vr = _pick(self.q_ref, N, ""), _pick(self.v_ref, N, "")
-        rq = np.array([cfg.difference(self.model, self.groups, qr[k], Q[k]) for k in range(N)]).reshape(N, self.nv)
-        return np.concatenate([rq, V - vr], axis=1)
 
-    def value(self, Q, V, U):
-        r = self.residual(Q, V)
-        return 0.5 * np.einsum("ni,ij,nj->n", r, self.W, r)
-
-    def accumulate(self, Q, V, U, d, gauss_newton=False):
-        N, nv = Q.shape[0], self.nv
-        r = self.residual(Q, V)
-        w = r @ self.W  # (N, 2 nv); W symmetric
-        qr = _pick(self.q_ref, N, "")
-        d.l += 0.5 * np.einsum("ni,ni->n", r, w)
-        d.lx[:, nv:] += w[:, nv:]
-        d.lxx[:, nv:, nv:] += self.W[nv:, nv:]
-        if not np.any(self.W[:nv]):
-            return  # no weight on dq (a velocity penalty): every term below is exactly zero
-        for k in range(N):
-            # pin.dDifference(ARG1), exact where Pinocchio's SE(3) block is not; identity on Euclidean joints
-            J = cfg.difference_jacobian(self.model, self.groups, qr[k], Q[k])
-            d.lx[k, :nv] += J.T @ w[k, :nv]
-            JW = J.T @ self.W[:nv]  # (nv, 2 nv)
-            G = JW[:, :nv] @ J
-            d.lxx[k, :nv, :nv] += 0.5 * (G + G.T)  # exactly symmetric (round-off is not)
-            d.lxx[k, :nv, nv:] += JW[:, nv:]
-            d.lxx[k, nv:, :nv] += JW[:, nv:].T
-            wq = w[k, :nv]
-            if not (self.gauss_newton or gauss_newton) and self.curved_dofs.size and np.any(wq):
-                # difference is joint-wise, so its second-order part lives on curved joints only
-                H = np.zeros((nv, nv))
-                e = np.zeros(nv)
-                for j in self.curved_dofs:
-                    e[j] = _FD_STEP
-                    Jp = cfg.difference_jacobian(self.model, self.groups, qr[k], pin.integrate(self.model, Q[k], e))
-                    Jm = cfg.difference_jacobian(self.model, self.groups, qr[k], pin.integrate(self.model, Q[k], -e))
-                    e[j] = 0.0
-                    H[:, j] = (Jp - Jm).T @ wq / (2.0 * _FD_STEP)
-                d.lxx[k, :nv, :nv] += 0.5 * (H + H.T)
-
-
-class ControlRegularisation(MultibodyCostTerm):
+class ControlRegularisation(_CompiledTerm):
     """1/2 (u - u_ref)^T W (u - u_ref), u in R^m (units of the inputs, e.g. N m).
 
     Args:
@@ -551,21 +404,6 @@ class ControlRegularisation(MultibodyCostTerm):
             raise InputError("U", f"expected shape (N, {self.m}), got shape {U.shape}")
         _check_count(self.u_ref, U.shape[0], "ControlRegularisation.u_ref")
 
-    def _e(self, U: np.ndarray | None) -> np.ndarray:
-        self._check(U)
-        return U - _pick(self.u_ref, U.shape[0], "ControlRegularisation.u_ref")
-
-    def value(self, Q, V, U):
-        e = self._e(U)
-        return 0.5 * np.einsum("ni,ij,nj->n", e, self.W, e)
-
-    def accumulate(self, Q, V, U, d):
-        e = self._e(U)
-        We = e @ self.W
-        d.l += 0.5 * np.einsum("ni,ni->n", e, We)
-        d.lu += We
-        d.luu += self.W
-
 
 # --------------------------------------------------------------------------------------
 # sums and tracking
@@ -578,12 +416,13 @@ class MultibodyCostSum:
         terms: the terms; every term with a model must share nq and nv.
         model: the model fixing nx (default: the first term's).
         terminal: if True, refuse control terms at construction (they need U).
-        backend: ``"auto"`` (default: compiled; the environment variable
-            GEODDP_MULTIBODY_BACKEND=python makes it pick python, which the tests' oracle
-            ``use_oracle`` sets), ``"compiled"`` (the kernels of
-            ``geoddp._core``) or ``"python"``
-            (this module's code, the oracle). The resolved choice is in ``self.backend``.
-            Terms of other (sub)classes always run their Python code.
+        backend: ``"auto"`` (the default) or ``"compiled"``: the kernels of ``geoddp._core``, the
+            only backend (the Python code they replaced is the tests' oracle); anything else is
+            refused, naming ``backend``. ``self.backend`` is ``"compiled"``.
+
+    The built-in terms run in one call of the kernels on all N nodes; a term of another class
+    (a :class:`MultibodyCostTerm` subclass of the user's) runs its own ``value`` and
+    ``accumulate`` after them.
     """
 
     # A first-order linearisation of a problem takes this sum's Gauss-Newton Hessians
@@ -608,23 +447,15 @@ class MultibodyCostSum:
         self.terminal = bool(terminal)
         if self.terminal:
             self._refuse_control()
-        if backend not in BACKENDS:
-            guess = closest(str(backend), list(BACKENDS))
-            hint = f"; did you mean {guess!r}?" if guess else ""
-            raise InputError("backend", f"expected one of {', '.join(map(repr, BACKENDS))}, got {backend!r}{hint}")
-        # GEODDP_MULTIBODY_BACKEND=python forces the Python terms (the tests' use_oracle sets it); a
-        # value other than auto, compiled or python is an InputError naming the variable
-        forced = choice(os.environ.get("GEODDP_MULTIBODY_BACKEND", "auto"), "GEODDP_MULTIBODY_BACKEND", BACKENDS)
-        forced_python = backend == "auto" and forced == "python"
-        core = None if backend == "python" or forced_python else kernels.core
-        self._core = core
-        self.backend = "python" if core is None else "compiled"
-        # compiled terms run through cost_sum with the sum's own workspace (pinocchio Data per
-        # worker, made once); every term compiled: the whole sum in one call. Threads as
-        # Multibody's (GEODDP_THREADS or the core's default)
-        self._workspace = None if core is None else core.CostWorkspace()
+        choice(backend, "backend", BACKENDS)
+        self.backend = "compiled"
+        # the built-in terms (exact types: a subclass may compute something else) in one call of
+        # the kernels, with the sum's own workspace (pinocchio Data per worker, made once); threads
+        # as Multibody's (GEODDP_THREADS or the core's default)
+        self._kernel_terms = [t for t in self.terms if type(t) in _COMPILED_KINDS]
+        self._own_terms = [t for t in self.terms if type(t) not in _COMPILED_KINDS]
+        self._workspace = kernels.core.CostWorkspace()
         self._spec_cache: dict = {}
-        self._whole = core is not None and all(type(t) in _COMPILED_KINDS for t in self.terms)
         self.threads = threads_from_environment()
 
     @property
@@ -639,48 +470,31 @@ class MultibodyCostSum:
                                  "terminal cost (there is no control at the final node)")
 
     def _check(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> int:
-        N = Q.shape[0] if Q.ndim == 2 else -1
-        if Q.shape != (N, self.model.nq):
-            raise InputError("Q", f"expected shape (N, {self.model.nq}), got shape {Q.shape}")
-        if V.shape != (N, self.model.nv):
-            raise InputError("V", f"expected shape ({N}, {self.model.nv}), got shape {V.shape}")
+        N = _check_arrays(self.model, Q, V, U)
         if U is None:
             self._refuse_control()
-        elif U.ndim != 2 or U.shape[0] != N:
-            raise InputError("U", f"expected shape ({N}, m), got shape {U.shape}")
         return N
 
-    def _compiled(self, terms: Sequence[MultibodyCostTerm], Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,
-                  l: np.ndarray, d: CostDerivatives | None, gauss_newton: bool) -> None:
-        """Add compiled terms into l (N,) and, with d, their derivatives, in one call of the core
-        (each term's checks first, so bad input raises the oracle's InputError)."""
-        N = Q.shape[0]
-        spec = self._specs(terms, N, U)
-        empty = _EMPTY
-        Uc = empty if U is None else np.ascontiguousarray(U, dtype=float)
-        if d is None:
-            lx = lxx = lu = luu = empty
-        else:
-            lx, lxx = _rows(d.lx, N), _rows(d.lxx, N)
-            lu, luu = (empty, empty) if U is None else (_rows(d.lu, N), _rows(d.luu, N))
+    def _compiled(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None, l: np.ndarray,
+                  d: CostDerivatives | None, gauss_newton: bool) -> None:
+        """Add the built-in terms into l (N,) and, with d, their derivatives, in one call of the
+        kernels (each term's checks first, so bad input raises an InputError naming it)."""
+        spec = self._specs(Q.shape[0], U)
         # Waking the core's workers costs about as much as a value or the derivatives of state
         # and control terms on a few hundred nodes (tens of us): only frame terms' derivatives
         # (Jacobians and kinematic Hessians, 2-5 us a node) are worth splitting.
         split = d is not None and any(s[0] == 0 for s in spec)
-        self._core.cost_sum(self._workspace, spec, np.ascontiguousarray(Q, dtype=float),
-                            np.ascontiguousarray(V, dtype=float), Uc, d is not None, gauss_newton,
-                            self.threads if split else 1, l, lx, lxx, lu, luu)
+        _add(self._workspace, spec, Q, V, U, l, d, gauss_newton, self.threads if split else 1)
 
-    def _specs(self, terms: Sequence[MultibodyCostTerm], N: int, U: np.ndarray | None) -> list:
-        """[_spec(t, N, U) for t in terms], cached: a solve asks for the same few (terms, N, U
+    def _specs(self, N: int, U: np.ndarray | None) -> list:
+        """[_spec(t, N, U) for the built-in terms], cached: a solve asks for the same few (N, U
         shape) every call (building and checking them had been ~3 us of a 10-20 us call). The
-        key holds the terms' identities and the term-assignment counter, so a rebound attribute
-        or another term list builds afresh; in-place changes to a term's arrays need nothing (the
-        specs hold the arrays themselves)."""
-        key = (N, None if U is None else U.shape, _ASSIGNMENTS[0], tuple(map(id, terms)))
+        key holds the term-assignment counter, so a rebound attribute builds afresh; in-place
+        changes to a term's arrays need nothing (the specs hold the arrays themselves)."""
+        key = (N, None if U is None else U.shape, _ASSIGNMENTS[0])
         spec = self._spec_cache.get(key)
         if spec is None:
-            spec = [_spec(t, N, U) for t in terms]  # the checks raise here, before caching
+            spec = [_spec(t, N, U) for t in self._kernel_terms]  # the checks raise here, before caching
             if len(self._spec_cache) >= 16:  # MPC windows of many lengths: keep it small
                 self._spec_cache.clear()
             self._spec_cache[key] = spec
@@ -689,14 +503,10 @@ class MultibodyCostSum:
     def value(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> np.ndarray:
         """(N,) summed values."""
         out = np.zeros(self._check(Q, V, U))
-        if self._whole:
-            self._compiled(self.terms, Q, V, U, out, None, False)
-            return out
-        for t in self.terms:
-            if self._core is not None and type(t) in _COMPILED_KINDS:
-                self._compiled([t], Q, V, U, out, None, False)
-            else:
-                out += t.value(Q, V, U)
+        if self._kernel_terms:
+            self._compiled(Q, V, U, out, None, False)
+        for t in self._own_terms:
+            out += t.value(Q, V, U)
         return out
 
     def derivatives(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,
@@ -708,17 +518,41 @@ class MultibodyCostSum:
         Hessian J_r^T W J_r of a first-order (Gauss-Newton) iteration."""
         N = self._check(Q, V, U)
         d = CostDerivatives.zeros(N, 0 if U is None else U.shape[1], self.nx)
-        if self._whole:
-            self._compiled(self.terms, Q, V, U, d.l, d, gauss_newton)
-            return d
-        for t in self.terms:
-            if self._core is not None and type(t) in _COMPILED_KINDS:
-                self._compiled([t], Q, V, U, d.l, d, gauss_newton)
-            elif gauss_newton and isinstance(t, (_ResidualTerm, StateRegularisation)):
+        if self._kernel_terms:
+            self._compiled(Q, V, U, d.l, d, gauss_newton)
+        for t in self._own_terms:
+            if gauss_newton and isinstance(t, _CompiledTerm):  # a subclass of a built-in term
                 t.accumulate(Q, V, U, d, gauss_newton=True)
             else:
                 t.accumulate(Q, V, U, d)
         return d
+
+
+def _check_arrays(model: pin.Model | None, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> int:
+    """N, once Q is (N, nq) and V (N, nv) (any widths without a model) and U (N, m) or None."""
+    N = Q.shape[0] if Q.ndim == 2 else -1
+    nq, nv = (model.nq, model.nv) if model is not None else (Q.shape[-1], V.shape[-1])
+    if Q.shape != (N, nq):
+        raise InputError("Q", f"expected shape (N, {nq}), got shape {Q.shape}")
+    if V.shape != (N, nv):
+        raise InputError("V", f"expected shape ({N}, {nv}), got shape {V.shape}")
+    if U is not None and (U.ndim != 2 or U.shape[0] != N):
+        raise InputError("U", f"expected shape ({N}, m), got shape {U.shape}")
+    return N
+
+
+def _add(workspace: Any, spec: list, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None, l: np.ndarray,
+         d: CostDerivatives | None, gauss_newton: bool, threads: int) -> None:
+    """geoddp._core.cost_sum: add the terms of ``spec`` into l (N,) and, with d, d's derivatives."""
+    N = Q.shape[0]
+    Uc = _EMPTY if U is None else np.ascontiguousarray(U, dtype=float)
+    if d is None:
+        lx = lxx = lu = luu = _EMPTY
+    else:
+        lx, lxx = _rows(d.lx, N), _rows(d.lxx, N)
+        lu, luu = (_EMPTY, _EMPTY) if U is None else (_rows(d.lu, N), _rows(d.luu, N))
+    kernels.core.cost_sum(workspace, spec, np.ascontiguousarray(Q, dtype=float), np.ascontiguousarray(V, dtype=float),
+                          Uc, d is not None, gauss_newton, threads, l, lx, lxx, lu, luu)
 
 
 def _rows(A: np.ndarray, N: int) -> np.ndarray:
@@ -729,9 +563,9 @@ def _rows(A: np.ndarray, N: int) -> np.ndarray:
 
 
 def _spec(t: MultibodyCostTerm, N: int, U: np.ndarray | None) -> tuple:
-    """A compiled term as geoddp._core.cost_sum takes it, after the oracle's checks for N nodes
-    (bad input raises the same InputError as the Python code)."""
-    kind = type(t)
+    """A built-in term (or a subclass's inherited one) as geoddp._core.cost_sum takes it, after
+    the term's checks for N nodes (bad input raises an InputError naming the parameter)."""
+    kind = next(c for c in type(t).__mro__ if c in _COMPILED_KINDS)
     if kind is ControlRegularisation:
         t._check(U)  # U given, its shape, the per-node reference count
         return (2, t.u_ref, t.W)
@@ -749,7 +583,7 @@ _FRAME_KINDS: dict[type, Callable[[Any], tuple[int, np.ndarray, np.ndarray]]] = 
     FrameTranslation: lambda t: (2, t.p_ref, t.W),
     FrameRotationChordal: lambda t: (3, t.R_ref.reshape(t.R_ref.shape[0], 9), t.S),  # W (3, 3) per column
 }
-# the term classes with a compiled twin (exact types: a subclass may change what it computes)
+# the built-in term classes, which the kernels evaluate
 _COMPILED_KINDS = frozenset((*_FRAME_KINDS, StateRegularisation, ControlRegularisation))
 _EMPTY = np.empty((0, 0))
 
