@@ -382,6 +382,36 @@ def test_bad_input_raises_the_oracles_errors(rng):
     assert np.array_equal(cc.value(Qf, V, None), cc.value(Q, V, None))
 
 
+def test_a_term_alone_checks_its_input_and_matches_its_sum(rng):
+    """term.value and term.accumulate (the kernels, one term) name bad arrays as a sum does, and
+    give the one-term sum's numbers bit for bit, for a frame, a state and a control term."""
+    model, frame = MODELS["free_flyer"]
+    Q, V, U = _nodes(model, rng, 4)
+    terms = [_term(k, model, frame, Q, rng, per_node=True) for k in ("placement", "state", "control")]
+    for t in terms:
+        u = U if t.uses_control else None
+        alone = t.value(Q, V, u)
+        assert np.array_equal(alone, MultibodyCostSum([t], model=model).value(Q, V, u))
+        d = CostDerivatives.zeros(4, 0 if u is None else 3, 2 * model.nv)
+        t.accumulate(Q, V, u, d)
+        ds = MultibodyCostSum([t], model=model).derivatives(Q, V, u)
+        assert np.array_equal(d.l, alone) and np.array_equal(d.lxx, ds.lxx) and np.array_equal(d.luu, ds.luu)
+    with pytest.raises(InputError) as e:
+        terms[0].value(Q[:, :5], V, None)
+    assert e.value.parameter == "Q"
+    with pytest.raises(InputError) as e:
+        terms[1].value(Q, V[:3], None)
+    assert e.value.parameter == "V"
+    with pytest.raises(InputError, match="per-node reference of 4 nodes") as e:
+        terms[0].value(Q[:3], V[:3], None)
+    assert e.value.parameter == "FramePlacement.M_ref"
+    with pytest.raises(InputError, match="terminal"):
+        terms[2].value(Q, V, None)
+    with pytest.raises(InputError) as e:
+        terms[2].value(Q, V, U[:2])
+    assert e.value.parameter == "U"
+
+
 def test_kernels_check_sizes_themselves():
     """Direct calls with inconsistent sizes raise (ValueError), never read out of bounds."""
     model, frame = MODELS["fixed"]
