@@ -541,6 +541,38 @@ def test_whole_sum_sees_rebound_terms_and_changed_arrays():
     assert _rel(cc.value(Q[:5], V[:5], U[:5]), py.value(Q[:5], V[:5], U[:5])) < VALUE_TOL
 
 
+def test_a_sum_follows_its_terms_list():
+    """A sum's ``terms`` is a list the user may change after a call: an appended term (built-in
+    or the user's own), a replaced one and a rebound list are all evaluated, as the oracle does."""
+    model, frame = MODELS["fixed"]
+    rng = np.random.default_rng(22)
+    Q, V, U = _nodes(model, rng, 6)
+    terms = [_term("placement", model, frame, Q, rng, per_node=False)]
+    py, cc = _both(terms, model)
+    before = cc.value(Q, V, U)
+
+    class Speed(MultibodyCostTerm):
+        def value(self, Q, V, U):
+            return 0.5 * np.sum(V**2, axis=1)
+
+        def accumulate(self, Q, V, U, d):
+            d.l += self.value(Q, V, U)
+            d.lx[:, model.nv:] += V
+            d.lxx[:, model.nv:, model.nv:] += np.eye(model.nv)
+
+    for change in (lambda s: s.terms.append(_term("state", model, frame, Q, rng, per_node=True)),
+                   lambda s: s.terms.append(Speed()),
+                   lambda s: s.terms.__setitem__(0, _term("rotation", model, frame, Q, rng, per_node=False)),
+                   lambda s: setattr(s, "terms", [_term("translation", model, frame, Q, rng, per_node=True)])):
+        change(cc)
+        py.terms = list(cc.terms)
+        assert _rel(cc.value(Q, V, U), py.value(Q, V, U)) < VALUE_TOL
+        dc, dp = cc.derivatives(Q, V, U), py.derivatives(Q, V, U)
+        assert _rel(dc.lx, dp.lx) < VALUE_TOL and _rel(dc.lxx, dp.lxx) < ORACLE_HESS_TOL
+        assert not np.array_equal(cc.value(Q, V, U), before)
+        before = cc.value(Q, V, U)
+
+
 def test_cost_sum_checks_sizes_itself():
     """Direct calls with inconsistent sizes raise ValueError before any chunk runs: a stack of
     20 references on 40 nodes must not pass as two chunks of 20."""

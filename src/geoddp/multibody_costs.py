@@ -452,11 +452,13 @@ class MultibodyCostSum:
         # the built-in terms (exact types: a subclass may compute something else) in one call of
         # the kernels, with the sum's own workspace (pinocchio Data per worker, made once); threads
         # as Multibody's (GEODDP_THREADS or the core's default)
-        self._kernel_terms = [t for t in self.terms if type(t) in _COMPILED_KINDS]
-        self._own_terms = [t for t in self.terms if type(t) not in _COMPILED_KINDS]
         self._workspace = kernels.core.CostWorkspace()
         self._spec_cache: dict = {}
+        self._split_key: tuple = ()
+        self._kernel_terms: list = []
+        self._own_terms: list = []
         self.threads = threads_from_environment()
+        self._split()
 
     @property
     def nx(self) -> int:
@@ -473,7 +475,18 @@ class MultibodyCostSum:
         N = _check_arrays(self.model, Q, V, U)
         if U is None:
             self._refuse_control()
+        self._split()
         return N
+
+    def _split(self) -> None:
+        """The built-in terms and the others, of ``self.terms`` as it is now: a list, which a
+        user may append to or rebind after construction (the split and the specs follow)."""
+        key = tuple(map(id, self.terms))
+        if key != self._split_key:
+            self._kernel_terms = [t for t in self.terms if type(t) in _COMPILED_KINDS]
+            self._own_terms = [t for t in self.terms if type(t) not in _COMPILED_KINDS]
+            self._spec_cache.clear()
+            self._split_key = key
 
     def _compiled(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None, l: np.ndarray,
                   d: CostDerivatives | None, gauss_newton: bool) -> None:
