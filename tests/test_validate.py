@@ -402,7 +402,7 @@ def test_time_grid_custom_names():
 
 # ------------------------------------------------------------------ properties (hypothesis)
 
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import example, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from hypothesis.extra.numpy import arrays  # noqa: E402
 
@@ -476,3 +476,45 @@ def test_multibody_threads_follow_the_environment_and_one_thread_means_no_specul
     monkeypatch.setenv("GEODDP_THREADS", "lots")
     with pytest.raises(InputError, match="GEODDP_THREADS"):
         Multibody(urdf_path("quadrotor.urdf"), root="free_flyer", dt=0.01)
+
+
+def _outcome(fn):
+    """(returned array, None) or (None, the InputError's message)."""
+    try:
+        return fn(), None
+    except InputError as e:
+        return None, str(e)
+
+
+_weights = st.one_of(st.floats(-1e3, 1e3), st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 1e100, 2e100, -1e-9]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.one_of(_weights, arrays(np.float64, 4, elements=_weights)), st.booleans())
+@example(np.array([1.0, -1e-9, 0.0, 2.0]), True)    # refused: below -1e-12 max|S|
+@example(np.array([1.0, -1e-13, 0.0, 2.0]), True)   # accepted as semidefinite: round-off
+@example(np.array([1.0, 0.0, 3.0, 2.0]), False)     # singular: refused as definite
+@example(np.array([1.0, 1e100, 3.0, 2e100]), True)  # above MAX_WEIGHT
+@example(-0.0, True)
+def test_property_scalar_and_diagonal_weights_decide_as_the_full_matrix_does(w, semidefinite):
+    """spd_matrix takes s I and diag(S) by their entries' signs; the same weight given as the full
+    (4, 4) matrix goes through the symmetry and eigenvalue checks: the same matrix, bit for bit,
+    or the same refusal."""
+    D = np.diag(np.full(4, float(w)) if np.ndim(w) == 0 else w)
+    fast, fast_err = _outcome(lambda: v.spd_matrix(w, "W", 4, semidefinite=semidefinite))
+    full, full_err = _outcome(lambda: v.spd_matrix(D, "W", 4, semidefinite=semidefinite))
+    assert fast_err == full_err
+    if fast is not None:
+        assert np.array_equal(fast, full) and np.array_equal(np.signbit(fast), np.signbit(full))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(allow_nan=True, allow_infinity=True))
+def test_property_finite_float_shortcut_returns_what_the_array_checks_return(x):
+    """finite_float's shortcut for a finite Python float returns what the array checks return
+    for it (sign of zero included); NaN and inf still meet those checks and their message."""
+    fast, fast_err = _outcome(lambda: v.finite_float(x, "x"))
+    full, full_err = _outcome(lambda: float(v.finite_array(x, "x", shape=())))
+    assert fast_err == full_err
+    if fast is not None:
+        assert type(fast) is float and fast == full and np.signbit(fast) == np.signbit(full)
