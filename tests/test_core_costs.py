@@ -410,6 +410,11 @@ def test_a_term_alone_checks_its_input_and_matches_its_sum(rng):
     with pytest.raises(InputError) as e:
         terms[2].value(Q, V, U[:2])
     assert e.value.parameter == "U"
+    for args, name in (((Q.tolist(), V, None), "Q"), ((Q, V.tolist(), None), "V"), ((Q, V, U.tolist()), "U")):
+        for call in (terms[1].value, MultibodyCostSum(terms[:2], model=model).value):
+            with pytest.raises(InputError, match="expected a numpy array, got list") as e:
+                call(*args)
+            assert e.value.parameter == name
 
 
 def test_kernels_check_sizes_themselves():

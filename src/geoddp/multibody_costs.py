@@ -542,7 +542,11 @@ class MultibodyCostSum:
 
 
 def _check_arrays(model: pin.Model | None, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None) -> int:
-    """N, once Q is (N, nq) and V (N, nv) (any widths without a model) and U (N, m) or None."""
+    """N, once Q is (N, nq) and V (N, nv) (any widths without a model) and U (N, m) or None,
+    each a numpy array (a list is refused, naming it: the kernels read arrays in place)."""
+    for name, x in (("Q", Q), ("V", V), ("U", U)):
+        if not isinstance(x, np.ndarray) and (x is not None or name != "U"):
+            raise InputError(name, f"expected a numpy array, got {type(x).__name__}")
     N = Q.shape[0] if Q.ndim == 2 else -1
     nq, nv = (model.nq, model.nv) if model is not None else (Q.shape[-1], V.shape[-1])
     if Q.shape != (N, nq):
