@@ -614,3 +614,40 @@ def test_chordal_term_names_itself_in_its_errors():
     for kind in (OracleCostSum, MultibodyCostSum):
         with pytest.raises(InputError, match=r"FrameRotationChordal\.R_ref"):
             kind([term], model=model).value(Q, V, None)
+
+
+def test_a_problem_names_misplaced_control_terms_and_a_users_term_of_the_wrong_shape(rng):
+    """A control term in the terminal cost, a control term on another number of inputs, and a
+    user's term whose value is not one number per node: each an InputError naming the term by its
+    place, at construction (the problem) or at the first evaluation (the sum), where a sum had
+    said only "terms[1]" or "U", or numpy had failed to broadcast."""
+    from geoddp.costs import ControlQuadratic
+    from geoddp.models.multibody import Multibody
+    from geoddp.problem import Problem
+
+    mb = Multibody(urdf_file("space_manipulator.urdf"), root="fixed", dt=0.01)
+    pm, q0 = mb.pin_model, pin.neutral(mb.pin_model)
+    state = StateRegularisation(pm, q0)
+    running = MultibodyCostSum([state, ControlRegularisation(np.zeros(mb.nu))])
+    with pytest.raises(InputError, match="cannot be part of the terminal cost") as e:
+        Problem(mb, q0, np.zeros(mb.nv), 5, running, MultibodyCostSum([state, ControlRegularisation(np.zeros(mb.nu))]))
+    assert e.value.parameter == "terminal.terms[1]"
+    with pytest.raises(InputError, match=f"model's {mb.nu} inputs, got one on {mb.nu + 1}") as e:
+        Problem(mb, q0, np.zeros(mb.nv), 5, MultibodyCostSum([state, ControlRegularisation(np.zeros(mb.nu + 1))]),
+                MultibodyCostSum([state], terminal=True))
+    assert e.value.parameter == "running.terms[1]"
+
+    class PerTerm(MultibodyCostTerm):  # a value per term, not per node
+        def value(self, Q, V, U):
+            return np.zeros(3)
+
+        def accumulate(self, Q, V, U, d):
+            pass
+
+    bad = MultibodyCostSum([state, PerTerm()])
+    with pytest.raises(InputError, match=r"PerTerm.value returned shape \(3,\), expected \(5,\)") as e:
+        bad.value(np.tile(q0, (5, 1)), np.zeros((5, mb.nv)), None)
+    assert e.value.parameter == "terms[1]"
+    with pytest.raises(InputError, match="a scalar does not fix the number of inputs") as e:
+        ControlQuadratic(0.1)
+    assert e.value.parameter == "cost.control"

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import kernels
 from .lie import SO3, vee
-from .validate import finite_array, rotation_matrix, spd_matrix
+from .validate import InputError, finite_array, rotation_matrix, spd_matrix
 
 
 @dataclass
@@ -63,7 +63,8 @@ class ControlQuadratic(CostTerm):
         S = np.asarray(S_u, dtype=float)
         m = S.shape[0] if S.ndim == 2 else (S.size if S.ndim == 1 else None)
         if m is None:
-            raise ValueError("S_u: give a matrix or a vector to fix the input dimension m")
+            raise InputError("cost.control", "expected a length-m vector or an (m, m) matrix (a scalar does not "
+                             f"fix the number of inputs m), got {S_u!r}")
         self.S = spd_matrix(S_u, "cost.control", m)
         self.u_ref = np.zeros(m) if u_ref is None else finite_array(u_ref, "cost.u_ref", (m,))
 

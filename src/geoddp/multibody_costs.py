@@ -519,7 +519,11 @@ class MultibodyCostSum:
         if self._kernel_terms:
             self._compiled(Q, V, U, out, None, False)
         for t in self._own_terms:
-            out += t.value(Q, V, U)
+            v = t.value(Q, V, U)
+            if np.shape(v) != out.shape:  # a user's term: name it, rather than numpy's broadcasting error
+                raise InputError(f"terms[{self.terms.index(t)}]", f"{type(t).__name__}.value returned shape "
+                                 f"{np.shape(v)}, expected ({out.shape[0]},): one value per node")
+            out += v
         return out
 
     def derivatives(self, Q: np.ndarray, V: np.ndarray, U: np.ndarray | None,

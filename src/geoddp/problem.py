@@ -70,6 +70,16 @@ class Problem:
             nx = getattr(s, "nx", self.model.nx)
             if nx != self.model.nx:
                 raise InputError(name, f"expected costs on the model's tangent space (nx = {self.model.nx}), got nx = {nx}")
+        # terms a cost sum would only refuse at the first evaluation, named here by their place
+        for i, t in enumerate(getattr(self.terminal, "terms", ())):
+            if getattr(t, "uses_control", False):
+                raise InputError(f"terminal.terms[{i}]", f"a control cost term ({type(t).__name__}) cannot be part of "
+                                 "the terminal cost (there is no control at the final node)")
+        for i, t in enumerate(getattr(self.running, "terms", ())):
+            m = getattr(t, "m", None)
+            if getattr(t, "uses_control", False) and isinstance(m, int) and m != self.model.nu:
+                raise InputError(f"running.terms[{i}]", f"expected a control term on the model's {self.model.nu} "
+                                 f"inputs, got one on {m} ({type(t).__name__})")
         self.limits = as_limits(self.limits)
         self._bounds = None if self.limits is None else self.limits.resolve(self.horizon, self.model.nu)
 
