@@ -1,6 +1,7 @@
 """Issue 13, items 2-4: validation at the boundary, no NaN or traceback out, nothing lost."""
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import os
@@ -40,6 +41,17 @@ def test_solver_options_refuse_bad_values_by_name(kw, name):
     with pytest.raises(InputError) as e:
         SolverOptions(**kw)
     assert e.value.parameter == name
+
+
+def test_solver_options_refuse_an_unknown_keyword_with_the_closest_option():
+    """A misspelt option is an InputError naming it, not the dataclass's TypeError; every real
+    option is still a keyword, and replace/copies of options keep working."""
+    for typo, meant in (("maxiter", "max_iter"), ("regmin", "reg_min"), ("expansions", "expansion")):
+        with pytest.raises(InputError, match=f"unknown solver option; did you mean '{meant}'") as e:
+            SolverOptions(**{typo: 5})
+        assert e.value.parameter == typo
+    o = SolverOptions(max_iter=7, verbose=False)
+    assert dataclasses.replace(o, tol=1e-3).max_iter == 7 and SolverOptions(**dataclasses.asdict(o)).max_iter == 7
 
 
 def test_solve_refuses_wrong_types_by_name():

@@ -5,12 +5,13 @@ default changes in one place. Options are validated where they enter; the solver
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import functools
+from dataclasses import dataclass, field, fields
 from typing import TextIO
 
 import numpy as np
 
-from ..validate import InputError, choice, nonnegative_float, positive_float, positive_int
+from ..validate import InputError, choice, closest, nonnegative_float, positive_float, positive_int
 
 EXPANSIONS = ("first", "second", "switch")
 
@@ -110,3 +111,23 @@ class SolverOptions:
             setattr(self, name, bool(val))
         if self.stream is not None and not callable(getattr(self.stream, "write", None)):
             raise InputError("stream", f"expected None or a text stream with write(), got {type(self.stream).__name__}")
+
+
+def _refusing_unknown_options(init):
+    """SolverOptions(**kw) with a keyword that is no option raises an InputError naming it, with
+    the closest option (the dataclass's own __init__ raised a bare TypeError)."""
+    names = tuple(f.name for f in fields(SolverOptions))
+
+    @functools.wraps(init)
+    def checked(self: SolverOptions, *args: object, **kw: object) -> None:
+        for key in kw:
+            if key not in names:
+                hint = closest(key, names)
+                raise InputError(key, "unknown solver option" + (f"; did you mean {hint!r}?" if hint else "")
+                                 + f" (options: {', '.join(names)})")
+        init(self, *args, **kw)
+
+    return checked
+
+
+SolverOptions.__init__ = _refusing_unknown_options(SolverOptions.__init__)  # type: ignore[method-assign]
