@@ -18,7 +18,10 @@ import pytest
 from geoddp.api import solve_scene
 from geoddp.cli import main
 from geoddp.outputs import check_outputs, strict_json, write_atomic
-from geoddp.problem import paper_problem
+from geoddp.data import urdf_path
+from geoddp.limits import ControlLimits
+from geoddp.models.multibody import Multibody
+from geoddp.problem import Problem, paper_problem
 from geoddp.result import Result
 from geoddp.solver import SolverOptions, solve
 from geoddp.validate import InputError
@@ -47,11 +50,23 @@ def test_solver_options_refuse_an_unknown_keyword_with_the_closest_option():
     """A misspelt option is an InputError naming it, not the dataclass's TypeError; every real
     option is still a keyword, and replace/copies of options keep working."""
     for typo, meant in (("maxiter", "max_iter"), ("regmin", "reg_min"), ("expansions", "expansion")):
-        with pytest.raises(InputError, match=f"unknown solver option; did you mean '{meant}'") as e:
+        with pytest.raises(InputError, match=f"unknown keyword of SolverOptions; did you mean '{meant}'") as e:
             SolverOptions(**{typo: 5})
         assert e.value.parameter == typo
     o = SolverOptions(max_iter=7, verbose=False)
     assert dataclasses.replace(o, tol=1e-3).max_iter == 7 and SolverOptions(**dataclasses.asdict(o)).max_iter == 7
+    # the same for the model, the problem and the limits a user builds by keywords
+    p = paper_problem(horizon=5)
+    with pytest.raises(InputError, match="unknown keyword of Problem; did you mean 'horizon'") as e:
+        Problem(p.model, p.q0, p.v0, running=p.running, terminal=p.terminal, horizn=5)
+    assert e.value.parameter == "horizn"
+    with pytest.raises(InputError, match="unknown keyword of ControlLimits; did you mean 'upper'") as e:
+        ControlLimits(lower=-1.0, uper=1.0)
+    assert e.value.parameter == "uper"
+    with pytest.raises(InputError, match="unknown keyword of Multibody; did you mean 'integrator'") as e:
+        Multibody(urdf_path("satellite.urdf"), root="spherical", dt=0.01, integator="euler")
+    assert e.value.parameter == "integator"
+    assert dataclasses.replace(p, horizon=3).horizon == 3 and p.with_limits((-1.0, 1.0)).limits is not None
 
 
 def test_solve_refuses_wrong_types_by_name():

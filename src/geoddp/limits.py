@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .validate import InputError
+from .validate import InputError, keywords_checked
 
 __all__ = ["ControlLimits", "as_limits", "check_inside", "active_set", "projected_gradient", "effort_limits"]
 
@@ -41,6 +41,7 @@ def _bound(x: Any, name: str, horizon: int, m: int, infinite: float) -> np.ndarr
     return np.ascontiguousarray(a)
 
 
+@keywords_checked
 @dataclass
 class ControlLimits:
     """Box constraints on the controls, lower <= u_k <= upper.

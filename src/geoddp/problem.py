@@ -34,11 +34,12 @@ from .models.multibody import Multibody
 from .models.satellite import Satellite, satellite_model
 from .multibody_costs import (ControlRegularisation, FramePlacement, FrameRotation, FrameTranslation, MultibodyCostSum,
                               StateRegularisation)
-from .validate import InputError, choice, finite_array, positive_int
+from .validate import InputError, choice, finite_array, keywords_checked, positive_int
 
 ATTITUDE_KINDS = ("chordal", "geodesic")
 
 
+@keywords_checked
 @dataclass
 class Problem:
     """min_U sum_k running(x_k, u_k) + terminal(x_H) s.t. the model's dynamics, x_0 = (q0, v0).

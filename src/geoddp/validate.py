@@ -496,6 +496,29 @@ def nonnegative_float(x: Any, name: str) -> float:
     return v
 
 
+def keywords_checked(cls: type) -> type:
+    """Class decorator for a dataclass that users build by keywords: a keyword that is none of its
+    fields raises an InputError naming it, with the closest field (the generated __init__ raised
+    a bare TypeError). Positional arguments, defaults and dataclasses.replace are unchanged."""
+    import dataclasses
+    import functools
+
+    names = tuple(f.name for f in dataclasses.fields(cls) if f.init)
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def checked(self: Any, *args: Any, **kw: Any) -> None:
+        for key in kw:
+            if key not in names:
+                hint = closest(key, names)
+                raise InputError(key, f"unknown keyword of {cls.__name__}" + (f"; did you mean {hint!r}?" if hint else "")
+                                 + f" (keywords: {', '.join(names)})")
+        init(self, *args, **kw)
+
+    cls.__init__ = checked  # type: ignore[method-assign]
+    return cls
+
+
 def _integer(x: Any, name: str, what: str) -> int:
     # Floats are refused even when integral: a float where a count is expected usually
     # means the wrong field was filled in, and silently truncating would hide it.

@@ -41,7 +41,7 @@ from ..lie import product as cfg
 from .. import integrators as integ
 from .. import variational
 from ..urdf_checks import read_urdf_text
-from ..validate import (InputError, choice, finite_array, nonnegative_int, positive_float, spin_from_environment,
+from ..validate import (InputError, choice, finite_array, keywords_checked, nonnegative_int, positive_float, spin_from_environment,
                         threads_from_environment)
 from . import compiled
 
@@ -104,6 +104,7 @@ def geometry_records(model: pin.Model, geometry: pin.GeometryModel) -> list[dict
     return out
 
 
+@keywords_checked
 @dataclass
 class Multibody:
     """A Pinocchio model from a URDF with a discrete-time integrator: constants only.

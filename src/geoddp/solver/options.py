@@ -5,13 +5,12 @@ default changes in one place. Options are validated where they enter; the solver
 """
 from __future__ import annotations
 
-import functools
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import TextIO
 
 import numpy as np
 
-from ..validate import InputError, choice, closest, nonnegative_float, positive_float, positive_int
+from ..validate import InputError, choice, keywords_checked, nonnegative_float, positive_float, positive_int
 
 EXPANSIONS = ("first", "second", "switch")
 
@@ -29,6 +28,7 @@ DEFAULT_STEP_FACTOR = 1.0 / 3.0  # the paper's h
 DEFAULT_MIN_STEP = 1e-10
 
 
+@keywords_checked
 @dataclass
 class SolverOptions:
     """Options of :func:`geoddp.solver.solve`.
@@ -112,22 +112,3 @@ class SolverOptions:
         if self.stream is not None and not callable(getattr(self.stream, "write", None)):
             raise InputError("stream", f"expected None or a text stream with write(), got {type(self.stream).__name__}")
 
-
-def _refusing_unknown_options(init):
-    """SolverOptions(**kw) with a keyword that is no option raises an InputError naming it, with
-    the closest option (the dataclass's own __init__ raised a bare TypeError)."""
-    names = tuple(f.name for f in fields(SolverOptions))
-
-    @functools.wraps(init)
-    def checked(self: SolverOptions, *args: object, **kw: object) -> None:
-        for key in kw:
-            if key not in names:
-                hint = closest(key, names)
-                raise InputError(key, "unknown solver option" + (f"; did you mean {hint!r}?" if hint else "")
-                                 + f" (options: {', '.join(names)})")
-        init(self, *args, **kw)
-
-    return checked
-
-
-SolverOptions.__init__ = _refusing_unknown_options(SolverOptions.__init__)  # type: ignore[method-assign]
