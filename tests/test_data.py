@@ -64,6 +64,9 @@ def test_unknown_scene_name_names_the_parameter_and_suggests():
     assert info.value.parameter == "scene file"
     with pytest.raises(FileNotFoundError, match="built-in URDFs: quadrotor.urdf"):
         data.urdf_path("nope.urdf")
+    with pytest.raises(FileNotFoundError, match="did you mean 'satellite.urdf'"):
+        data.urdf_path("satelite.urdf")
+    assert data.urdf_path("satellite") == data.urdf_path("satellite.urdf") == data.urdf_dir() / "satellite.urdf"
 
 
 def test_a_bare_urdf_name_is_the_builtin_model_from_any_folder(tmp_path):

@@ -72,14 +72,19 @@ def builtin_urdf(name: str) -> Path | None:
 
 
 def urdf_path(name: str) -> Path:
-    """Absolute path of the built-in URDF ``name`` (``"satellite.urdf"``).
+    """Absolute path of the built-in URDF ``name`` (``"satellite.urdf"``, or ``"satellite"``).
 
     Raises:
-        FileNotFoundError: no built-in URDF of that name (the message lists them).
+        FileNotFoundError: no built-in URDF of that name (the message suggests the closest name
+            and lists them).
     """
     p = builtin_urdf(name)
+    if p is None and isinstance(name, str) and not name.endswith(".urdf"):
+        p = builtin_urdf(name + ".urdf")
     if p is None:
-        raise FileNotFoundError(f"no built-in URDF {name!r}; built-in URDFs: {', '.join(urdf_names())}")
+        guess = closest(name, urdf_names()) if isinstance(name, str) else None
+        hint = f"did you mean {guess!r}? " if guess else ""
+        raise FileNotFoundError(f"no built-in URDF {name!r}; {hint}built-in URDFs: {', '.join(urdf_names())}")
     return p
 
 
