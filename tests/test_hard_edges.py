@@ -162,6 +162,14 @@ def test_write_atomic_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypa
     assert target.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["r.json"]
 
 
+def test_write_atomic_refuses_a_folder_before_any_temporary_file(tmp_path):
+    (tmp_path / "out").mkdir()
+    with pytest.raises(InputError, match="it is a folder; expected a file path") as e:
+        write_atomic(tmp_path / "out", "x")
+    assert e.value.parameter == str(tmp_path / "out")
+    assert [p.name for p in tmp_path.iterdir()] == ["out"] and not any((tmp_path / "out").iterdir())
+
+
 def test_check_outputs_refuses_before_solving(tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text("x")

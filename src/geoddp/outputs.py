@@ -49,6 +49,8 @@ def write_atomic(path: str | Path, data: str | bytes, encoding: str = "utf-8") -
     the path if it cannot be written (the previous file, if any, is left untouched).
     """
     path = Path(path)
+    if path.is_dir():  # before any temporary file: os.replace onto a folder fails with an odd message
+        raise InputError(str(path), "cannot write here: it is a folder; expected a file path")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
