@@ -324,6 +324,12 @@ def test_mpc_warm_start_shifts_and_repeats_the_last_control(authors):
     (lambda p, r: SimulationSpec(policy="mcp"), "simulation.policy"),
     (lambda p, r: SimulationSpec.from_dict({"sample": 3}), "simulation.sample"),
     (lambda p, r: plant_from(p.model, {"mass": 2}), "plant.mass"),
+    # a misspelt keyword, or an MPC option with no MPC policy, would have been ignored
+    (lambda p, r: simulate(r, p, "feedback", seeed=3), "seeed"),
+    (lambda p, r: simulate(r, p, "mpc", horizn=10), "horizn"),
+    (lambda p, r: simulate(r, p, "feedback", horizon=10), "horizon"),
+    (lambda p, r: monte_carlo(r, p, sample=3), "sample"),
+    (lambda p, r: monte_carlo(r, p, samples=2, policies=["open", "feedback"], every=2), "every"),
 ])
 def test_bad_input_names_the_parameter(paper, call, name):
     p, r = paper

@@ -22,7 +22,7 @@ from ..validate import InputError, nonnegative_int, positive_int
 from .disturbance import Disturbances
 from .errors import Targets
 from .plant import Plant, plant_from
-from .run import SimulationResult, make_policy, run
+from .run import SimulationResult, check_mpc_options, make_policy, run
 
 MEASURES = ("attitude_rad", "position_m", "rate", "state", "tracking_rms", "effort")
 STATISTICS = ("mean", "std", "p50", "p95", "max")
@@ -179,6 +179,8 @@ def monte_carlo(result: Result, problem: Any, *, samples: int = 90, seed: int = 
     dist = Disturbances() if disturbances is None else disturbances
     if not isinstance(dist, Disturbances):
         raise InputError("disturbances", f"expected a geoddp.simulate.Disturbances, got {type(dist).__name__}")
+    check_mpc_options(mpc_options, policies, "monte_carlo", ("samples", "seed", "policies", "plant", "disturbances",
+                                                             "initial_state", "steps", "workers"))
     pols = [make_policy(p, result, problem, **mpc_options) for p in policies]
     H = result.horizon
     steps = H if steps is None else positive_int(steps, "steps")

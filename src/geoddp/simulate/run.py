@@ -83,6 +83,25 @@ class SimulationResult:
                 "target_error": None if self.target_error is None else self.target_error.tolist()}
 
 
+# the keywords of :class:`~.mpc.MPC` that simulate and monte_carlo pass on
+MPC_OPTIONS = ("horizon", "every", "max_iter", "shrink", "options")
+
+
+def check_mpc_options(mpc_options: dict[str, Any], policies: Any, caller: str, keywords: tuple[str, ...]) -> None:
+    """Refuse, naming it, a keyword of ``caller`` that is neither one of its ``keywords`` nor an
+    MPC option, and an MPC option where no policy is "mpc": either would be ignored silently."""
+    from ..validate import closest
+
+    flies_mpc = any(p == "mpc" for p in ([policies] if isinstance(policies, str) else policies))
+    for key in mpc_options:
+        if key not in MPC_OPTIONS:
+            hint = closest(key, keywords + MPC_OPTIONS)
+            raise InputError(key, f"unknown keyword of {caller}" + (f"; did you mean {hint!r}?" if hint else "")
+                             + f" (its keywords: {', '.join(keywords)}; MPC's: {', '.join(MPC_OPTIONS)})")
+        if not flies_mpc:
+            raise InputError(key, "an option of the MPC policy, but no policy here is 'mpc' (it would be ignored)")
+
+
 def make_policy(policy: Any, result: Result, problem: Any, **mpc_options: Any) -> Any:
     """A policy object from its name ("open", "feedback", "mpc" with :class:`~.mpc.MPC`'s options)
     or the object itself."""
@@ -169,6 +188,7 @@ def simulate(result: Result, problem: Any, policy: Any = "feedback", *, plant: P
     plant = plant if isinstance(plant, Plant) else plant_from(model, plant)
     if plant.model is not model:
         raise InputError("plant", "expected a plant built from the problem's model (Plant(problem.model, ...))")
+    check_mpc_options(mpc_options, [policy], "simulate", ("plant", "disturbances", "seed", "initial_state", "steps"))
     pol = make_policy(policy, result, problem, **mpc_options)
     H = result.horizon
     steps = H if steps is None else positive_int(steps, "steps")
