@@ -5,6 +5,7 @@ import dataclasses
 import io
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -168,6 +169,28 @@ def test_write_atomic_refuses_a_folder_before_any_temporary_file(tmp_path):
         write_atomic(tmp_path / "out", "x")
     assert e.value.parameter == str(tmp_path / "out")
     assert [p.name for p in tmp_path.iterdir()] == ["out"] and not any((tmp_path / "out").iterdir())
+
+
+def test_reading_a_result_names_the_file_and_the_field(tmp_path):
+    """A result file that is missing, not JSON or not a result, and a dict that is not one: each an
+    InputError naming the file (or ``result``) and what is wrong, where json, KeyError or
+    AttributeError had surfaced."""
+    r = solve(paper_problem(horizon=10), SolverOptions(verbose=False, max_iter=2))
+    good = r.write_json(tmp_path / "r.json")
+    assert Result.read_json(good).cost == r.cost
+    (tmp_path / "bad.json").write_text("{not json")
+    (tmp_path / "list.json").write_text("[1, 2]")
+    (tmp_path / "partial.json").write_text('{"controls": [[1, 2]]}')
+    for name, words in (("missing.json", "expected a readable result JSON file"), ("bad.json", "invalid JSON (Expecting"),
+                        ("list.json", "got list"), ("partial.json", "the field 'times' is missing")):
+        with pytest.raises(InputError, match=re.escape(words)) as e:
+            Result.read_json(tmp_path / name)
+        assert e.value.parameter == str(tmp_path / name)
+    d = r.to_dict()
+    d["cost"] = "low"
+    with pytest.raises(InputError, match="a field does not convert") as e:
+        Result.from_dict(d)
+    assert e.value.parameter == "result"
 
 
 def test_check_outputs_refuses_before_solving(tmp_path):

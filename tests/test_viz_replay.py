@@ -195,7 +195,7 @@ def test_scale_sits_on_the_groups_and_keeps_the_keyframes():
         np.testing.assert_array_equal(m, np.diag([2.5, 2.5, 2.5, 1.0]))
     for name in SATELLITE_VISUALS:
         np.testing.assert_array_equal(keyframes(clips_of(big)[name]), keyframes(clips_of(plain)[name]))
-    with pytest.raises(ValueError, match="scale must be positive"):
+    with pytest.raises(InputError, match="scale: expected a number > 0"):
         render_html(result, scale=0.0)
 
 
@@ -307,5 +307,5 @@ def test_build_satellite_draws_the_urdf_model_and_its_ghost_at_identity():
             np.testing.assert_allclose(placed[name], local.homogeneous, rtol=0, atol=1e-15)
     scales = [np.asarray(c["matrix"]).reshape(4, 4) for c in cmds if c["type"] == "set_transform" and c["path"] in (f"/meshcat/{ROBOT}", f"/meshcat/{GHOST}")]
     assert len(scales) == 2 and all(np.array_equal(m, np.diag([2.0, 2.0, 2.0, 1.0])) for m in scales)
-    with pytest.raises(ValueError, match="scale must be positive"):
+    with pytest.raises(InputError, match="scale: expected a number > 0"):
         build_satellite(meshcat.Visualizer(window=_RecordingWindow()), scale=-1.0)

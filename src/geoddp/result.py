@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from .validate import InputError
+
 # The status strings live with the solver that sets them; re-exported here, where they were first.
 from .solver.status import (  # noqa: F401
     STATUS_CONVERGED_COST,
@@ -528,7 +530,27 @@ class Result:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Result":
-        """Inverse of :meth:`to_dict`; also reads dictionaries written before ``model`` existed."""
+        """Inverse of :meth:`to_dict`; also reads dictionaries written before ``model`` existed.
+
+        Raises:
+            InputError: naming ``result``: not a dict, a field missing, or one that does not
+                convert (what a file not written by :meth:`write_json` gives).
+        """
+        if not isinstance(d, dict):
+            raise InputError("result", f"expected a dict written by Result.to_dict, got {type(d).__name__}")
+        try:
+            return cls._from_dict(d)
+        except InputError:
+            raise
+        except KeyError as exc:
+            raise InputError("result", f"expected a dict written by Result.to_dict, the field {exc.args[0]!r} is "
+                             "missing") from None
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise InputError("result", f"expected a dict written by Result.to_dict, a field does not convert ({exc})"
+                             ) from None
+
+    @classmethod
+    def _from_dict(cls, d: dict[str, Any]) -> "Result":
         a = lambda x, dtype=float: np.asarray(_nan_for_none(x), dtype=dtype)  # noqa: E731  (strict JSON: null = NaN)
         opt = lambda key: None if d.get(key) is None else a(d[key], dtype=float)  # noqa: E731
         model = dict(d["model"]) if d.get("model") is not None else None
@@ -577,5 +599,22 @@ class Result:
 
     @classmethod
     def read_json(cls, path: str | Path) -> "Result":
-        """Read a file written by :meth:`write_json` (or by any earlier version)."""
-        return cls.from_dict(json.loads(Path(path).read_text()))
+        """Read a file written by :meth:`write_json` (or by any earlier version).
+
+        Raises:
+            InputError: naming the path: unreadable, not JSON, or not a result (:meth:`from_dict`).
+        """
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(str(path), f"expected a readable result JSON file ({exc})") from None
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InputError(str(path), f"expected a result JSON file, got invalid JSON ({exc.msg} at line "
+                             f"{exc.lineno}, column {exc.colno})") from None
+        try:
+            return cls.from_dict(d)
+        except InputError as exc:
+            raise InputError(str(path), exc.detail) from None

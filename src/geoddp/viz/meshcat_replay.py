@@ -24,6 +24,7 @@ import zmq
 from meshcat.visualizer import ViewerWindow
 
 from ..result import Result
+from ..validate import positive_float
 from .scene import MAX_MESH_MB, build_satellite, build_scene, prepare_scene
 
 __all__ = ["ViewerUnavailable", "build_satellite", "replay", "stop_servers"]
@@ -252,8 +253,7 @@ def replay(
     """
     options = dict(geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
     prepared = prepare_scene(result, **options)  # before any server exists, so bad data never leaks a process
-    if not scale > 0:
-        raise ValueError(f"scale must be positive, got {scale!r}")
+    scale = positive_float(scale, "scale")
     if vis is not None and zmq_url is not None:
         raise ValueError("give either vis or zmq_url, not both")
     owned = vis is None  # we created the window (and maybe the server): we clean it up

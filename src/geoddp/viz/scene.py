@@ -44,7 +44,7 @@ import pinocchio as pin
 from meshcat.animation import Animation
 
 from ..result import Result
-from ..validate import InputError
+from ..validate import InputError, positive_float
 from .model import (VisualModel, check_replayable, frame_positions, frame_targets, ghost_configuration,
                     load_visual_model, mesh_bytes, mesh_file, placements_at, replay_description,
                     satellite_description, trajectory_corners)
@@ -340,10 +340,9 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
         InputError: naming the parameter, see :func:`geoddp.viz.model.check_replayable`,
             :func:`check_mesh_size`, :func:`geoddp.viz.model.frame_positions` (``trail``) and
             :func:`geoddp.viz.model.frame_targets`.
-        ValueError: ``scale`` not positive.
+        InputError: ``scale`` not a finite number > 0.
     """
-    if not scale > 0:
-        raise ValueError(f"scale must be positive, got {scale!r}")
+    scale = positive_float(scale, "scale")
     if prepared is None:
         prepared = prepare_scene(result, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb)
     visual, Q, q_ghost, targets, path = prepared
@@ -432,8 +431,7 @@ def build_satellite(vis: meshcat.Visualizer, scale: float = 1.0) -> None:
         vis: a ``meshcat.Visualizer`` (live or recording); nodes are created below it.
         scale: uniform size factor (1.0: the URDF's size in metres, a 1.0 x 0.8 x 0.6 m bus).
     """
-    if not scale > 0:
-        raise ValueError(f"scale must be positive, got {scale!r}")
+    scale = positive_float(scale, "scale")
     visual = load_visual_model(satellite_description())
     identity = placements_at(visual, np.array([[0.0, 0.0, 0.0, 1.0]]))[0]
     _draw(vis[ROBOT], visual, identity, scale)
