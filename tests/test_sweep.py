@@ -468,3 +468,14 @@ def test_validation_keeps_hashes_not_cases(tmp_path):
         tracemalloc.stop()
     assert hashes == [c.hash for c in cases] and len(hashes) == 120
     assert peak_hashes < peak_cases / 4, (peak_hashes, peak_cases)
+
+
+def test_read_table_refuses_a_folder_no_sweep_wrote(tmp_path):
+    """An empty table would look like a sweep with no results: a missing folder and one without
+    results.parquet, manifest.json or parts/ are refused, naming out."""
+    (tmp_path / "empty").mkdir()
+    for where, words in ((tmp_path / "nope", "no such folder"), (tmp_path / "empty", "no results.parquet")):
+        with pytest.raises(InputError, match=words) as e:
+            read_table(where)
+        assert e.value.parameter == "out"
+

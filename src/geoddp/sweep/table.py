@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ..outputs import strict_json, write_atomic
+from ..validate import InputError
 
 PARTS = "parts"
 RESULTS = "results.parquet"
@@ -141,8 +142,21 @@ def write_manifest(out: Path, info: dict[str, Any]) -> Path:
 
 def read_table(out: str | Path):
     """The results table of a sweep folder: results.parquet if the sweep finished, else the
-    rows of its parts so far."""
+    rows of its parts so far (none yet: an empty table).
+
+    Raises:
+        InputError: naming ``out``: no such folder, or a folder no sweep has written to (an empty
+            table there would look like a sweep with no results).
+    """
     import pandas as pd
 
-    p = Path(out) / RESULTS
-    return pd.read_parquet(p) if p.is_file() else read_parts(Path(out))
+    out = Path(out)
+    p = out / RESULTS
+    if p.is_file():
+        return pd.read_parquet(p)
+    if not out.is_dir():
+        raise InputError("out", f"expected a sweep's output folder, got {str(out)!r} (no such folder)")
+    if not (out / MANIFEST).is_file() and not (out / PARTS).is_dir():
+        raise InputError("out", f"expected a sweep's output folder, got {str(out)!r} (no {RESULTS}, {MANIFEST} or "
+                         f"{PARTS}/ in it)")
+    return read_parts(out)
