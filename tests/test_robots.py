@@ -289,3 +289,15 @@ def test_missing_mesh_leaves_the_solve_unchanged_and_the_replay_names_it(tmp_pat
         warnings.simplefilter("ignore")
         cmds = decode_commands(viz.html.render_html(r))
     assert len([c for c in cmds if c["type"] == "set_object" and c["path"].endswith("/" + SHAPE)]) == 6
+
+
+def test_load_takes_package_dirs_before_the_robots_own(tmp_path):
+    """robots.load(..., package_dirs=...) searches the user's folders first, then the robot's (it
+    had raised TypeError: package_dirs given twice); a value that is no folder list is named."""
+    spec = robots.find("ur5")
+    ur5 = robots.load("ur5", dt=0.01, package_dirs=[str(tmp_path)])
+    assert ur5.package_dirs == (str(tmp_path), *spec.package_dirs)
+    assert robots.load("ur5", dt=0.01, package_dirs=str(tmp_path)).package_dirs == ur5.package_dirs
+    with pytest.raises(InputError, match="expected a folder or a list of folders, got 5") as e:
+        robots.load("ur5", dt=0.01, package_dirs=5)
+    assert e.value.parameter == "package_dirs"

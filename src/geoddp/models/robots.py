@@ -79,8 +79,10 @@ class RobotSpec:
 
     def multibody(self, *, dt: float, root: str | None = None, **kwargs: Any) -> Multibody:
         """The :class:`Multibody` of this robot from its URDF (root: the loader's unless given;
-        other keywords as for ``Multibody``: actuation, integrator, gravity, backend, threads)."""
-        return Multibody(self.urdf, root=root or self.root, dt=dt, package_dirs=self.package_dirs, **kwargs)
+        other keywords as for ``Multibody``: actuation, integrator, gravity, backend, threads;
+        ``package_dirs`` given here are searched for meshes before the robot's own)."""
+        dirs = _own_dirs_first(kwargs.pop("package_dirs", None), self.package_dirs)
+        return Multibody(self.urdf, root=root or self.root, dt=dt, package_dirs=dirs, **kwargs)
 
     def pin_models(self, root: str | None = None) -> tuple[pin.Model, pin.GeometryModel]:
         """(model, visual geometry) as ``pin.buildModelsFromUrdf`` builds them, meshes loaded:
@@ -310,5 +312,16 @@ def load(name: str, *, dt: float, root: str | None = None, check_mesh_dirs: bool
     first (:func:`check_meshes`), so a broken installation fails here rather than in the replay."""
     spec = find(name)
     if check_mesh_dirs:
-        check_meshes(spec.urdf, spec.package_dirs)
+        check_meshes(spec.urdf, _own_dirs_first(kwargs.get("package_dirs"), spec.package_dirs))
     return spec.multibody(dt=dt, root=root, **kwargs)
+
+
+def _own_dirs_first(own: Any, robot_dirs: tuple) -> tuple:
+    """A user's package folders (one path or a sequence; None: none) before the robot's own."""
+    if own is None:
+        return tuple(robot_dirs)
+    if isinstance(own, (str, Path)):
+        own = [own]
+    elif not isinstance(own, (list, tuple)) or not all(isinstance(d, (str, Path)) for d in own):
+        raise InputError("package_dirs", f"expected a folder or a list of folders, got {own!r}")
+    return (*own, *robot_dirs)
