@@ -70,6 +70,15 @@ def test_solver_options_refuse_an_unknown_keyword_with_the_closest_option():
     assert dataclasses.replace(p, horizon=3).horizon == 3 and p.with_limits((-1.0, 1.0)).limits is not None
 
 
+def test_total_cost_takes_the_horizon_s_controls_only():
+    """J(U) of 19 controls on a 20-step problem had failed in numpy's broadcasting."""
+    p = paper_problem(horizon=20)
+    with pytest.raises(InputError, match=r"expected shape \(20, 3\), got shape \(19, 3\)") as e:
+        p.total_cost(np.zeros((19, 3)))
+    assert e.value.parameter == "controls"
+    assert p.total_cost([[0.0, 0.0, 0.0]] * 20) == p.total_cost(np.zeros((20, 3)))
+
+
 def test_solve_refuses_wrong_types_by_name():
     p = paper_problem()
     for bad in ("fast", {"tol": 1e-3}):

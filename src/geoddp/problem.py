@@ -234,7 +234,9 @@ class Problem:
         return float(run + self.terminal.value(q[H:], v[H:], None)[0])
 
     def total_cost(self, controls: np.ndarray) -> float:
-        """J(U) by single shooting."""
+        """J(U) by single shooting; controls (H, m) (any other shape is an InputError naming
+        ``controls``: the rollout alone would take any number of steps)."""
+        controls = finite_array(controls, "controls", (self.horizon, self.nu))
         q, v = self.rollout(controls)
         return self.cost(q, v, controls)
 
