@@ -202,6 +202,27 @@ def test_reading_a_result_names_the_file_and_the_field(tmp_path):
     assert e.value.parameter == "result"
 
 
+def test_viewers_and_figures_name_a_wrong_result_and_a_file_for_a_folder(tmp_path):
+    """Before: AttributeError from the first attribute read, FileExistsError from mkdir."""
+    from geoddp.viz import export_html, replay
+    from geoddp.viz.figures import plot_convergence, plot_trajectory
+
+    r = solve(paper_problem(horizon=10), SolverOptions(verbose=False, max_iter=2))
+    afile = tmp_path / "f.png"
+    afile.write_bytes(b"")
+    for call, name in ((lambda: export_html(None, tmp_path / "x.html"), "result"),
+                       (lambda: export_html(r.to_dict(), tmp_path / "x.html"), "result"),
+                       (lambda: replay("r.json"), "result"),
+                       (lambda: plot_trajectory(None, tmp_path), "result"),
+                       (lambda: plot_trajectory(r, afile), "out_dir"),
+                       (lambda: plot_convergence({}, tmp_path), "results"),
+                       (lambda: plot_convergence({"first": r, "second": None}, tmp_path), "results['second']")):
+        with pytest.raises(InputError) as e:
+            call()
+        assert e.value.parameter == name
+    assert not (tmp_path / "x.html").exists() and afile.read_bytes() == b""
+
+
 def test_check_outputs_refuses_before_solving(tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text("x")

@@ -353,6 +353,8 @@ def check_replayable(result: Result, geometry: str = "visual") -> tuple[VisualMo
             model's nq; ``result.dt`` not a positive number of seconds; ``result.target_rotation``
             not a finite (3, 3) array.
     """
+    if not isinstance(result, Result):
+        raise InputError("result", f"expected a geoddp Result (from solve or Result.read_json), got {type(result).__name__}")
     visual = load_visual_model(replay_description(result), geometry)
     Q = replay_configurations(result, int(visual.model.nq))
     if not (np.isfinite(result.dt) and result.dt > 0):

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from .figures import FigureData, Figures, _save
+from .figures import FigureData, Figures, _save, output_folder
 
 POLICY_COLORS = {"open": "tab:red", "feedback": "tab:blue", "mpc": "tab:green"}
 LABELS = {"attitude_rad": "attitude error to target [rad]", "position_m": "frame position error [m]",
@@ -32,8 +32,7 @@ def plot_simulation(mc: Any, out_dir: str | Path) -> Figures:
         :class:`Figures` with ``.data``: bundles: ``t (N+1,)``, ``<policy> (samples, N+1)``,
         ``plan (H+1,)``; errors: ``<policy> (samples,)``, ``bins``.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(out_dir)
     figs = Figures()
     first = mc.runs[mc.policies[0]][0]
     measure = first.target_measure
