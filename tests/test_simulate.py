@@ -330,6 +330,10 @@ def test_mpc_warm_start_shifts_and_repeats_the_last_control(authors):
     (lambda p, r: simulate(r, p, "feedback", horizon=10), "horizon"),
     (lambda p, r: monte_carlo(r, p, sample=3), "sample"),
     (lambda p, r: monte_carlo(r, p, samples=2, policies=["open", "feedback"], every=2), "every"),
+    (lambda p, r: Disturbances(velocity_nois=0.1), "velocity_nois"),
+    (lambda p, r: Plant(p.model, inertia_scal=1.1), "inertia_scal"),
+    (lambda p, r: SimulationSpec(sampels=3), "sampels"),
+    (lambda p, r: MPC(None), "problem"),
 ])
 def test_bad_input_names_the_parameter(paper, call, name):
     p, r = paper

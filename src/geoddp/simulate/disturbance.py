@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..validate import InputError, finite_array, nonnegative_float
+from ..validate import InputError, finite_array, keywords_checked, nonnegative_float
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,7 @@ def _sigma(x: Any, name: str, n: int) -> np.ndarray:
     return a
 
 
+@keywords_checked
 @dataclass(frozen=True)
 class Disturbances:
     """What disturbs a run (see the module docstring for units and timing). All off by default."""

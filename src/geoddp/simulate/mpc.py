@@ -38,6 +38,9 @@ DEFAULT_MAX_ITER = 3
 
 
 def _check_time_invariant(problem: Any) -> None:
+    if not all(hasattr(problem, a) for a in ("running", "terminal", "horizon", "model")):
+        raise InputError("problem", f"expected the plan's geoddp Problem (its model, costs and horizon), got "
+                         f"{type(problem).__name__}")
     for cost in (problem.running, problem.terminal):
         for i, t in enumerate(getattr(cost, "terms", [])):
             for attr in ("M_ref", "R_ref", "p_ref"):

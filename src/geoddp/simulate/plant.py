@@ -35,7 +35,7 @@ import pinocchio as pin
 from ..models.multibody import INTEGRATORS as MULTIBODY_INTEGRATORS
 from ..models.multibody import Multibody
 from ..models.satellite import Satellite, satellite_model
-from ..validate import InputError, choice, finite_array, positive_float, positive_int
+from ..validate import InputError, choice, finite_array, keywords_checked, positive_float, positive_int
 
 from ..simulation_spec import PLANT_KEYS  # noqa: E402,F401  (their one home; re-exported)
 
@@ -51,6 +51,7 @@ def _scale(x: Any, name: str, n: int | None) -> float | np.ndarray:
     raise InputError(name, f"expected {shapes}, got shape {a.shape}")
 
 
+@keywords_checked
 @dataclass
 class Plant:
     """The plan's model with changed parameters, stepped with its own integrator and substeps.
