@@ -313,17 +313,23 @@ def test_backend_choice_is_validated():
     assert MultibodyCostSum([t]).backend == "compiled"
 
 
+class Speed(MultibodyCostTerm):
+    """1/2 |v|^2: a term of the user's own (no kernel), for the sums' Python path."""
+
+    def __init__(self, nv: int) -> None:
+        self.nv = nv
+
+    def value(self, Q, V, U):
+        return 0.5 * np.sum(V**2, axis=1)
+
+    def accumulate(self, Q, V, U, d):
+        d.l += self.value(Q, V, U)
+        d.lx[:, self.nv:] += V
+        d.lxx[:, self.nv:, self.nv:] += np.eye(self.nv)
+
+
 def test_terms_without_a_compiled_twin_run_their_python_code(rng):
     model, frame = MODELS["free_flyer"]
-
-    class Speed(MultibodyCostTerm):
-        def value(self, Q, V, U):
-            return 0.5 * np.sum(V**2, axis=1)
-
-        def accumulate(self, Q, V, U, d):
-            d.l += self.value(Q, V, U)
-            d.lx[:, model.nv:] += V
-            d.lxx[:, model.nv:, model.nv:] += np.eye(model.nv)
 
     class Doubled(FrameTranslation):  # a subclass may compute something else: its own code runs
         def value(self, Q, V, U):
@@ -340,7 +346,7 @@ def test_terms_without_a_compiled_twin_run_their_python_code(rng):
         pass
 
     Q, V, U = _nodes(model, rng, 3)
-    terms = [Speed(), Doubled(model, frame, np.zeros(3)), Renamed(model, frame, 0.5 * np.ones(3)),
+    terms = [Speed(model.nv), Doubled(model, frame, np.zeros(3)), Renamed(model, frame, 0.5 * np.ones(3)),
              FrameTranslation(model, frame, np.ones(3))]
     py, cc = _both(terms, model)
     assert [t for t in cc._own_terms] == terms[:3] and cc._kernel_terms == terms[3:]
@@ -556,17 +562,8 @@ def test_a_sum_follows_its_terms_list():
     py, cc = _both(terms, model)
     before = cc.value(Q, V, U)
 
-    class Speed(MultibodyCostTerm):
-        def value(self, Q, V, U):
-            return 0.5 * np.sum(V**2, axis=1)
-
-        def accumulate(self, Q, V, U, d):
-            d.l += self.value(Q, V, U)
-            d.lx[:, model.nv:] += V
-            d.lxx[:, model.nv:, model.nv:] += np.eye(model.nv)
-
     for change in (lambda s: s.terms.append(_term("state", model, frame, Q, rng, per_node=True)),
-                   lambda s: s.terms.append(Speed()),
+                   lambda s: s.terms.append(Speed(model.nv)),
                    lambda s: s.terms.__setitem__(0, _term("rotation", model, frame, Q, rng, per_node=False)),
                    lambda s: setattr(s, "terms", [_term("translation", model, frame, Q, rng, per_node=True)])):
         change(cc)
