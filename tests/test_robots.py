@@ -298,6 +298,6 @@ def test_load_takes_package_dirs_before_the_robots_own(tmp_path):
     ur5 = robots.load("ur5", dt=0.01, package_dirs=[str(tmp_path)])
     assert ur5.package_dirs == (str(tmp_path), *spec.package_dirs)
     assert robots.load("ur5", dt=0.01, package_dirs=str(tmp_path)).package_dirs == ur5.package_dirs
-    with pytest.raises(InputError, match="expected a folder or a list of folders, got 5") as e:
+    with pytest.raises(InputError, match="expected a path or a list of paths, got 5") as e:
         robots.load("ur5", dt=0.01, package_dirs=5)
     assert e.value.parameter == "package_dirs"

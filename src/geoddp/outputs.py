@@ -7,7 +7,7 @@
   renames it into place (``os.replace`` is atomic on POSIX): a kill at any moment leaves either
   the previous file or the new one, never a partial file.
 * :func:`check_outputs` refuses, before a solve, output paths that could not be written or that
-  name an input.
+  name an input; :func:`output_folder` makes a folder to write into after the same checks.
 
 This module imports only :mod:`geoddp.validate`.
 """
@@ -23,7 +23,7 @@ from typing import Any
 
 from .validate import InputError
 
-__all__ = ["finite_or_none", "strict_json", "write_atomic", "check_outputs"]
+__all__ = ["finite_or_none", "strict_json", "write_atomic", "check_outputs", "output_folder"]
 
 
 def finite_or_none(x: Any) -> Any:
@@ -138,3 +138,16 @@ def check_outputs(outputs: dict[str, Any], inputs: Iterable[Any] = (), directori
             os.unlink(probe)
         except OSError as exc:
             raise InputError(name, f"cannot write {text}: {anc} is not writable ({exc.strerror})") from None
+
+
+def output_folder(path: str | Path, name: str = "out_dir") -> Path:
+    """The folder ``path`` to write files into, created if missing, after :func:`check_outputs`'
+    checks of a folder option (InputError naming ``name``: an existing file there or on the way,
+    a folder that is not writable)."""
+    check_outputs({name: path}, directories=[name])
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(name, f"cannot make the folder {path} ({exc.strerror or exc})") from None
+    return path

@@ -41,6 +41,14 @@ _MULTIBODY_KEYS = ("urdf", "urdf_xml", "root", "nq", "nv", "package_dirs", "fram
                    "geometry_objects")
 
 
+def as_result(x: Any, name: str = "result") -> "Result":
+    """``x`` if it is a :class:`Result`, else an InputError naming ``name`` (what the viewers and
+    figure functions take)."""
+    if not isinstance(x, Result):
+        raise InputError(name, f"expected a geoddp Result (from solve or Result.read_json), got {type(x).__name__}")
+    return x
+
+
 def rotations_to_quaternions(rotations: np.ndarray) -> np.ndarray:
     """Rotation matrices (N, 3, 3) -> unit quaternions (N, 4) in (x, y, z, w) order.
 

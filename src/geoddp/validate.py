@@ -496,6 +496,13 @@ def nonnegative_float(x: Any, name: str) -> float:
     return v
 
 
+def unknown_keyword(key: str, owner: str, known: Iterable[str], listing: str) -> InputError:
+    """The InputError for a keyword ``key`` that ``owner`` does not take: the closest of ``known``
+    suggested, and ``listing`` (what it does take) in parentheses."""
+    hint = closest(key, known)
+    return InputError(key, f"unknown keyword of {owner}" + (f"; did you mean {hint!r}?" if hint else "") + f" ({listing})")
+
+
 def keywords_checked(cls: type) -> type:
     """Class decorator for a dataclass that users build by keywords: a keyword that is none of its
     fields raises an InputError naming it, with the closest field (the generated __init__ raised
@@ -510,9 +517,7 @@ def keywords_checked(cls: type) -> type:
     def checked(self: Any, *args: Any, **kw: Any) -> None:
         for key in kw:
             if key not in names:
-                hint = closest(key, names)
-                raise InputError(key, f"unknown keyword of {cls.__name__}" + (f"; did you mean {hint!r}?" if hint else "")
-                                 + f" (keywords: {', '.join(names)})")
+                raise unknown_keyword(key, cls.__name__, names, f"keywords: {', '.join(names)}")
         init(self, *args, **kw)
 
     cls.__init__ = checked  # type: ignore[method-assign]

@@ -104,6 +104,16 @@ def geometry_records(model: pin.Model, geometry: pin.GeometryModel) -> list[dict
     return out
 
 
+def package_dir_tuple(dirs: object) -> tuple[str, ...]:
+    """Package folders (``package://`` mesh URIs) as a tuple of str: one path or a list or tuple of
+    paths; anything else is an InputError naming package_dirs."""
+    if isinstance(dirs, (str, os.PathLike)):
+        dirs = (dirs,)
+    if not isinstance(dirs, (list, tuple)) or not all(isinstance(d, (str, os.PathLike)) for d in dirs):
+        raise InputError("package_dirs", f"expected a path or a list of paths, got {dirs!r}")
+    return tuple(str(d) for d in dirs)
+
+
 @keywords_checked
 @dataclass
 class Multibody:
@@ -166,11 +176,7 @@ class Multibody:
             raise InputError("contract", f"expected True or False, got {self.contract!r}")
         if not isinstance(self.gravity, (bool, np.bool_)):
             raise InputError("gravity", f"expected True or False, got {self.gravity!r}")
-        if isinstance(self.package_dirs, (str, os.PathLike)):
-            self.package_dirs = (self.package_dirs,)
-        if not isinstance(self.package_dirs, (list, tuple)) or not all(isinstance(d, (str, os.PathLike)) for d in self.package_dirs):
-            raise InputError("package_dirs", f"expected a path or a list of paths, got {self.package_dirs!r}")
-        self.package_dirs = tuple(str(d) for d in self.package_dirs)
+        self.package_dirs = package_dir_tuple(self.package_dirs)
         source = "model" if self.source_model is not None else "urdf"
         if self.source_model is not None:
             model = self._from_source()

@@ -38,7 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..validate import InputError, closest
-from .multibody import Multibody
+from .multibody import Multibody, package_dir_tuple
 
 __all__ = ["RobotSpec", "names", "find", "resolve_mesh", "mesh_uris", "check_meshes", "default_package_dirs",
            "example_robot_data_dir", "postures", "configuration", "load"]
@@ -81,7 +81,7 @@ class RobotSpec:
         """The :class:`Multibody` of this robot from its URDF (root: the loader's unless given;
         other keywords as for ``Multibody``: actuation, integrator, gravity, backend, threads;
         ``package_dirs`` given here are searched for meshes before the robot's own)."""
-        dirs = _own_dirs_first(kwargs.pop("package_dirs", None), self.package_dirs)
+        dirs = (*package_dir_tuple(kwargs.pop("package_dirs", ())), *self.package_dirs)
         return Multibody(self.urdf, root=root or self.root, dt=dt, package_dirs=dirs, **kwargs)
 
     def pin_models(self, root: str | None = None) -> tuple[pin.Model, pin.GeometryModel]:
@@ -308,20 +308,10 @@ def configuration(model: pin.Model, named: Mapping[str, np.ndarray], posture: An
 
 def load(name: str, *, dt: float, root: str | None = None, check_mesh_dirs: bool = True, **kwargs: Any) -> Multibody:
     """The :class:`Multibody` of robot ``name`` of example-robot-data (from its URDF; see
-    :meth:`RobotSpec.multibody` for the keywords). ``check_mesh_dirs`` resolves every mesh URI
-    first (:func:`check_meshes`), so a broken installation fails here rather than in the replay."""
-    spec = find(name)
+    :meth:`RobotSpec.multibody` for the keywords). ``check_mesh_dirs`` resolves every mesh URI in
+    the model's package folders (:func:`check_meshes`) before it is returned, so a broken
+    installation fails here rather than in the replay."""
+    model = find(name).multibody(dt=dt, root=root, **kwargs)
     if check_mesh_dirs:
-        check_meshes(spec.urdf, _own_dirs_first(kwargs.get("package_dirs"), spec.package_dirs))
-    return spec.multibody(dt=dt, root=root, **kwargs)
-
-
-def _own_dirs_first(own: Any, robot_dirs: tuple) -> tuple:
-    """A user's package folders (one path or a sequence; None: none) before the robot's own."""
-    if own is None:
-        return tuple(robot_dirs)
-    if isinstance(own, (str, Path)):
-        own = [own]
-    elif not isinstance(own, (list, tuple)) or not all(isinstance(d, (str, Path)) for d in own):
-        raise InputError("package_dirs", f"expected a folder or a list of folders, got {own!r}")
-    return (*own, *robot_dirs)
+        check_meshes(model.urdf, model.package_dirs)
+    return model

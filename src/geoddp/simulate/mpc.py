@@ -38,9 +38,6 @@ DEFAULT_MAX_ITER = 3
 
 
 def _check_time_invariant(problem: Any) -> None:
-    if not all(hasattr(problem, a) for a in ("running", "terminal", "horizon", "model")):
-        raise InputError("problem", f"expected the plan's geoddp Problem (its model, costs and horizon), got "
-                         f"{type(problem).__name__}")
     for cost in (problem.running, problem.terminal):
         for i, t in enumerate(getattr(cost, "terms", [])):
             for attr in ("M_ref", "R_ref", "p_ref"):
@@ -68,6 +65,9 @@ class MPC:
 
     def __init__(self, problem: Any, *, horizon: int | None = None, every: int = 1, max_iter: int = DEFAULT_MAX_ITER,
                  shrink: bool = False, plan: Result | None = None, options: SolverOptions | None = None) -> None:
+        if not all(hasattr(problem, a) for a in ("running", "terminal", "horizon", "model")):
+            raise InputError("problem", f"expected the plan's geoddp Problem (its model, costs and horizon), got "
+                             f"{type(problem).__name__}")
         _check_time_invariant(problem)
         H = int(problem.horizon) if plan is None else plan.horizon
         self.H_mpc = min(100, H) if horizon is None else positive_int(horizon, "mpc.horizon")

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..result import Result
-from ..validate import InputError, positive_int
+from ..validate import InputError, positive_int, unknown_keyword
 from .disturbance import Disturbances, DisturbanceSample
 from .errors import Targets
 from .plant import Plant
@@ -90,14 +90,11 @@ MPC_OPTIONS = ("horizon", "every", "max_iter", "shrink", "options")
 def check_mpc_options(mpc_options: dict[str, Any], policies: Any, caller: str, keywords: tuple[str, ...]) -> None:
     """Refuse, naming it, a keyword of ``caller`` that is neither one of its ``keywords`` nor an
     MPC option, and an MPC option where no policy is "mpc": either would be ignored silently."""
-    from ..validate import closest
-
     flies_mpc = any(p == "mpc" for p in ([policies] if isinstance(policies, str) else policies))
     for key in mpc_options:
         if key not in MPC_OPTIONS:
-            hint = closest(key, keywords + MPC_OPTIONS)
-            raise InputError(key, f"unknown keyword of {caller}" + (f"; did you mean {hint!r}?" if hint else "")
-                             + f" (its keywords: {', '.join(keywords)}; MPC's: {', '.join(MPC_OPTIONS)})")
+            raise unknown_keyword(key, caller, keywords + MPC_OPTIONS,
+                                  f"its keywords: {', '.join(keywords)}; MPC's: {', '.join(MPC_OPTIONS)}")
         if not flies_mpc:
             raise InputError(key, "an option of the MPC policy, but no policy here is 'mpc' (it would be ignored)")
 

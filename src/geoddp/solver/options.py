@@ -111,4 +111,3 @@ class SolverOptions:
             setattr(self, name, bool(val))
         if self.stream is not None and not callable(getattr(self.stream, "write", None)):
             raise InputError("stream", f"expected None or a text stream with write(), got {type(self.stream).__name__}")
-

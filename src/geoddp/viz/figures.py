@@ -14,7 +14,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..result import Result, rotations_to_quaternions
+from ..outputs import output_folder
+from ..result import Result, as_result, rotations_to_quaternions
 from ..validate import InputError
 
 DPI = 120
@@ -64,25 +65,6 @@ def _target_quaternion(result: Result) -> np.ndarray:
     return -qd if np.dot(qd, result.quaternions[-1]) < 0 else qd
 
 
-def output_folder(out_dir: str | Path, name: str = "out_dir") -> Path:
-    """``out_dir`` as a folder, created if needed; an InputError naming ``name`` if it is a file
-    or cannot be made."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(name, f"expected a folder for the figures, got the file {str(out)!r}")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(name, f"cannot make the folder {str(out)!r} ({exc.strerror or exc})") from None
-    return out
-
-
-def _result(x: object, name: str = "result") -> Result:
-    if not isinstance(x, Result):
-        raise InputError(name, f"expected a geoddp Result (from solve or Result.read_json), got {type(x).__name__}")
-    return x
-
-
 def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
     """Quaternion, angular-velocity and control histories of one trajectory.
 
@@ -107,7 +89,7 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
         ``controls (H, m)``, and with limits ``lower``, ``upper`` (H, m) (NaN: unbounded) and
         ``saturated`` (list of (input, t_start, t_end)).
     """
-    result = _result(result)
+    result = as_result(result)
     out = output_folder(out_dir)
     figs = Figures()
     t = np.asarray(result.times, dtype=float)
@@ -251,7 +233,7 @@ def plot_convergence(
     if not isinstance(results, dict) or not results:
         raise InputError("results", f"expected a dict label -> Result with at least one entry, got {results!r:.80}")
     for label, r in results.items():
-        _result(r, f"results[{label!r}]")
+        as_result(r, f"results[{label!r}]")
     out = output_folder(out_dir)
     figs = Figures()
 

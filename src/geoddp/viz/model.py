@@ -33,7 +33,7 @@ import pinocchio as pin
 from ..models.multibody import ROOTS, _root_joint
 from ..models.robots import default_package_dirs, example_robot_data_dir  # noqa: F401  (re-exported here)
 from ..models.satellite import DEFAULT_URDF as SATELLITE_URDF
-from ..result import Result, rotations_to_quaternions
+from ..result import Result, as_result, rotations_to_quaternions
 from ..validate import InputError
 
 # Where the root joint's rotation sits in q (the quaternion (x, y, z, w)), for roots that have one.
@@ -353,9 +353,7 @@ def check_replayable(result: Result, geometry: str = "visual") -> tuple[VisualMo
             model's nq; ``result.dt`` not a positive number of seconds; ``result.target_rotation``
             not a finite (3, 3) array.
     """
-    if not isinstance(result, Result):
-        raise InputError("result", f"expected a geoddp Result (from solve or Result.read_json), got {type(result).__name__}")
-    visual = load_visual_model(replay_description(result), geometry)
+    visual = load_visual_model(replay_description(as_result(result)), geometry)
     Q = replay_configurations(result, int(visual.model.nq))
     if not (np.isfinite(result.dt) and result.dt > 0):
         raise InputError("result.dt", f"expected a positive number of seconds, got {result.dt!r}")

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from .figures import FigureData, Figures, _save, output_folder
+from ..outputs import output_folder
+from .figures import FigureData, Figures, _save
 
 POLICY_COLORS = {"open": "tab:red", "feedback": "tab:blue", "mpc": "tab:green"}
 LABELS = {"attitude_rad": "attitude error to target [rad]", "position_m": "frame position error [m]",
