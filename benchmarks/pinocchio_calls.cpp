@@ -2,7 +2,9 @@
 // instantiated in this program at -O2 (what cpp/ did before cpp/aba_compiled.hpp) against the
 // instantiation inside the pin wheel's libpinocchio_default (called through Eigen::Ref arguments),
 // computeABADerivatives (the first-order expansion) and ComputeRNEASecondOrderDerivatives (the
-// exact second-order expansion). Built and run by benchmarks/pinocchio_calls.py.
+// exact second-order expansion), and geoddp's kinetic-energy Hessian (cpp/kinetic_hessian.cpp, the
+// variational step's second order) against the second-order RNEA it replaces at (q, 0, y). Built
+// and run by benchmarks/pinocchio_calls.py.
 //
 // Models are built here, with random inertias and joint placements (seeded), in the shapes of the
 // benchmark cases: a single free-flying body (nv 6: the docking spacecraft, the quadrotors), a
@@ -14,6 +16,8 @@
 #include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
 #include <pinocchio/multibody.hpp>
+
+#include "kinetic_hessian.cpp"
 
 #include <algorithm>
 #include <chrono>
@@ -58,8 +62,9 @@ int main() {
   const Case cases[] = {{"free body (nv 6)", true, 0}, {"6-joint arm (nv 6)", false, 6},
                         {"free base + 3 joints (nv 9)", true, 3}, {"free base + 12 joints (nv 18)", true, 12}};
   std::printf("| model | aba, this program -O2 (us) | aba, the wheel's (us) | wheel / -O2 | computeABADerivatives (us) | "
-              "ComputeRNEASecondOrderDerivatives (us) | RNEA second order / ABA derivatives |\n");
-  std::printf("|---|---:|---:|---:|---:|---:|---:|\n");
+              "ComputeRNEASecondOrderDerivatives (us) | RNEA second order / ABA derivatives | "
+              "kinetic_hessian (us) | RNEA second order at (q, 0, y) / kinetic_hessian |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const Case& c : cases) {
     const Model model = build(c.ff, c.joints);
     Data data(model);
@@ -67,24 +72,31 @@ int main() {
     const Eigen::VectorXd v = Eigen::VectorXd::Random(model.nv), tau = Eigen::VectorXd::Random(model.nv);
     const Eigen::VectorXd a = Eigen::VectorXd::Random(model.nv);
     const CRef qr(q), vr(v), tr(tau);
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv);
+    geoddp::dyn::KineticHessianWork kw(model);
+    Eigen::MatrixXd H(model.nv, model.nv);
     const int reps = model.nv > 10 ? 2000 : 10000;
     std::vector<std::function<void()>> calls = {
         [&] { aba(model, data, q, v, tau); },                          // instantiated here (plain VectorXd)
         [&] { aba(model, data, qr, vr, tr, Convention::LOCAL); },      // the wheel's (extern template)
         [&] { computeABADerivatives(model, data, qr, vr, tr); },
         [&] { ComputeRNEASecondOrderDerivatives(model, data, q, v, a); },
+        [&] { ComputeRNEASecondOrderDerivatives(model, data, q, zero, v); },  // what the variational step ran
+        [&] { geoddp::dyn::kinetic_hessian(model, data, kw, q, v, H); },
     };
     std::vector<std::vector<double>> t(calls.size());
     for (int round = 0; round < 8; ++round)
       for (size_t i = 0; i < calls.size(); ++i) {
-        const int n = i == 3 ? reps / 5 : reps;
+        const int n = i == 3 || i == 4 ? reps / 5 : reps;
         const auto t0 = std::chrono::steady_clock::now();
         for (int r = 0; r < n; ++r) calls[i]();
         const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() / n;
         if (round > 0) t[i].push_back(us);  // round 0 warms up
       }
     const double a_here = median(t[0]), a_lib = median(t[1]), dab = median(t[2]), so = median(t[3]);
-    std::printf("| %s | %.2f | %.2f | %.2fx | %.2f | %.2f | %.1fx |\n", c.name, a_here, a_lib, a_lib / a_here, dab, so, so / dab);
+    const double so_y = median(t[4]), kh = median(t[5]);
+    std::printf("| %s | %.2f | %.2f | %.2fx | %.2f | %.2f | %.1fx | %.2f | %.1fx |\n", c.name, a_here, a_lib, a_lib / a_here,
+                dab, so, so / dab, kh, so_y / kh);
   }
   return 0;
 }

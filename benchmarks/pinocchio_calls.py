@@ -5,8 +5,10 @@ template-instantiation and Boost limits, never -march=native) against the instal
 and libpinocchio_default and cmeel-eigen, runs it, and prints one table: ABA instantiated in the
 program against the wheel's own instantiation (why cpp/aba_compiled.hpp calls through
 Eigen::Ref), computeABADerivatives (a first-order node) and ComputeRNEASecondOrderDerivatives (an
-exact second-order node), medians of 7 interleaved rounds. The last column is the floor Pinocchio
-sets under the second-order expansion's cost relative to the first-order one.
+exact second-order node), medians of 7 interleaved rounds; the RNEA column's ratio is the floor
+Pinocchio sets under the second-order expansion's cost relative to the first-order one. The last
+two columns time geoddp's kinetic-energy Hessian (cpp/kinetic_hessian.cpp) against the
+second-order RNEA at (q, 0, y) from which the variational step had contracted it.
 Needs g++ and the build requirements; the compile takes about 90 s.
 
     python benchmarks/pinocchio_calls.py
@@ -32,7 +34,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         exe = Path(tmp) / "calls"
         cmd = ["g++", "-std=c++17", "-O2", "-DNDEBUG", *DEFINES, f"-I{pin / 'include'}", f"-I{eigen}",
-               str(ROOT / "benchmarks" / "pinocchio_calls.cpp"), "-o", str(exe), f"-L{pin / 'lib'}",
+               f"-I{ROOT / 'cpp'}", str(ROOT / "benchmarks" / "pinocchio_calls.cpp"), "-o", str(exe), f"-L{pin / 'lib'}",
                "-lpinocchio_default", f"-Wl,-rpath,{pin / 'lib'}"]
         subprocess.run(cmd, check=True)
         out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout

@@ -23,6 +23,9 @@ struct JointGroup {
 struct GroupKindOf : boost::static_visitor<int> {
   template <typename JointModel>
   int operator()(const JointModel&) const { return -1; }  // planar, composite, mimic, helical, ...
+  // (spherical ZYX too: its motion subspace moves with q, and Pinocchio's analytic derivatives of
+  // RNEA and ABA do not hold for it, measured against differences; every joint accepted here has a
+  // motion subspace constant in its own frame, which kinetic_hessian.hpp also relies on)
   template <int axis>
   int operator()(const pinocchio::JointModelRevoluteTpl<double, 0, axis>&) const { return VECTOR; }
   template <int axis>
@@ -30,7 +33,6 @@ struct GroupKindOf : boost::static_visitor<int> {
   int operator()(const pinocchio::JointModelRevoluteUnalignedTpl<double, 0>&) const { return VECTOR; }
   int operator()(const pinocchio::JointModelPrismaticUnalignedTpl<double, 0>&) const { return VECTOR; }
   int operator()(const pinocchio::JointModelTranslationTpl<double, 0>&) const { return VECTOR; }
-  int operator()(const pinocchio::JointModelSphericalZYXTpl<double, 0>&) const { return VECTOR; }
   template <int axis>
   int operator()(const pinocchio::JointModelRevoluteUnboundedTpl<double, 0, axis>&) const { return SO2; }
   int operator()(const pinocchio::JointModelRevoluteUnboundedUnalignedTpl<double, 0>&) const { return SO2; }

@@ -13,6 +13,7 @@
 #include "binding_checks.hpp"
 #include "contracted.hpp"
 #include "dynamics.hpp"
+#include "kinetic_hessian.hpp"
 #include "lie.hpp"
 #include "pin_model.hpp"
 #include "pool.hpp"
@@ -113,6 +114,25 @@ PYBIND11_MODULE(_core, m) {
       "with one_body, from the one-body shortcut the expansions use (cpp/one_body.hpp).");
   m.def("one_body_applies", [](py::handle pm) { return geoddp::dyn::one_body_applies(geoddp::model_from_python(pm)); },
         py::arg("model"), "Whether the expansions take RNEA's second-order tensors from the one-body shortcut.");
+  m.def(
+      "kinetic_hessian",
+      [](py::handle pm, const Arr& q, const Arr& y) {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        check_shape(q, {model.nq}, "q");
+        check_shape(y, {model.nv}, "y");
+        geoddp::joint_groups(model);  // std::invalid_argument (ValueError) naming a joint it does not take
+        pinocchio::Data data(model);
+        geoddp::dyn::KineticHessianWork w(model);
+        Eigen::MatrixXd H(model.nv, model.nv);
+        geoddp::dyn::kinetic_hessian(model, data, w, Eigen::Map<const Eigen::VectorXd>(q.data(), model.nq),
+                                     Eigen::Map<const Eigen::VectorXd>(y.data(), model.nv), H);
+        Arr out({(py::ssize_t)model.nv, (py::ssize_t)model.nv});
+        Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), model.nv, model.nv) = H;
+        return out;
+      },
+      py::arg("model"), py::arg("q"), py::arg("y"),
+      "H (nv, nv) = 1/2 d2/dq2 (y^T M(q) y), trivialised: H[k, l] the gradient's k-th entry differenced along\n"
+      "q exp(eps e_l) (cpp/kinetic_hessian.hpp); gravity plays no part.");
 
   m.def(
       "rollout",

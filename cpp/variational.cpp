@@ -74,30 +74,28 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 }
 
 // d/deta [dL/dq(q exp(eta), v)] at eta = 0 into w.Hk: the kinetic part exact, 1/2 d/dq_j of
-// D(q, v)^T v = 1/2 sum_p v_p d2tau_p/dq_i dq_j (Pinocchio's second-order RNEA at (q, 0, v), no
-// gravity; the (i, j) order is that of differentiating the trivialised D along q exp(h e_j), as
-// the Python oracle's differences do), minus the generalised gravity's derivative.
-// save_tensors (the base point's call): keep the second-order RNEA's dM/dq and d2tau/dq2 in
-// w.dMdq, w.d2q, which residual_hessians reads (VariationalWork).
+// D(q, v)^T v = 1/2 sum_p v_p d2tau_p/dq_i dq_j (the (i, j) order is that of differentiating the
+// trivialised D along q exp(h e_j), as the Python oracle's differences do), minus the generalised
+// gravity's derivative. The kinetic part comes from the spatial-vector recursion of
+// kinetic_hessian.hpp (O(nv depth) dot products; Pinocchio's second-order RNEA at (q, 0, v), whose
+// nv^3 entries this had contracted with v, costs 13x more at nv 9, benchmarks/pinocchio_calls.py).
+// save_tensors (the second order's base point): the second-order RNEA runs too, and its dM/dq and
+// d2tau/dq2 are kept in w.dMdq, w.d2q, which residual_hessians reads (VariationalWork); H comes
+// from the recursion all the same, so that the first order (F1, Phi, B) is bitwise the same with
+// or without the second.
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& v, bool save_tensors = false) {
   const int nv = vm.model->nv;
   if (vm.configuration_free) {
     w.Hkin.setZero();
   } else {
-    pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
+    kinetic_hessian(vm.free_model, w.fdata, w.kh, q, v, w.Hkin);
     if (save_tensors) {
+      pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
       const size_t n3 = (size_t)nv * nv * nv;
       std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + n3, w.dMdq.data());
       std::copy(w.fdata.d2tau_dqdq.data(), w.fdata.d2tau_dqdq.data() + n3, w.d2q.data());
     }
-    const auto& T = w.fdata.d2tau_dqdq;
-    for (int i = 0; i < nv; ++i)
-      for (int j = 0; j < nv; ++j) {
-        double acc = 0.0;
-        for (int p = 0; p < nv; ++p) acc += v[p] * T(p, i, j);
-        w.Hkin(i, j) = 0.5 * acc;
-      }
   }
   if (vm.gravity_free) {  // no gravity: its derivative is zero (no Pinocchio call)
     w.Hk = w.Hkin;
@@ -148,6 +146,7 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 //      terms at q+.
 struct Keep {
   bool v_terms = false, M0 = false, D0 = false;
+  bool tensors = true;  // the base call: keep the second-order RNEA's tensors (lagrangian_hessian)
   const Eigen::MatrixXd* D0_value = nullptr;
   const QplusLinear* lin = nullptr;
 };
@@ -181,7 +180,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
     Kmat(vm, w, w.x, w.K1);
     mass(vm, w, w.qn, w.M1);
     Dmat(vm, w, w.qn, y, w.D1);
-    lagrangian_hessian(vm, w, w.qn, y, true);  // the tensors residual_hessians reads
+    lagrangian_hessian(vm, w, w.qn, y, keep.tensors);  // the tensors residual_hessians reads
     w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
     w.Sq -= dt * w.Hk;
   }
@@ -510,7 +509,7 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
   }
 }
 
-VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model) {
+VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model), kh(vm.free_model) {
   const int nv = vm.model->nv, nq = vm.model->nq;
   for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &Hkin, &T, &Sq, &Ry, &Kx, &Dx})
     M->resize(nv, nv);
@@ -613,9 +612,10 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
 namespace {
 
 // The first order at a node: the base residual_jacobian (it computes everything the differences
-// below may keep), R_y's LU in nw.lu_y and F1 = -R_y^-1 [R_eta, R_dv, -dt H] in nw.F1k and F1.
+// below may keep; with `second`, the second-order RNEA's tensors they read), R_y's LU in nw.lu_y
+// and F1 = -R_y^-1 [R_eta, R_dv, -dt H] in nw.F1k and F1.
 void node_first_order(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
-                      const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1) {
+                      const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, bool second) {
   const int nv = vm.model->nv, m = vm.m, nz = 2 * nv + m;
   CMatMap Hm(vm.H, nv, m);
   VariationalWork& w = nw.w;
@@ -623,7 +623,9 @@ void node_first_order(const VariationalModel& vm, VariationalNodeWork& nw, const
     if (nv == 6) one_body_jacobian<6>(vm, w, q, v, y);
     else one_body_jacobian<3>(vm, w, q, v, y);
   } else {
-    residual_jacobian(vm, w, q, v, y, w.J);
+    Keep base;
+    base.tensors = second;
+    residual_jacobian(vm, w, q, v, y, w.J, base);
   }
   nw.lu_y.compute(w.J.rightCols(nv));
   nw.Rz.leftCols(2 * nv) = w.J.leftCols(2 * nv);
@@ -644,8 +646,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // J depends on q+ = q exp(eta) exp(dt (v + dv)) only through Sq = dR/deta+ and R_y (M(q+),
   // D(q+, y), the kinetic-energy Hessian and the gravity terms). Those are differenced once along
   // q+'s own nv directions into the first-order model QplusLinear, and each eta or dv difference
-  // then reads them at xi = difference(q+, q+'): the chain rule, which halves the second-order RNEA
-  // calls (one per joint direction of q+ and sign, instead of one per joint direction of eta and
+  // then reads them at xi = difference(q+, q+'): the chain rule, which halves the kinetic-energy
+  // Hessians (one per joint direction of q+ and sign, instead of one per joint direction of eta and
   // of dv and sign). A free-flyer or spherical root's pose moves the mechanism rigidly (local
   // frames, gravity-free model): along it M, D and the kinetic-energy Hessian do not change, only
   // the gravity terms (nothing at all without gravity: those dSq, dRy are exactly zero, skipped).
@@ -691,7 +693,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   //   dRy[k] = K1^T dM_k - dt d/dx[K(x)^T dM_k y]|_(x = -dt y) - dt dD_k^T   (exact: R_y is linear in
   //   M and D), and Sq = K1^T D - dt H gives dSq[k] = K1^T dD_k - dt dH_k,
   // where only H (the kinetic-energy Hessian less the gravity's derivative) is differenced: one
-  // second-order RNEA and one gravity derivative per point instead of also M, D and R_y there.
+  // kinetic-energy Hessian (the recursion of kinetic_hessian.hpp, else a second-order RNEA) and
+  // one gravity derivative per point instead of also M, D and R_y there.
   // (w.dMdq, w.d2q: the base call's, column-major (i, j, k); page k is the nv x nv slice at k nv^2)
   const size_t nn = (size_t)nv * nv;
   const Eigen::VectorXd x1 = -dt * y;
@@ -835,7 +838,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
 void variational_node(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
                       const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* F2) {
   const int nv = vm.model->nv, nz = 2 * nv + vm.m;
-  node_first_order(vm, nw, q, v, y, F1);
+  node_first_order(vm, nw, q, v, y, F1, F2 != nullptr);
   if (F2 == nullptr) return;
   residual_hessians(vm, nw, q, v, y);
   const Eigen::PartialPivLU<Eigen::MatrixXd>& lu = nw.lu_y;
@@ -883,7 +886,7 @@ void variational_node_factored(const VariationalModel& vm, VariationalNodeWork& 
                                const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, double* RyInvT,
                                double* Ts) {
   const int nv = vm.model->nv, nw3 = 3 * nv;
-  node_first_order(vm, nw, q, v, y, F1);
+  node_first_order(vm, nw, q, v, y, F1, true);
   residual_hessians(vm, nw, q, v, y);
   // R_y^-T, column by column from the LU factors (a once-per-node nv x nv inverse: the pass then
   // contracts with one matrix-vector product)

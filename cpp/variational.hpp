@@ -5,8 +5,7 @@
 //
 // What the compiled version computes exactly where the Python one differences: the trivialised
 // Hessian of the kinetic energy in q (the q-derivative of D(q, y)^T y, D = d(M(q) y)/dq) comes
-// from Pinocchio's ComputeRNEASecondOrderDerivatives at (q, 0, y) on the gravity-free model
-// instead of central differences of D. So the residual's Jacobian [R_eta, R_dv, R_y] is analytic
+// from a spatial-vector recursion (kinetic_hessian.hpp) instead of central differences of D. So the residual's Jacobian [R_eta, R_dv, R_y] is analytic
 // throughout, and the second-order term R_ww is one central difference of it (not the Python
 // oracle's difference of a difference): F2 = -R_y^-1 P^T R_ww P. Along dv and the root's pose the
 // Jacobian is differenced with its q+-dependent parts read from a first-order model differenced
@@ -29,6 +28,7 @@
 #include <vector>
 
 #include "dynamics.hpp"
+#include "kinetic_hessian.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -68,6 +68,7 @@ struct VariationalModel {
 // allocation per call).
 struct VariationalWork {
   pinocchio::Data data, fdata;
+  KineticHessianWork kh;
   Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx;
   Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;

@@ -13,9 +13,8 @@ groups here: :func:`geoddp.integrators.expand`). A product group is a sequence o
 :class:`JointGroup` factors in tangent order (:func:`joint_groups` reads it off a ``pin.Model``);
 the functions below are its operations. The joint groups Pinocchio uses are
 
-* ``"vector"``: R^k with addition (revolute and prismatic joints, translation, SphericalZYX,
-  which Pinocchio integrates additively), and ``"so2"``: revolute-unbounded joints, (cos, sin)
-  coordinates. Both are commutative: Ad = I, Jr = I, dJr = 0 and the bracket vanishes, so the
+* ``"vector"``: R^k with addition (revolute and prismatic joints, translation), and ``"so2"``:
+  revolute-unbounded joints, (cos, sin) coordinates. Both are commutative: Ad = I, Jr = I, dJr = 0 and the bracket vanishes, so the
   reconstruction is exactly linear.
 * ``"so3"``: the spherical joint; quaternion coordinates, body-frame tangent (3,), ad = hat,
   Jr, dJr from :class:`geoddp.lie.SO3`.
@@ -51,7 +50,6 @@ _VECTOR_SHORTNAMES = frozenset(
         "JointModelRevoluteUnaligned",
         "JointModelPrismaticUnaligned",
         "JointModelTranslation",
-        "JointModelSphericalZYX",
     ]
 )
 _SO2_SHORTNAMES = frozenset(["JointModelRUB" + a for a in "XYZ"] + ["JointModelRevoluteUnboundedUnaligned"])
@@ -80,7 +78,11 @@ def joint_groups(model: pin.Model) -> list[JointGroup]:
     """The joint groups of ``model`` in tangent order (the universe joint 0 is skipped).
 
     Raises:
-        ValueError: a joint whose group is not one of :data:`KINDS` (e.g. planar = SE(2)).
+        ValueError: a joint whose group is not one of :data:`KINDS` (e.g. planar = SE(2)), or whose
+            motion subspace moves with q (spherical ZYX, universal, helical): Pinocchio's analytic
+            RNEA and ABA derivatives do not hold for spherical ZYX (measured against differences,
+            tests/test_core_dynamics.py), and every accepted joint's subspace is constant in its
+            own frame.
     """
     out = []
     for j in range(1, model.njoints):
