@@ -79,6 +79,37 @@ inline void djr_columns(const std::vector<JointGroup>& groups, const Eigen::Vect
   }
 }
 
+// Products with a block-diagonal B over the joint groups (B the identity outside the SO(3) and
+// SE(3) blocks, as blocks() makes Jr, Jr^-1 and Ad_exp(-theta)): out = B^T X and out = X B, X of
+// nv rows (columns). As dense nv x nv products these had run Eigen's general matrix product
+// (packing and cache blocking for 9 x 9) and were a fifth of the variational second order's time;
+// on a fixed-base arm every block is the identity and the products are copies. out must not
+// alias X.
+template <typename XT, typename OutT>
+inline void block_transpose_times(const std::vector<JointGroup>& groups, const Eigen::MatrixXd& B, const XT& X,
+                                  OutT&& out) {
+  out = X;
+  for (const JointGroup& g : groups) {
+    const int o = g.idx_v;
+    if (g.kind == SO3)
+      out.template middleRows<3>(o).noalias() = B.block<3, 3>(o, o).transpose().lazyProduct(X.template middleRows<3>(o));
+    else if (g.kind == SE3)
+      out.template middleRows<6>(o).noalias() = B.block<6, 6>(o, o).transpose().lazyProduct(X.template middleRows<6>(o));
+  }
+}
+
+template <typename XT, typename OutT>
+inline void times_block(const std::vector<JointGroup>& groups, const XT& X, const Eigen::MatrixXd& B, OutT&& out) {
+  out = X;
+  for (const JointGroup& g : groups) {
+    const int o = g.idx_v;
+    if (g.kind == SO3)
+      out.template middleCols<3>(o).noalias() = X.template middleCols<3>(o).lazyProduct(B.block<3, 3>(o, o));
+    else if (g.kind == SE3)
+      out.template middleCols<6>(o).noalias() = X.template middleCols<6>(o).lazyProduct(B.block<6, 6>(o, o));
+  }
+}
+
 inline void djr_apply(const std::vector<JointGroup>& groups, const Eigen::VectorXd& theta, const Eigen::VectorXd& y,
                       Eigen::MatrixXd& Mdj) {
   djr_columns<false>(groups, theta, y, Mdj);

@@ -70,7 +70,8 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
          const Eigen::VectorXd& p, Eigen::MatrixXd& out) {
   w.s.noalias() = K.transpose() * p;
   djr_transpose_apply(vm.groups, x, w.s, w.N);
-  out.noalias() = -K.transpose() * w.N;
+  block_transpose_times(vm.groups, K, w.N, out);
+  out = -out;
 }
 
 // d/deta [dL/dq(q exp(eta), v)] at eta = 0 into w.Hk: the kinetic part exact, 1/2 d/dq_j of
@@ -127,7 +128,7 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   w.tmp.noalias() = w.M1 * y;
   w.x = -dt * y;
   dKT(vm, w, w.x, K1, w.tmp, w.S);
-  out.noalias() = K1.transpose() * w.M1;
+  block_transpose_times(vm.groups, K1, w.M1, out);
   out -= dt * w.S;
   out.noalias() -= dt * D1.transpose();
 }
@@ -181,27 +182,29 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
     mass(vm, w, w.qn, w.M1);
     Dmat(vm, w, w.qn, y, w.D1);
     lagrangian_hessian(vm, w, w.qn, y, keep.tensors);  // the tensors residual_hessians reads
-    w.Sq.noalias() = w.K1.transpose() * w.D1;  // dR/deta+
+    block_transpose_times(vm.groups, w.K1, w.D1, w.Sq);  // dR/deta+
     w.Sq -= dt * w.Hk;
   }
   if (!keep.M0) mass(vm, w, q, w.M0);
   if (keep.D0_value) w.D0 = *keep.D0_value;
   else if (!keep.D0) Dmat(vm, w, q, v, w.D0);
+  block_transpose_times(vm.groups, w.K0, w.D0, w.P2);
   if (Sq_zero) {
-    J.leftCols(nv).noalias() = -w.K0.transpose() * w.D0;
+    J.leftCols(nv) = -w.P2;
   } else {
-    J.leftCols(nv).noalias() = w.Sq * w.A;
-    J.leftCols(nv).noalias() -= w.K0.transpose() * w.D0;
+    times_block(vm.groups, w.Sq, w.A, w.P1);
+    J.leftCols(nv) = w.P1 - w.P2;
   }
   if (!keep_v) {
     w.tmp.noalias() = w.M0 * v;
     dKT(vm, w, w.omega, w.K0, w.tmp, w.Kt);
   }
+  block_transpose_times(vm.groups, w.K0, w.M0, w.P2);
   if (Sq_zero) {
-    J.middleCols(nv, nv).noalias() = -w.K0.transpose() * w.M0;
+    J.middleCols(nv, nv) = -w.P2;
   } else {
-    J.middleCols(nv, nv).noalias() = dt * (w.Sq * w.Jv);
-    J.middleCols(nv, nv).noalias() -= w.K0.transpose() * w.M0;
+    times_block(vm.groups, w.Sq, w.Jv, w.P1);
+    J.middleCols(nv, nv) = dt * w.P1 - w.P2;
   }
   J.middleCols(nv, nv) -= dt * w.Kt;
   if (!keep.lin) velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);
@@ -501,6 +504,10 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
   gravity_free = model_.gravity.toVector().isZero(0.0);
   const int root_kind = model_.njoints > 1 ? boost::apply_visitor(GroupKindOf(), model_.joints[1].toVariant()) : -1;
   root_dirs = root_kind == SE3 ? 6 : root_kind == SO3 ? 3 : 0;
+  flat_dof.assign(model_.nv, 0);
+  for (const JointGroup& g : groups)
+    if (g.kind == VECTOR || g.kind == SO2)
+      for (int d = 0; d < g.nv; ++d) flat_dof[g.idx_v + d] = 1;
   if (configuration_free) {  // M does not depend on q: computed once here, not once per step
     pinocchio::Data data(model_);
     pinocchio::crba(model_, data, pinocchio::neutral(model_));
@@ -511,7 +518,7 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model), kh(vm.free_model) {
   const int nv = vm.model->nv, nq = vm.model->nq;
-  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &Hkin, &T, &Sq, &Ry, &Kx, &Dx})
+  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &Hkin, &T, &Sq, &Ry, &Kx, &Dx, &P1, &P2})
     M->resize(nv, nv);
   J.resize(nv, 3 * nv);
   Jp.resize(nv, 3 * nv);
@@ -703,7 +710,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     const Eigen::Map<const Eigen::MatrixXd> dM(w.dMdq.data() + k * nn, nv, nv), dD(w.d2q.data() + k * nn, nv, nv);
     w.tmp.noalias() = dM * y;
     dKT(vm, w, x1, K1, w.tmp, w.S);
-    L.dRy[k].noalias() = K1.transpose() * dM;
+    block_transpose_times(vm.groups, K1, dM, L.dRy[k]);
     L.dRy[k] -= dt * w.S;
     L.dRy[k].noalias() -= dt * dD.transpose();
     nw.e.setZero();
@@ -714,7 +721,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     nw.e[k] = -h;
     pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
     lagrangian_hessian(vm, w, nw.qp, y);
-    L.dSq[k].noalias() = K1.transpose() * dD;
+    block_transpose_times(vm.groups, K1, dD, L.dSq[k]);
     L.dSq[k] -= (dt / (2.0 * h)) * (nw.Hp - w.Hk);
   }
   L.fixed = true;
@@ -773,13 +780,16 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
       if (!L.dRy_zero[k]) nw.dRyj += a * L.dRy[k];
     }
     const Eigen::Map<const Eigen::MatrixXd> dM(nw.dMq.data() + j * nn, nv, nv), dD(nw.d2qq.data() + j * nn, nv, nv);
-    nw.X.noalias() = nw.dSqj * w.A;
-    nw.X.noalias() -= w.K0.transpose() * dD;
+    times_block(vm.groups, nw.dSqj, w.A, nw.X);
+    block_transpose_times(vm.groups, w.K0, dD, w.P2);
+    nw.X -= w.P2;
     for (int i = 0; i < nv; ++i) nw.T[i].col(j).head(nv) = nw.X.row(i).transpose();
     w.tmp.noalias() = dM * v;
     dKT(vm, w, w.omega, w.K0, w.tmp, w.S);
-    nw.X.noalias() = dt * (nw.dSqj * w.Jv);
-    nw.X.noalias() -= w.K0.transpose() * dM;
+    times_block(vm.groups, nw.dSqj, w.Jv, nw.X);
+    nw.X *= dt;
+    block_transpose_times(vm.groups, w.K0, dM, w.P2);
+    nw.X -= w.P2;
     nw.X -= dt * w.S;
     for (int i = 0; i < nv; ++i) nw.T[i].col(j).segment(nv, nv) = nw.X.row(i).transpose();
     for (int i = 0; i < nv; ++i) nw.T[i].col(j).tail(nv) = nw.dRyj.row(i).transpose();
@@ -792,7 +802,47 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     keep.v_terms = keep.M0 = keep.D0 = true;
     difference_along(j, keep);
   }
+  // dv along a dof of a commutative group (vector, SO(2): Ad = Jr = I there), exactly. Only linear
+  // terms move: A, Jr(dt v), K(dt v) do not (their blocks belong to the other groups), q+ moves by
+  // xi = dt h e_l (so Sq and R_y by dt h dSq[l], dRy[l] in QplusLinear), D(q, v) by h D(q, e_l),
+  // and d/dx[K(x)^T M0 v] by h d/dx[K(x)^T M0 e_l] (linear in its vector). So
+  //   d_l R_eta = dt dSq[l] A - K0^T D(q, e_l),  d_l R_dv = dt^2 dSq[l] Jv - dt d/dx[K(x)^T M0 e_l],
+  //   d_l R_y = dt dRy[l],
+  // which the central differences below had reproduced to their round-off (~1e-11) at two
+  // residual_jacobian calls each. Taken first, while w holds the base call's blocks (the
+  // differences below move them).
+  for (int l = 0; l < nv; ++l) {
+    if (!vm.flat_dof[l]) continue;
+    const int j = nv + l;
+    // D(q, e_l)(i, k) = dM(i, l)/dq_k at q: column l of every page of nw.dMq
+    nw.Dl = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(nw.dMq.data() + (size_t)l * nv, nv, nv,
+                                                                      Eigen::OuterStride<>((Eigen::Index)nv * nv));
+    block_transpose_times(vm.groups, w.K0, nw.Dl, w.P2);
+    if (L.dSq_zero[l]) {
+      nw.X = -w.P2;
+    } else {
+      times_block(vm.groups, L.dSq[l], w.A, nw.X);
+      nw.X *= dt;
+      nw.X -= w.P2;
+    }
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j).head(nv) = nw.X.row(i).transpose();
+    w.tmp = w.M0.col(l);
+    dKT(vm, w, w.omega, w.K0, w.tmp, w.S);
+    if (L.dSq_zero[l]) {
+      nw.X = -dt * w.S;
+    } else {
+      times_block(vm.groups, L.dSq[l], w.Jv, nw.X);
+      nw.X *= dt * dt;
+      nw.X -= dt * w.S;
+    }
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j).segment(nv, nv) = nw.X.row(i).transpose();
+    for (int i = 0; i < nv; ++i) {
+      if (L.dRy_zero[l]) nw.T[i].col(j).tail(nv).setZero();
+      else nw.T[i].col(j).tail(nv) = dt * L.dRy[l].row(i).transpose();
+    }
+  }
   for (int l = 0; l < nv; ++l) {  // dv: q is the base's (M(q) kept; D(q, v) linear in v)
+    if (vm.flat_dof[l]) continue;
     keep.v_terms = keep.D0 = false;
     keep.M0 = true;
     if (linear_D)  // D(q, e_l)(i, k) = dM(i, l)/dq_k at q: column l of every page of nw.dMq
@@ -821,15 +871,26 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     if (linear_D)  // D(q+, e_l)(i, k) = dM(i, l)/dq_k at q+: column l of every page of w.dMdq
       nw.Dl = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(w.dMdq.data() + (size_t)l * nv, nv, nv,
                                                                         Eigen::OuterStride<>((Eigen::Index)nv * nv));
-    nw.yp = y;
-    nw.yp[l] += h;
-    Ry_at(nw.yp, 1.0, Rp);
-    nw.yp[l] = y[l] - h;
-    Ry_at(nw.yp, -1.0, Rm);
-    for (int i = 0; i < nv; ++i) {
-      for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = (Rp(i, a) - Rm(i, a)) / (2.0 * h);
-      for (int a = 0; a < 2 * nv; ++a) nw.T[i](a, j) = nw.T[i](j, a);
+    if (vm.flat_dof[l]) {
+      // a dof of a commutative group, exactly: K(-dt y) does not move along it and R_y is linear
+      // in y there, d_l R_y = -dt d/dx[K(x)^T M1 e_l]|_(x = -dt y) - dt D(q+, e_l)^T
+      w.tmp = nw.M1b.col(l);
+      dKT(vm, w, x1, K1, w.tmp, w.S);
+      Rp = -dt * w.S;
+      Rp.noalias() -= dt * nw.Dl.transpose();
+      for (int i = 0; i < nv; ++i)
+        for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = Rp(i, a);
+    } else {
+      nw.yp = y;
+      nw.yp[l] += h;
+      Ry_at(nw.yp, 1.0, Rp);
+      nw.yp[l] = y[l] - h;
+      Ry_at(nw.yp, -1.0, Rm);
+      for (int i = 0; i < nv; ++i)
+        for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = (Rp(i, a) - Rm(i, a)) / (2.0 * h);
     }
+    for (int i = 0; i < nv; ++i)
+      for (int a = 0; a < 2 * nv; ++a) nw.T[i](a, j) = nw.T[i](j, a);
   }
 }
 

@@ -60,6 +60,9 @@ struct VariationalModel {
   // (gravity_free) R's Jacobian does not change at all. One body: all of its nv dofs.
   int root_dirs;
   bool gravity_free;
+  // per velocity dof: it belongs to a commutative group (vector, SO(2)), along which the residual
+  // Jacobian moves linearly in dv and y (residual_hessians takes those columns exactly)
+  std::vector<char> flat_dof;
   Eigen::MatrixXd M_body;  // configuration_free: the constant mass matrix (nv, nv)
   VariationalModel(const Model& model_, const double* H_, int m_, double dt_);
 };
@@ -69,7 +72,7 @@ struct VariationalModel {
 struct VariationalWork {
   pinocchio::Data data, fdata;
   KineticHessianWork kh;
-  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx;
+  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx, P1, P2;
   Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   // dM/dq and d2tau/dq2 at (q+, 0, y) (nv^3 each, Pinocchio's d2tau_dadq, d2tau_dqdq, column-major)
