@@ -21,12 +21,14 @@ KineticHessianWork::KineticHessianWork(const pinocchio::Model& model)
     for (int d = 0; d < model.nvs[j]; ++d) joint[model.idx_vs[j] + d] = j;
 }
 
-void kinetic_hessian(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
-                     const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::MatrixXd& H) {
-  using pinocchio::Force;
-  using pinocchio::Motion;
-  const int nv = model.nv, nj = model.njoints;
-  pinocchio::computeJointJacobians(model, data, q);  // data.oMi and the world columns data.J
+namespace {
+
+// The world-frame terms both functions start from: data.oMi and the columns data.J, the body
+// velocities w.V, and the subtrees' momenta w.h and composite inertias w.Ic.
+void subtree_terms(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
+                   const Eigen::VectorXd& q, const Eigen::VectorXd& y) {
+  const int nj = model.njoints;
+  pinocchio::computeJointJacobians(model, data, q);
   // forward: world body velocities V_j = V_parent + sum of the joint's columns times y
   w.V[0].setZero();
   for (int j = 1; j < nj; ++j) {
@@ -45,6 +47,26 @@ void kinetic_hessian(const pinocchio::Model& model, pinocchio::Data& data, Kinet
     w.Ic[p] += w.Ic[j];
     w.h[p] += w.h[j];
   }
+}
+
+}  // namespace
+
+void kinetic_gradient(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
+                      const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::VectorXd& g) {
+  subtree_terms(model, data, w, q, y);
+  for (int k = 0; k < model.nv; ++k) {
+    const int jk = w.joint[k];
+    const pinocchio::Motion u = pinocchio::Motion(data.J.col(k)).cross(w.V[model.parents[jk]]);
+    g[k] = -u.dot(w.h[jk]);
+  }
+}
+
+void kinetic_hessian(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
+                     const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::MatrixXd& H) {
+  using pinocchio::Force;
+  using pinocchio::Motion;
+  const int nv = model.nv;
+  subtree_terms(model, data, w, q, y);
   // per dof: the pair terms' factors (kinetic_hessian.hpp)
   for (int k = 0; k < nv; ++k) {
     const int jk = w.joint[k];

@@ -61,5 +61,11 @@ struct KineticHessianWork {
 void kinetic_hessian(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
                      const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::MatrixXd& H);
 
+// g (nv) = 1/2 D(q, y)^T y = 1/2 d/dq (y^T M(q) y), trivialised: g_k = -u_k . h_k (the header's
+// d_k phi / 2), in O(nv) spatial operations where Pinocchio's RNEA derivatives form all of D.
+// `data` is the model's (its kinematics are overwritten). Same requirement as kinetic_hessian.
+void kinetic_gradient(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
+                      const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::VectorXd& g);
+
 }  // namespace dyn
 }  // namespace geoddp

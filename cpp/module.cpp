@@ -115,6 +115,24 @@ PYBIND11_MODULE(_core, m) {
   m.def("one_body_applies", [](py::handle pm) { return geoddp::dyn::one_body_applies(geoddp::model_from_python(pm)); },
         py::arg("model"), "Whether the expansions take RNEA's second-order tensors from the one-body shortcut.");
   m.def(
+      "kinetic_gradient",
+      [](py::handle pm, const Arr& q, const Arr& y) {
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        check_shape(q, {model.nq}, "q");
+        check_shape(y, {model.nv}, "y");
+        geoddp::joint_groups(model);  // std::invalid_argument (ValueError) naming a joint it does not take
+        pinocchio::Data data(model);
+        geoddp::dyn::KineticHessianWork w(model);
+        Eigen::VectorXd g(model.nv);
+        geoddp::dyn::kinetic_gradient(model, data, w, Eigen::Map<const Eigen::VectorXd>(q.data(), model.nq),
+                                      Eigen::Map<const Eigen::VectorXd>(y.data(), model.nv), g);
+        Arr out({(py::ssize_t)model.nv});
+        Eigen::Map<Eigen::VectorXd>(out.mutable_data(), model.nv) = g;
+        return out;
+      },
+      py::arg("model"), py::arg("q"), py::arg("y"),
+      "g (nv,) = 1/2 d/dq (y^T M(q) y) = 1/2 D(q, y)^T y, trivialised (cpp/kinetic_hessian.hpp); gravity plays no part.");
+  m.def(
       "kinetic_hessian",
       [](py::handle pm, const Arr& q, const Arr& y) {
         const pinocchio::Model& model = geoddp::model_from_python(pm);

@@ -108,16 +108,18 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
   w.Hk = w.Hkin - w.T;
 }
 
-// R at y (into w.r) with K1 = K(-dt y) and D1 = D(q+, y); M1 = M(q+), g1 = g(q+), b fixed.
-void implicit_terms(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& qn,
-                    const Eigen::VectorXd& y, Eigen::VectorXd& r, Eigen::MatrixXd& K1, Eigen::MatrixXd& D1) {
+// R at y (into r) with K1 = K(-dt y); M1 = M(q+), g1 = g(q+), b fixed. R needs no D(q+, y), only
+// 1/2 D(q+, y)^T y, the kinetic energy's gradient (kinetic_hessian.hpp: O(nv), where Pinocchio's
+// RNEA derivatives had formed all of D at every trial point of the step's line search).
+void residual_at(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& qn, const Eigen::VectorXd& y,
+                 Eigen::VectorXd& r, Eigen::MatrixXd& K1) {
   const double dt = vm.dt;
   w.x = -dt * y;
   Kmat(vm, w, w.x, K1);
-  Dmat(vm, w, qn, y, D1);
+  kinetic_gradient(vm.free_model, w.fdata, w.kh, qn, y, w.grad);
   w.tmp.noalias() = w.M1 * y;
   r.noalias() = K1.transpose() * w.tmp;
-  r.noalias() -= (0.5 * dt) * (D1.transpose() * y);
+  r -= dt * w.grad;
   r += dt * w.g1 - w.b;
 }
 
@@ -523,7 +525,7 @@ VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), 
   J.resize(nv, 3 * nv);
   Jp.resize(nv, 3 * nv);
   zero = Eigen::VectorXd::Zero(nv);
-  for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy, &xi}) v->resize(nv);
+  for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy, &xi, &grad}) v->resize(nv);
   dMdq.assign((size_t)nv * nv * nv, 0.0);
   d2q.assign((size_t)nv * nv * nv, 0.0);
   qn.resize(nq);
@@ -553,15 +555,16 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   // (backtracking on |R|) keeps stiff light links from throwing the iteration off.
   Eigen::VectorXd& y = w.y;
   y = v + dt * geoddp::aba(model, w.data, w.qn, v, tau);
-  implicit_terms(vm, w, w.qn, y, w.r, w.K1, w.D1);
-  implicit_terms(vm, w, w.qn, v, w.r0, w.Kx, w.Dx);
+  residual_at(vm, w, w.qn, y, w.r, w.K1);
+  residual_at(vm, w, w.qn, v, w.r0, w.Kx);
   if (!w.r.allFinite() || w.r0.norm() < w.r.norm()) {
     y = v;
     w.r = w.r0;
     w.K1 = w.Kx;
-    w.D1 = w.Dx;
   }
+  // D(q+, y) only where a Jacobian is formed: once per Newton iteration, none per trial point
   for (int it = 0; it < NEWTON_MAX_ITER; ++it) {
+    Dmat(vm, w, w.qn, y, w.D1);
     velocity_jacobian(vm, w, w.K1, w.D1, y, w.Ry);
     w.lu.compute(w.Ry);
     w.dy = w.lu.solve(w.r);
@@ -569,14 +572,13 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
     double alpha = 1.0;
     while (true) {
       w.yt = y - alpha * w.dy;
-      implicit_terms(vm, w, w.qn, w.yt, w.rt, w.Kx, w.Dx);
+      residual_at(vm, w, w.qn, w.yt, w.rt, w.Kx);
       if (w.rt.norm() < norm_r || alpha < 1e-6 || alpha * w.dy.norm() <= tol) break;
       alpha *= 0.5;
     }
     y = w.yt;
     w.r = w.rt;
     w.K1 = w.Kx;
-    w.D1 = w.Dx;
     if (!y.allFinite()) break;
     if (newton_converged(alpha, w.dy.norm(), y.norm())) {
       q1 = w.qn;

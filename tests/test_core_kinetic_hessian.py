@@ -1,4 +1,5 @@
-"""The kinetic energy's configuration Hessian by spatial-vector recursions (cpp/kinetic_hessian.hpp).
+"""The kinetic energy's configuration Hessian and gradient by spatial-vector recursions
+(cpp/kinetic_hessian.hpp).
 
 H = 1/2 d2/dq2 (y^T M(q) y), trivialised (entry (k, l): the gradient's k-th entry differenced
 along q exp(eps e_l)), is what the variational step's second order takes from it. Checked against
@@ -11,7 +12,9 @@ along q exp(eps e_l)), is what the variational step's second order takes from it
 on a free-flyer arm, a fixed base with every URDF joint type, a spherical root carrying a chain, a
 branching tree built joint by joint (spherical, translation, prismatic and unaligned revolute
 joints mid-tree) and, from example-robot-data, the UR5 and Solo12; near the identity and at
-random configurations; the columns of a joint on the universe are exactly zero. A joint the core
+random configurations; the columns of a joint on the universe are exactly zero. The gradient
+1/2 D(q, y)^T y (the variational step's residual) equals Pinocchio's RNEA derivative contracted
+with y and differences of the kinetic energy on the same models. A joint the core
 does not take (spherical ZYX, whose motion subspace moves with q) is refused by name.
 """
 import numpy as np
@@ -120,6 +123,31 @@ def test_kinetic_hessian_equals_pinocchio(name):
         # a joint on the universe moves its tree rigidly with its velocities: exactly zero columns
         roots = [model.idx_vs[j] + d for j in range(1, model.njoints) if model.parents[j] == 0 for d in range(model.nvs[j])]
         assert roots and np.all(H[:, roots] == 0.0)
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+def test_kinetic_gradient_equals_pinocchio_and_differences(name):
+    """g = 1/2 D(q, y)^T y (the variational residual's kinetic term, O(nv)) equals Pinocchio's RNEA
+    derivative contracted with y, and central differences of the kinetic energy 1/2 y^T M(q) y."""
+    model = MODELS[name]()
+    free = _free(model)
+    data = free.createData()
+
+    def energy(q, y):
+        M = pin.crba(free, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        return 0.5 * y @ M @ y
+
+    for q, y in _states(model, seed=7 + len(name)):
+        g = core.kinetic_gradient(model, q, y)
+        ref = _half_gradient(free, data, q, y)
+        scale = max(1.0, np.abs(ref).max())
+        assert np.abs(g - ref).max() <= 1e-12 * scale, name
+        h = 1e-6
+        fd = np.array([(energy(pin.integrate(free, q, h * e), y) - energy(pin.integrate(free, q, -h * e), y)) / (2 * h)
+                       for e in np.eye(free.nv)])
+        assert np.abs(g - fd).max() <= 1e-7 * scale, name
+        assert np.abs(ref).max() > 1e-3
 
 
 def test_gravity_plays_no_part():
