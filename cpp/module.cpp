@@ -42,6 +42,24 @@ static Setup make_setup(const pinocchio::Model& model, const Arr& H, double dt, 
 
 static Arr empty(std::vector<py::ssize_t> shape) { return Arr(shape); }
 
+// The kinetic-energy recursions' bindings (tests): q (nq) and y (nv) checked, the model's joints
+// checked (std::invalid_argument, i.e. ValueError, naming one the core does not take), then
+// fill(model, data, work, q, y, out) into an (nv,) or, with matrix, (nv, nv) array.
+template <typename Fill>
+static Arr kinetic_call(py::handle pm, const Arr& q, const Arr& y, bool matrix, Fill&& fill) {
+  const pinocchio::Model& model = geoddp::model_from_python(pm);
+  check_shape(q, {model.nq}, "q");
+  check_shape(y, {model.nv}, "y");
+  geoddp::joint_groups(model);
+  pinocchio::Data data(model);
+  geoddp::dyn::KineticHessianWork w(model);
+  Arr out = matrix ? Arr({(py::ssize_t)model.nv, (py::ssize_t)model.nv}) : Arr({(py::ssize_t)model.nv});
+  const Eigen::VectorXd qv = Eigen::Map<const Eigen::VectorXd>(q.data(), model.nq);
+  const Eigen::VectorXd yv = Eigen::Map<const Eigen::VectorXd>(y.data(), model.nv);
+  fill(model, data, w, qv, yv, out);
+  return out;
+}
+
 PYBIND11_MODULE(_core, m) {
   m.doc() = "geoddp's compiled kernels: the multibody core over Pinocchio, the satellite's TSO(3) closed forms, the backward passes (C++17)";
   // The extension must run with the pin it was compiled against (pinocchio::Model's layout).
@@ -117,36 +135,22 @@ PYBIND11_MODULE(_core, m) {
   m.def(
       "kinetic_gradient",
       [](py::handle pm, const Arr& q, const Arr& y) {
-        const pinocchio::Model& model = geoddp::model_from_python(pm);
-        check_shape(q, {model.nq}, "q");
-        check_shape(y, {model.nv}, "y");
-        geoddp::joint_groups(model);  // std::invalid_argument (ValueError) naming a joint it does not take
-        pinocchio::Data data(model);
-        geoddp::dyn::KineticHessianWork w(model);
-        Eigen::VectorXd g(model.nv);
-        geoddp::dyn::kinetic_gradient(model, data, w, Eigen::Map<const Eigen::VectorXd>(q.data(), model.nq),
-                                      Eigen::Map<const Eigen::VectorXd>(y.data(), model.nv), g);
-        Arr out({(py::ssize_t)model.nv});
-        Eigen::Map<Eigen::VectorXd>(out.mutable_data(), model.nv) = g;
-        return out;
+        return kinetic_call(pm, q, y, false, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv, Arr& out) {
+          Eigen::VectorXd g(model.nv);
+          geoddp::dyn::kinetic_gradient(model, data, w, qv, yv, g);
+          Eigen::Map<Eigen::VectorXd>(out.mutable_data(), model.nv) = g;
+        });
       },
       py::arg("model"), py::arg("q"), py::arg("y"),
       "g (nv,) = 1/2 d/dq (y^T M(q) y) = 1/2 D(q, y)^T y, trivialised (cpp/kinetic_hessian.hpp); gravity plays no part.");
   m.def(
       "kinetic_hessian",
       [](py::handle pm, const Arr& q, const Arr& y) {
-        const pinocchio::Model& model = geoddp::model_from_python(pm);
-        check_shape(q, {model.nq}, "q");
-        check_shape(y, {model.nv}, "y");
-        geoddp::joint_groups(model);  // std::invalid_argument (ValueError) naming a joint it does not take
-        pinocchio::Data data(model);
-        geoddp::dyn::KineticHessianWork w(model);
-        Eigen::MatrixXd H(model.nv, model.nv);
-        geoddp::dyn::kinetic_hessian(model, data, w, Eigen::Map<const Eigen::VectorXd>(q.data(), model.nq),
-                                     Eigen::Map<const Eigen::VectorXd>(y.data(), model.nv), H);
-        Arr out({(py::ssize_t)model.nv, (py::ssize_t)model.nv});
-        Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), model.nv, model.nv) = H;
-        return out;
+        return kinetic_call(pm, q, y, true, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv, Arr& out) {
+          Eigen::MatrixXd H(model.nv, model.nv);
+          geoddp::dyn::kinetic_hessian(model, data, w, qv, yv, H);
+          Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), model.nv, model.nv) = H;
+        });
       },
       py::arg("model"), py::arg("q"), py::arg("y"),
       "H (nv, nv) = 1/2 d2/dq2 (y^T M(q) y), trivialised: H[k, l] the gradient's k-th entry differenced along\n"

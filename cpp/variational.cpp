@@ -79,7 +79,7 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 // trivialised D along q exp(h e_j), as the Python oracle's differences do), minus the generalised
 // gravity's derivative. The kinetic part comes from the spatial-vector recursion of
 // kinetic_hessian.hpp (O(nv depth) dot products; Pinocchio's second-order RNEA at (q, 0, v), whose
-// nv^3 entries this had contracted with v, costs 13x more at nv 9, benchmarks/pinocchio_calls.py).
+// nv^3 entries this had contracted with v, costs 15x more at nv 9, benchmarks/pinocchio_calls.py).
 // save_tensors (the second order's base point): the second-order RNEA runs too, and its dM/dq and
 // d2tau/dq2 are kept in w.dMdq, w.d2q, which residual_hessians reads (VariationalWork); H comes
 // from the recursion all the same, so that the first order (F1, Phi, B) is bitwise the same with
