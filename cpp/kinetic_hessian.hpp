@@ -10,8 +10,7 @@
 // the joint's own columns xi_d by ad_xi (ad_xi xi = 0). That holds for every joint whose motion
 // subspace is constant in its own frame: every joint joint_groups.hpp accepts (revolute,
 // prismatic, translation, continuous, spherical, free-flyer). Then, with u_k = xi_k x V_p(k) and
-// h_k the subtree's
-// momentum sum_(i in subtree) I_i V_i,
+// h_k the subtree's momentum sum_(i in subtree) I_i V_i,
 //   d_k phi = -2 u_k . h_k,
 // and differentiating along dof l (Ic_l the subtree's composite inertia):
 //   l's joint an ancestor of k's, or the same joint:

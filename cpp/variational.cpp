@@ -643,6 +643,13 @@ void node_first_order(const VariationalModel& vm, VariationalNodeWork& nw, const
   Eigen::Map<RowMat>(F1, nv, nz) = nw.F1k;
 }
 
+// D(q, e_l) = d(M(q) e_l)/dq from a second-order RNEA's dM/dq at q (column-major (i, j, k), page
+// k the nv x nv slice at k nv^2): D(q, e_l)(i, k) = dM(i, l)/dq_k, column l of every page.
+void D_unit(const std::vector<double>& dMdq, int nv, int l, Eigen::MatrixXd& out) {
+  out = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(dMdq.data() + (size_t)l * nv, nv, nv,
+                                                                  Eigen::OuterStride<>((Eigen::Index)nv * nv));
+}
+
 // R_ww after node_first_order (same q, v, y, the same work): nw.T[i](a, j) = d_j J(i, a), by
 // central differences of the analytic Jacobian.
 void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
@@ -702,8 +709,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   //   dRy[k] = K1^T dM_k - dt d/dx[K(x)^T dM_k y]|_(x = -dt y) - dt dD_k^T   (exact: R_y is linear in
   //   M and D), and Sq = K1^T D - dt H gives dSq[k] = K1^T dD_k - dt dH_k,
   // where only H (the kinetic-energy Hessian less the gravity's derivative) is differenced: one
-  // kinetic-energy Hessian (the recursion of kinetic_hessian.hpp, else a second-order RNEA) and
-  // one gravity derivative per point instead of also M, D and R_y there.
+  // kinetic-energy Hessian (the recursion of kinetic_hessian.hpp) and one gravity derivative per
+  // point instead of also M, D and R_y there.
   // (w.dMdq, w.d2q: the base call's, column-major (i, j, k); page k is the nv x nv slice at k nv^2)
   const size_t nn = (size_t)nv * nv;
   const Eigen::VectorXd x1 = -dt * y;
@@ -816,9 +823,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   for (int l = 0; l < nv; ++l) {
     if (!vm.flat_dof[l]) continue;
     const int j = nv + l;
-    // D(q, e_l)(i, k) = dM(i, l)/dq_k at q: column l of every page of nw.dMq
-    nw.Dl = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(nw.dMq.data() + (size_t)l * nv, nv, nv,
-                                                                      Eigen::OuterStride<>((Eigen::Index)nv * nv));
+    D_unit(nw.dMq, nv, l, nw.Dl);  // D(q, e_l)
     block_transpose_times(vm.groups, w.K0, nw.Dl, w.P2);
     if (L.dSq_zero[l]) {
       nw.X = -w.P2;
@@ -847,9 +852,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     if (vm.flat_dof[l]) continue;
     keep.v_terms = keep.D0 = false;
     keep.M0 = true;
-    if (linear_D)  // D(q, e_l)(i, k) = dM(i, l)/dq_k at q: column l of every page of nw.dMq
-      nw.Dl = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(nw.dMq.data() + (size_t)l * nv, nv, nv,
-                                                                        Eigen::OuterStride<>((Eigen::Index)nv * nv));
+    if (linear_D) D_unit(nw.dMq, nv, l, nw.Dl);  // D(q, e_l)
     difference_along(nv + l, keep, linear_D ? &nw.Dl : nullptr);
   }
   // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y's columns need
@@ -870,9 +873,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   Eigen::MatrixXd &Rp = w.Kx, &Rm = w.Dx;  // the step's scratch, free here
   for (int l = 0; l < nv; ++l) {
     const int j = 2 * nv + l;
-    if (linear_D)  // D(q+, e_l)(i, k) = dM(i, l)/dq_k at q+: column l of every page of w.dMdq
-      nw.Dl = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(w.dMdq.data() + (size_t)l * nv, nv, nv,
-                                                                        Eigen::OuterStride<>((Eigen::Index)nv * nv));
+    if (linear_D) D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l), from the base call's dM/dq at q+
     if (vm.flat_dof[l]) {
       // a dof of a commutative group, exactly: K(-dt y) does not move along it and R_y is linear
       // in y there, d_l R_y = -dt d/dx[K(x)^T M1 e_l]|_(x = -dt y) - dt D(q+, e_l)^T

@@ -5,15 +5,17 @@
 //
 // What the compiled version computes exactly where the Python one differences: the trivialised
 // Hessian of the kinetic energy in q (the q-derivative of D(q, y)^T y, D = d(M(q) y)/dq) comes
-// from a spatial-vector recursion (kinetic_hessian.hpp) instead of central differences of D. So the residual's Jacobian [R_eta, R_dv, R_y] is analytic
-// throughout, and the second-order term R_ww is one central difference of it (not the Python
-// oracle's difference of a difference): F2 = -R_y^-1 P^T R_ww P. Along dv and the root's pose the
-// Jacobian is differenced with its q+-dependent parts read from a first-order model differenced
-// once along q+'s own directions (QplusLinear: the chain rule, 2 nv evaluations of them, fewer on
-// a free-flyer or spherical root); along eta's joint directions its columns are exact (M(q) and
-// D(q, v) move with one more second-order RNEA's tensors at q, q+ through QplusLinear); along y
-// only its R_y columns are differenced (2 nv cheap evaluations: q+ does not move), the other
-// entries of those directions being the mixed partials already taken along eta and dv.
+// from a spatial-vector recursion (kinetic_hessian.hpp) instead of central differences of D. So
+// the residual's Jacobian [R_eta, R_dv, R_y] is analytic throughout, and the second-order term
+// R_ww is at most one central difference of it (not the Python oracle's difference of a
+// difference): F2 = -R_y^-1 P^T R_ww P. Along dv and the root's pose the Jacobian is differenced
+// with its q+-dependent parts read from a first-order model differenced once along q+'s own
+// directions (QplusLinear: the chain rule, 2 nv evaluations of them, fewer on a free-flyer or
+// spherical root); along eta's joint directions its columns are exact (M(q) and D(q, v) move with
+// one more second-order RNEA's tensors at q, q+ through QplusLinear); along y only its R_y columns
+// are differenced (cheap evaluations: q+ does not move), the other entries of those directions
+// being the mixed partials already taken along eta and dv; along dv and y of a commutative joint
+// (vector, SO(2)), where the Jacobian moves linearly, the columns are exact too.
 //
 // Arrays as in dynamics.hpp: float64, row-major; z = (dq, dv, du), nz = 2 nv + m.
 #pragma once

@@ -14,8 +14,8 @@ groups here: :func:`geoddp.integrators.expand`). A product group is a sequence o
 the functions below are its operations. The joint groups Pinocchio uses are
 
 * ``"vector"``: R^k with addition (revolute and prismatic joints, translation), and ``"so2"``:
-  revolute-unbounded joints, (cos, sin) coordinates. Both are commutative: Ad = I, Jr = I, dJr = 0 and the bracket vanishes, so the
-  reconstruction is exactly linear.
+  revolute-unbounded joints, (cos, sin) coordinates. Both are commutative: Ad = I, Jr = I,
+  dJr = 0 and the bracket vanishes, so the reconstruction is exactly linear.
 * ``"so3"``: the spherical joint; quaternion coordinates, body-frame tangent (3,), ad = hat,
   Jr, dJr from :class:`geoddp.lie.SO3`.
 * ``"se3"``: the free-flyer joint; q = (translation, quaternion), body-frame twists (6,) in

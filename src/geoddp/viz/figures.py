@@ -88,6 +88,10 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
         ``target_time``, ``target_angular_velocity (3,)``; controls: ``edges (H+1,)``,
         ``controls (H, m)``, and with limits ``lower``, ``upper`` (H, m) (NaN: unbounded) and
         ``saturated`` (list of (input, t_start, t_end)).
+
+    Raises:
+        InputError: ``result`` not a :class:`Result`, or ``out_dir`` not a folder that can be
+            written (:func:`geoddp.outputs.output_folder`).
     """
     result = as_result(result)
     out = output_folder(out_dir)
@@ -228,7 +232,9 @@ def plot_convergence(
         ``"j_min"`` and, when given, ``"reference_cost"``.
 
     Raises:
-        ValueError: ``results`` is empty.
+        InputError: ``results`` not a non-empty dict of :class:`Result` (naming ``results`` or
+            ``results[label]``), or ``out_dir`` not a folder that can be written
+            (:func:`geoddp.outputs.output_folder`).
     """
     if not isinstance(results, dict) or not results:
         raise InputError("results", f"expected a dict label -> Result with at least one entry, got {results!r:.80}")
