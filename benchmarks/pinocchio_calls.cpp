@@ -63,8 +63,9 @@ int main() {
                         {"free base + 3 joints (nv 9)", true, 3}, {"free base + 12 joints (nv 18)", true, 12}};
   std::printf("| model | aba, this program -O2 (us) | aba, the wheel's (us) | wheel / -O2 | computeABADerivatives (us) | "
               "ComputeRNEASecondOrderDerivatives (us) | RNEA second order / ABA derivatives | "
-              "kinetic_hessian (us) | RNEA second order at (q, 0, y) / kinetic_hessian |\n");
-  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+              "kinetic_hessian (us) | RNEA second order at (q, 0, y) / kinetic_hessian | mass_tensors (us) | "
+              "RNEA second order at (q, 0, y) / mass_tensors |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const Case& c : cases) {
     const Model model = build(c.ff, c.joints);
     Data data(model);
@@ -75,6 +76,7 @@ int main() {
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(model.nv);
     geoddp::dyn::KineticHessianWork kw(model);
     Eigen::MatrixXd H(model.nv, model.nv);
+    std::vector<double> dM((size_t)model.nv * model.nv * model.nv), T(dM.size());
     const int reps = model.nv > 10 ? 2000 : 10000;
     std::vector<std::function<void()>> calls = {
         [&] { aba(model, data, q, v, tau); },                          // instantiated here (plain VectorXd)
@@ -83,6 +85,7 @@ int main() {
         [&] { ComputeRNEASecondOrderDerivatives(model, data, q, v, a); },
         [&] { ComputeRNEASecondOrderDerivatives(model, data, q, zero, v); },  // what the variational step ran
         [&] { geoddp::dyn::kinetic_hessian(model, data, kw, q, v, H); },
+        [&] { geoddp::dyn::mass_tensors(model, data, kw, q, v, dM.data(), T.data()); },  // its tensors
     };
     std::vector<std::vector<double>> t(calls.size());
     for (int round = 0; round < 8; ++round)
@@ -94,9 +97,9 @@ int main() {
         if (round > 0) t[i].push_back(us);  // round 0 warms up
       }
     const double a_here = median(t[0]), a_lib = median(t[1]), dab = median(t[2]), so = median(t[3]);
-    const double so_y = median(t[4]), kh = median(t[5]);
-    std::printf("| %s | %.2f | %.2f | %.2fx | %.2f | %.2f | %.1fx | %.2f | %.1fx |\n", c.name, a_here, a_lib, a_lib / a_here,
-                dab, so, so / dab, kh, so_y / kh);
+    const double so_y = median(t[4]), kh = median(t[5]), mt = median(t[6]);
+    std::printf("| %s | %.2f | %.2f | %.2fx | %.2f | %.2f | %.1fx | %.2f | %.1fx | %.2f | %.1fx |\n", c.name, a_here, a_lib,
+                a_lib / a_here, dab, so, so / dab, kh, so_y / kh, mt, so_y / mt);
   }
   return 0;
 }

@@ -8,7 +8,9 @@ Eigen::Ref), computeABADerivatives (a first-order node) and ComputeRNEASecondOrd
 exact second-order node), medians of 7 interleaved rounds; the RNEA column's ratio is the floor
 Pinocchio sets under the second-order expansion's cost relative to the first-order one. The last
 two columns time geoddp's kinetic-energy Hessian (cpp/kinetic_hessian.cpp) against the
-second-order RNEA at (q, 0, y) from which the variational step had contracted it.
+second-order RNEA at (q, 0, y) from which the variational step had contracted it, and the last two
+its tensors dM/dq and d/dq D(q, y) (mass_tensors, the same file) against that RNEA, which had
+given them at the variational step's base points.
 Needs g++ and the build requirements; the compile takes about 90 s.
 
     python benchmarks/pinocchio_calls.py

@@ -1,4 +1,5 @@
-// The kinetic energy's configuration Hessian by spatial-vector recursions (kinetic_hessian.hpp).
+// The kinetic energy's configuration Hessian, its gradient and the tensors dM/dq and d/dq D(q, y) by
+// spatial-vector recursions (kinetic_hessian.hpp).
 // Included by core_algorithms.cpp (the translation unit of Pinocchio's algorithm instantiations).
 #include "kinetic_hessian.hpp"
 
@@ -11,14 +12,25 @@ namespace dyn {
 
 KineticHessianWork::KineticHessianWork(const pinocchio::Model& model)
     : V(model.njoints), h(model.njoints), Ic(model.njoints), xi(model.nv), u(model.nv), A(model.nv), A0(model.nv),
-      B(model.nv), w(model.nv), joint(model.nv),
-      last(model.njoints) {
+      B(model.nv), w(model.nv), joint(model.nv), last(model.njoints), X(6, model.nv), U(6, model.nv),
+      Fm(6, model.nv), Bm(6, model.nv), Icm(model.njoints), first_dof(model.njoints), end_dof(model.njoints),
+      above(model.njoints) {
   for (int j = 0; j < model.njoints; ++j) {
     last[j] = j;
     for (const auto s : model.subtrees[j]) last[j] = std::max(last[j], (int)s);
   }
-  for (int j = 1; j < model.njoints; ++j)
+  for (int j = 1; j < model.njoints; ++j) {
     for (int d = 0; d < model.nvs[j]; ++d) joint[model.idx_vs[j] + d] = j;
+    // depth-first order: a subtree's joints, hence its dofs, are contiguous
+    first_dof[j] = model.idx_vs[j];
+    end_dof[j] = model.idx_vs[last[j]] + model.nvs[last[j]];
+    for (const auto s : model.supports[j]) {  // the universe, ..., j
+      if (s == 0 || (int)s == j) continue;
+      const int b0 = model.idx_vs[s], b1 = b0 + model.nvs[s];
+      if (!above[j].empty() && above[j].back().second == b0) above[j].back().second = b1;
+      else above[j].emplace_back(b0, b1);
+    }
+  }
 }
 
 namespace {
@@ -98,6 +110,113 @@ void kinetic_hessian(const pinocchio::Model& model, pinocchio::Data& data, Kinet
       else if (jk < jl && jl <= w.last[jk]) d = w.u[k].dot(w.B[l]);                      // k's joint supports l's
       else d = 0.0;
       H(k, l) = -d;
+    }
+  }
+}
+
+namespace {
+
+typedef Eigen::Matrix<double, 6, 1> V6;
+
+// Spatial products on plain 6-vectors ([linear; angular], Pinocchio's order): a x b for motions,
+// a x* f of a motion on a force.
+inline V6 motion_cross(const V6& a, const V6& b) {
+  V6 r;
+  r.head<3>() = a.tail<3>().cross(b.head<3>()) + a.head<3>().cross(b.tail<3>());
+  r.tail<3>() = a.tail<3>().cross(b.tail<3>());
+  return r;
+}
+inline V6 force_cross(const V6& a, const V6& f) {
+  V6 r;
+  r.head<3>() = a.tail<3>().cross(f.head<3>());
+  r.tail<3>() = a.head<3>().cross(f.head<3>()) + a.tail<3>().cross(f.tail<3>());
+  return r;
+}
+
+// out[i * stride] = scale cols(i) . f (6 x nv `cols`) for the dofs i of `runs` within [lo, hi):
+// fixed-size 6-vector dot products (a dynamic-size product per run dispatched and allocated more
+// than it multiplied, measured).
+template <class Runs>
+inline void dots(const Eigen::Matrix<double, 6, Eigen::Dynamic>& cols, const Runs& runs, int lo, int hi, const V6& f,
+                 double scale, double* out, int stride) {
+  for (const auto& r : runs) {
+    const int b = std::max(r.first, lo), e = std::min(r.second, hi);
+    for (int i = b; i < e; ++i) out[(size_t)i * stride] = scale * cols.col(i).dot(f);
+  }
+}
+
+// out[i] = cols(i) . f for the dofs i in [b, e).
+inline void dots(const Eigen::Matrix<double, 6, Eigen::Dynamic>& cols, int b, int e, const V6& f, double* out) {
+  for (int i = b; i < e; ++i) out[i] = cols.col(i).dot(f);
+}
+
+}  // namespace
+
+void mass_tensors(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
+                  const Eigen::VectorXd& q, const Eigen::VectorXd& y, double* dM, double* T) {
+  const int nv = model.nv;
+  const size_t nn = (size_t)nv * nv;
+  subtree_terms(model, data, w, q, y);
+  for (int j = 1; j < model.njoints; ++j) w.Icm[j] = w.Ic[j].matrix();
+  w.X = data.J;
+  for (int k = 0; k < nv; ++k) {  // per dof: u_k, F_k = Ic_k xi_k, B_k = xi_k x* h_k - Ic_k u_k
+    const int jk = w.joint[k];
+    const V6 xi = w.X.col(k);
+    w.U.col(k) = motion_cross(xi, w.V[model.parents[jk]].toVector());
+    w.Fm.col(k).noalias() = w.Icm[jk] * xi;
+    w.Bm.col(k) = force_cross(xi, w.h[jk].toVector());
+    w.Bm.col(k).noalias() -= w.Icm[jk] * w.U.col(k);
+  }
+  std::fill(dM, dM + nn * nv, 0.0);
+  std::fill(T, T + nn * nv, 0.0);
+  // page k: the header comment's cases, by where j (or b) sits: in k's subtree, or strictly above
+  // k (`up`, runs of dofs root first, in which a dof's index orders its joint)
+  for (int k = 0; k < nv; ++k) {
+    const int jk = w.joint[k], k0 = w.first_dof[jk], k1 = w.end_dof[jk];
+    // A joint on the universe turns the whole tree (u_k = 0, nothing above it): its pages are zero.
+    if (model.parents[jk] == 0) continue;
+    double* dMk = dM + k * nn;
+    double* Tk = T + k * nn;
+    const V6 xk = w.X.col(k), uk = w.U.col(k);
+    const Eigen::Matrix<double, 6, 6>& Ick = w.Icm[jk];
+    const auto& up = w.above[jk];
+    for (int j = k0; j < k1; ++j) {  // J_k <= J_j
+      const int jj = w.joint[j];
+      const V6 xj = w.X.col(j);
+      const V6 fj = force_cross(xk, w.Fm.col(j));
+      dots(w.X, up, 0, nv, fj, 1.0, dMk + nv * j, 1);  // dM: J_a < J_k <= J_j, and its mirror
+      dots(w.X, up, 0, nv, fj, 1.0, dMk + j, nv);
+      const V6 m = motion_cross(xj, uk);
+      const int i0 = w.first_dof[jj], i1 = w.end_dof[jj];  // J_j <= J_i
+      dots(w.Fm, i0, i1, m, Tk + nv * j);
+      const auto& above_j = w.above[jj];
+      if (above_j.empty()) continue;  // a guard: J_k, hence J_j, has a joint above it here
+      const Eigen::Matrix<double, 6, 6>& Icj = w.Icm[jj];
+      V6 C = Icj * m;
+      C -= force_cross(xj, Icj * uk);
+      dots(w.X, above_j, k0, nv, C, 1.0, Tk + nv * j, 1);  // J_i < J_j, J_k <= J_i
+      if (above_j.front().first >= k0) continue;
+      const V6 C2 = force_cross(xk, w.Bm.col(j)) + C;
+      dots(w.X, above_j, 0, k0, C2, 1.0, Tk + nv * j, 1);  // J_i < J_k
+    }
+    for (const auto& run : up) {
+      for (int j = run.first; j < run.second; ++j) {  // J_j < J_k
+        const int jj = w.joint[j], j0 = w.first_dof[jj];
+        const V6 xj = w.X.col(j), uj = w.U.col(j);
+        V6 fM = force_cross(xk, Ick * xj);
+        fM.noalias() -= Ick * motion_cross(xk, xj);
+        dots(w.X, up, 0, j + 1, fM, 1.0, dMk + nv * j, 1);  // dM: J_a <= J_j < J_k (a <= j within a joint)
+        dots(w.X, up, 0, j + 1, fM, 1.0, dMk + j, nv);
+        // j on a joint on the universe: u_j = 0 and nothing is above it, so its T entries are zero
+        if (model.parents[jj] == 0) continue;
+        const V6 m = motion_cross(xk, uj);
+        dots(w.Fm, k0, k1, m, Tk + nv * j);  // J_k <= J_i
+        V6 E = force_cross(xk, Ick * uj);
+        E.noalias() -= Ick * m;
+        dots(w.X, up, j0, nv, E, -1.0, Tk + nv * j, 1);  // J_j <= J_i < J_k
+        const V6 f2 = force_cross(xj, w.Bm.col(k)) - E;
+        dots(w.X, w.above[jj], 0, nv, f2, 1.0, Tk + nv * j, 1);  // J_i < J_j
+      }
     }
   }
 }

@@ -44,20 +44,18 @@ static Arr empty(std::vector<py::ssize_t> shape) { return Arr(shape); }
 
 // The kinetic-energy recursions' bindings (tests): q (nq) and y (nv) checked, the model's joints
 // checked (std::invalid_argument, i.e. ValueError, naming one the core does not take), then
-// fill(model, data, work, q, y, out) into an (nv,) or, with matrix, (nv, nv) array.
+// fill(model, data, work, q, y) builds what the binding returns.
 template <typename Fill>
-static Arr kinetic_call(py::handle pm, const Arr& q, const Arr& y, bool matrix, Fill&& fill) {
+static py::object kinetic_call(py::handle pm, const Arr& q, const Arr& y, Fill&& fill) {
   const pinocchio::Model& model = geoddp::model_from_python(pm);
   check_shape(q, {model.nq}, "q");
   check_shape(y, {model.nv}, "y");
   geoddp::joint_groups(model);
   pinocchio::Data data(model);
   geoddp::dyn::KineticHessianWork w(model);
-  Arr out = matrix ? Arr({(py::ssize_t)model.nv, (py::ssize_t)model.nv}) : Arr({(py::ssize_t)model.nv});
   const Eigen::VectorXd qv = Eigen::Map<const Eigen::VectorXd>(q.data(), model.nq);
   const Eigen::VectorXd yv = Eigen::Map<const Eigen::VectorXd>(y.data(), model.nv);
-  fill(model, data, w, qv, yv, out);
-  return out;
+  return fill(model, data, w, qv, yv);
 }
 
 PYBIND11_MODULE(_core, m) {
@@ -135,10 +133,12 @@ PYBIND11_MODULE(_core, m) {
   m.def(
       "kinetic_gradient",
       [](py::handle pm, const Arr& q, const Arr& y) {
-        return kinetic_call(pm, q, y, false, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv, Arr& out) {
+        return kinetic_call(pm, q, y, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv) {
           Eigen::VectorXd g(model.nv);
           geoddp::dyn::kinetic_gradient(model, data, w, qv, yv, g);
+          Arr out({(py::ssize_t)model.nv});
           Eigen::Map<Eigen::VectorXd>(out.mutable_data(), model.nv) = g;
+          return py::object(out);
         });
       },
       py::arg("model"), py::arg("q"), py::arg("y"),
@@ -146,15 +146,33 @@ PYBIND11_MODULE(_core, m) {
   m.def(
       "kinetic_hessian",
       [](py::handle pm, const Arr& q, const Arr& y) {
-        return kinetic_call(pm, q, y, true, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv, Arr& out) {
+        return kinetic_call(pm, q, y, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv) {
           Eigen::MatrixXd H(model.nv, model.nv);
           geoddp::dyn::kinetic_hessian(model, data, w, qv, yv, H);
+          Arr out({(py::ssize_t)model.nv, (py::ssize_t)model.nv});
           Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), model.nv, model.nv) = H;
+          return py::object(out);
         });
       },
       py::arg("model"), py::arg("q"), py::arg("y"),
       "H (nv, nv) = 1/2 d2/dq2 (y^T M(q) y), trivialised: H[k, l] the gradient's k-th entry differenced along\n"
       "q exp(eps e_l) (cpp/kinetic_hessian.hpp); gravity plays no part.");
+  m.def(
+      "mass_tensors",
+      [](py::handle pm, const Arr& q, const Arr& y) {
+        return kinetic_call(pm, q, y, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv) {
+          const py::ssize_t nv = model.nv;
+          // column-major (i, j, k) as Pinocchio's tensors: numpy's Fortran order
+          std::vector<py::ssize_t> shape{nv, nv, nv}, strides{8, 8 * nv, 8 * nv * nv};
+          py::array_t<double> dM(shape, strides), T(shape, strides);
+          geoddp::dyn::mass_tensors(model, data, w, qv, yv, dM.mutable_data(), T.mutable_data());
+          return py::object(py::make_tuple(dM, T));
+        });
+      },
+      py::arg("model"), py::arg("q"), py::arg("y"),
+      "(dM, T), each (nv, nv, nv) indexed (i, j, k) as Pinocchio's: dM[i, j, k] = dM(i, j)/dq_k (d2tau_dadq) and\n"
+      "T[i, j, k] = d_k D(q, y)(i, j), D = d(M(q) y)/dq (d2tau_dqdq at (q, 0, y) without gravity), by the\n"
+      "spatial-vector recursion of cpp/kinetic_hessian.hpp; gravity plays no part.");
 
   m.def(
       "rollout",

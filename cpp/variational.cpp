@@ -80,10 +80,10 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 // gravity's derivative. The kinetic part comes from the spatial-vector recursion of
 // kinetic_hessian.hpp (O(nv depth) dot products; Pinocchio's second-order RNEA at (q, 0, v), whose
 // nv^3 entries this had contracted with v, costs 15x more at nv 9, benchmarks/pinocchio_calls.py).
-// save_tensors (the second order's base point): the second-order RNEA runs too, and its dM/dq and
-// d2tau/dq2 are kept in w.dMdq, w.d2q, which residual_hessians reads (VariationalWork); H comes
-// from the recursion all the same, so that the first order (F1, Phi, B) is bitwise the same with
-// or without the second.
+// save_tensors (the second order's base point): the same recursion's tensors dM/dq and
+// d/dq D(q, v) (mass_tensors, what Pinocchio's second-order RNEA at (q, 0, v) gave as d2tau_dadq and
+// d2tau_dqdq, at 1/6 of its cost at nv 9) go to w.dMdq, w.d2q, which residual_hessians reads
+// (VariationalWork); the first order (F1, Phi, B) does not read them.
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& v, bool save_tensors = false) {
   const int nv = vm.model->nv;
@@ -92,10 +92,7 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
   } else {
     kinetic_hessian(vm.free_model, w.fdata, w.kh, q, v, w.Hkin);
     if (save_tensors) {
-      pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
-      const size_t n3 = (size_t)nv * nv * nv;
-      std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + n3, w.dMdq.data());
-      std::copy(w.fdata.d2tau_dqdq.data(), w.fdata.d2tau_dqdq.data() + n3, w.d2q.data());
+      mass_tensors(vm.free_model, w.fdata, w.kh, q, v, w.dMdq.data(), w.d2q.data());
     }
   }
   if (vm.gravity_free) {  // no gravity: its derivative is zero (no Pinocchio call)
@@ -149,7 +146,7 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 //      terms at q+.
 struct Keep {
   bool v_terms = false, M0 = false, D0 = false;
-  bool tensors = true;  // the base call: keep the second-order RNEA's tensors (lagrangian_hessian)
+  bool tensors = true;  // the base call: keep dM/dq and d/dq D at q+ (lagrangian_hessian)
   const Eigen::MatrixXd* D0_value = nullptr;
   const QplusLinear* lin = nullptr;
 };
@@ -621,7 +618,7 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
 namespace {
 
 // The first order at a node: the base residual_jacobian (it computes everything the differences
-// below may keep; with `second`, the second-order RNEA's tensors they read), R_y's LU in nw.lu_y
+// below may keep; with `second`, the tensors dM/dq and d/dq D at q+ they read), R_y's LU in nw.lu_y
 // and F1 = -R_y^-1 [R_eta, R_dv, -dt H] in nw.F1k and F1.
 void node_first_order(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
                       const Eigen::VectorXd& v, const Eigen::VectorXd& y, double* F1, bool second) {
@@ -643,7 +640,7 @@ void node_first_order(const VariationalModel& vm, VariationalNodeWork& nw, const
   Eigen::Map<RowMat>(F1, nv, nz) = nw.F1k;
 }
 
-// D(q, e_l) = d(M(q) e_l)/dq from a second-order RNEA's dM/dq at q (column-major (i, j, k), page
+// D(q, e_l) = d(M(q) e_l)/dq from a dM/dq at q (mass_tensors; column-major (i, j, k), page
 // k the nv x nv slice at k nv^2): D(q, e_l)(i, k) = dM(i, l)/dq_k, column l of every page.
 void D_unit(const std::vector<double>& dMdq, int nv, int l, Eigen::MatrixXd& out) {
   out = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>(dMdq.data() + (size_t)l * nv, nv, nv,
@@ -704,8 +701,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     L.dSq_zero[k] = L.dRy_zero[k] = 1;
   }
   // Along a joint direction k of q+, M(q+) and D(q+, y) move with the base call's own tensors
-  // (dM/dq and d2tau/dq2 of its second-order RNEA at (q+, 0, y): d(M y)/dq = D, so d2tau/dq2 is
-  // dD/dq, in the order of differentiating the trivialised D along q+ exp(h e_k)). So
+  // (dM/dq and dD/dq at (q+, y), mass_tensors, in the order of differentiating the trivialised D
+  // along q+ exp(h e_k)). So
   //   dRy[k] = K1^T dM_k - dt d/dx[K(x)^T dM_k y]|_(x = -dt y) - dt dD_k^T   (exact: R_y is linear in
   //   M and D), and Sq = K1^T D - dt H gives dSq[k] = K1^T dD_k - dt dH_k,
   // where only H (the kinetic-energy Hessian less the gravity's derivative) is differenced: one
@@ -768,17 +765,15 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     return;
   }
   // Along eta's joint directions, exactly, from the base call's terms (w: A = Ad_exp(-dt v),
-  // Jv = Jr(dt v), K0 = K(dt v), none of which moves with eta) and the second-order RNEA at
-  // (q, 0, v): q exp(h e_j) moves M(q) by h dM_j and D(q, v) by h dD_j (pages j of its dM/dq and
-  // d2tau/dq2, as at q+ above), and q+ = q exp(eta) exp(dt v) by xi = h Ad_exp(-dt v) e_j, so Sq
+  // Jv = Jr(dt v), K0 = K(dt v), none of which moves with eta) and the tensors at (q, v)
+  // (mass_tensors): q exp(h e_j) moves M(q) by h dM_j and D(q, v) by h dD_j (pages j of dM/dq and
+  // dD/dq, as at q+ above), and q+ = q exp(eta) exp(dt v) by xi = h Ad_exp(-dt v) e_j, so Sq
   // and R_y by h sum_k A(k, j) dSq[k], dRy[k] (QplusLinear). Then with dSq_j, dRy_j those sums,
   //   d_j R_eta = dSq_j A - K0^T dD_j,  d_j R_dv = dt dSq_j Jv - K0^T dM_j - dt d/dx[K(x)^T dM_j v],
   //   d_j R_y = dRy_j,
   // where central differences had taken two residual_jacobian calls (two mass matrices, two RNEA
   // derivatives) per direction. The same tensors give D(q, e_l) along dv below.
-  pinocchio::ComputeRNEASecondOrderDerivatives(vm.free_model, w.fdata, q, w.zero, v);
-  std::copy(w.fdata.d2tau_dadq.data(), w.fdata.d2tau_dadq.data() + nn * nv, nw.dMq.data());
-  std::copy(w.fdata.d2tau_dqdq.data(), w.fdata.d2tau_dqdq.data() + nn * nv, nw.d2qq.data());
+  mass_tensors(vm.free_model, w.fdata, w.kh, q, v, nw.dMq.data(), nw.d2qq.data());
   for (int j = root; j < nv; ++j) {
     nw.dSqj.setZero();
     nw.dRyj.setZero();
@@ -857,7 +852,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   }
   // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y's columns need
   // differencing: velocity_jacobian alone (one first-order RNEA derivative per point instead of
-  // residual_jacobian's two mass matrices, two RNEA derivatives, a second-order RNEA and the
+  // residual_jacobian's two mass matrices, two RNEA derivatives, the kinetic-energy Hessian and the
   // gravity derivatives). The (eta, dv) rows of a y-direction are the mixed partials d_y d_eta R,
   // d_y d_dv R, already differenced along eta and dv: y is a flat coordinate of R, so they commute
   // with it (only eta-eta does not: the right-trivialised base point moves), T[i](a, y) = T[i](y, a).

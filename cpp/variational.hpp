@@ -12,10 +12,11 @@
 // with its q+-dependent parts read from a first-order model differenced once along q+'s own
 // directions (QplusLinear: the chain rule, 2 nv evaluations of them, fewer on a free-flyer or
 // spherical root); along eta's joint directions its columns are exact (M(q) and D(q, v) move with
-// one more second-order RNEA's tensors at q, q+ through QplusLinear); along y only its R_y columns
-// are differenced (cheap evaluations: q+ does not move), the other entries of those directions
-// being the mixed partials already taken along eta and dv; along dv and y of a commutative joint
-// (vector, SO(2)), where the Jacobian moves linearly, the columns are exact too.
+// the tensors dM/dq and d/dq D of kinetic_hessian.hpp's recursion at q, q+ through QplusLinear);
+// along y only its R_y columns are differenced (cheap evaluations: q+ does not move), the other
+// entries of those directions being the mixed partials already taken along eta and dv; along dv
+// and y of a commutative joint (vector, SO(2)), where the Jacobian moves linearly, the columns are
+// exact too.
 //
 // Arrays as in dynamics.hpp: float64, row-major; z = (dq, dv, du), nz = 2 nv + m.
 #pragma once
@@ -77,8 +78,8 @@ struct VariationalWork {
   Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx, P1, P2;
   Eigen::VectorXd zero, qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi, grad;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
-  // dM/dq and d2tau/dq2 at (q+, 0, y) (nv^3 each, Pinocchio's d2tau_dadq, d2tau_dqdq, column-major)
-  // of the base point's second-order RNEA: residual_hessians' exact q+ terms and D(q+, e_l)
+  // dM/dq and d/dq D(q+, y) (nv^3 each, column-major as Pinocchio's d2tau_dadq, d2tau_dqdq at
+  // (q+, 0, y); mass_tensors) at the base point: residual_hessians' exact q+ terms and D(q+, e_l)
   std::vector<double> dMdq, d2q;
   explicit VariationalWork(const VariationalModel& vm);
 };

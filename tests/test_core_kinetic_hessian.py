@@ -14,7 +14,9 @@ branching tree built joint by joint (spherical, translation, prismatic and unali
 joints mid-tree) and, from example-robot-data, the UR5 and Solo12; near the identity and at
 random configurations; the columns of a joint on the universe are exactly zero. The gradient
 1/2 D(q, y)^T y (the variational step's residual) equals Pinocchio's RNEA derivative contracted
-with y and differences of the kinetic energy on the same models. A joint the core
+with y and differences of the kinetic energy on the same models, and the tensors dM/dq and
+d/dq D(q, y) (the variational step's base points) equal Pinocchio's second-order RNEA and
+differences of its mass matrix and of D(q, y). A joint the core
 does not take (spherical ZYX, whose motion subspace moves with q) is refused by name.
 """
 import numpy as np
@@ -148,6 +150,45 @@ def test_kinetic_gradient_equals_pinocchio_and_differences(name):
                        for e in np.eye(free.nv)])
         assert np.abs(g - fd).max() <= 1e-7 * scale, name
         assert np.abs(ref).max() > 1e-3
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+def test_mass_tensors_equal_pinocchio_and_differences(name):
+    """dM/dq and d/dq D(q, y) (the variational step's base-point tensors, by the same recursion)
+    equal Pinocchio's second-order RNEA at (q, 0, y) without gravity (d2tau_dadq, d2tau_dqdq), and
+    central differences of Pinocchio's mass matrix and of its analytic D(q, y) along q exp(+-h e_k);
+    a joint on the universe turns the whole tree rigidly: its pages are exactly zero."""
+    model = MODELS[name]()
+    free = _free(model)
+    data = free.createData()
+    nv = free.nv
+
+    def mass(q):
+        M = pin.crba(free, data, q)
+        return np.triu(M) + np.triu(M, 1).T
+
+    def D(q, y):
+        pin.computeRNEADerivatives(free, data, q, np.zeros(nv), y)
+        return data.dtau_dq.copy()
+
+    roots = [model.idx_vs[j] + d for j in range(1, model.njoints) if model.parents[j] == 0 for d in range(model.nvs[j])]
+    for q, y in _states(model, seed=11 + len(name)):
+        dM, T = core.mass_tensors(model, q, y)
+        Iqq, _, _, dM_ref = core.rnea_second_order(free, q, np.zeros(nv), y, False)
+        for got, ref in ((dM, dM_ref), (T, Iqq)):
+            scale = max(1.0, np.abs(ref).max())
+            assert np.abs(ref).max() > 1e-3  # not a comparison of zeros
+            assert np.abs(got - ref).max() <= 1e-12 * scale, name
+        h = 1e-6
+        for k in range(nv):
+            e = np.zeros(nv)
+            e[k] = h
+            qp, qm = pin.integrate(free, q, e), pin.integrate(free, q, -e)
+            fd_M = (mass(qp) - mass(qm)) / (2 * h)
+            fd_D = (D(qp, y) - D(qm, y)) / (2 * h)
+            assert np.abs(dM[:, :, k] - fd_M).max() <= 1e-7 * max(1.0, np.abs(fd_M).max()), (name, k)
+            assert np.abs(T[:, :, k] - fd_D).max() <= 1e-7 * max(1.0, np.abs(fd_D).max()), (name, k)
+        assert roots and np.all(dM[:, :, roots] == 0.0) and np.all(T[:, :, roots] == 0.0)
 
 
 def test_gravity_plays_no_part():
