@@ -8,7 +8,6 @@
 #include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea-derivatives.hpp>
-#include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 
 #include <Eigen/LU>
@@ -81,9 +80,9 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
 // kinetic_hessian.hpp (O(nv depth) dot products; Pinocchio's second-order RNEA at (q, 0, v), whose
 // nv^3 entries this had contracted with v, costs 15x more at nv 9, benchmarks/pinocchio_calls.py).
 // save_tensors (the second order's base point): the same recursion's tensors dM/dq and
-// d/dq D(q, v) (mass_tensors, what Pinocchio's second-order RNEA at (q, 0, v) gave as d2tau_dadq and
-// d2tau_dqdq, at 1/6 of its cost at nv 9) go to w.dMdq, w.d2q, which residual_hessians reads
-// (VariationalWork); the first order (F1, Phi, B) does not read them.
+// d/dq D(q, v) (mass_tensors: what Pinocchio's second-order RNEA at (q, 0, v) gave as d2tau_dadq
+// and d2tau_dqdq, at about a ninth of its cost at nv 9) go to w.dMdq, w.d2q, which
+// residual_hessians reads (VariationalWork); the first order (F1, Phi, B) does not read them.
 void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q,
                         const Eigen::VectorXd& v, bool save_tensors = false) {
   const int nv = vm.model->nv;
