@@ -12,7 +12,7 @@ namespace dyn {
 
 KineticHessianWork::KineticHessianWork(const pinocchio::Model& model)
     : V(model.njoints), h(model.njoints), Ic(model.njoints), xi(model.nv), u(model.nv), A(model.nv), A0(model.nv),
-      B(model.nv), w(model.nv), joint(model.nv), last(model.njoints), X(6, model.nv), U(6, model.nv),
+      B(model.nv), w(model.nv), joint(model.nv), last(model.njoints), U(6, model.nv),
       Fm(6, model.nv), Bm(6, model.nv), Icm(model.njoints), first_dof(model.njoints), end_dof(model.njoints),
       above(model.njoints) {
   for (int j = 0; j < model.njoints; ++j) {
@@ -158,10 +158,10 @@ void mass_tensors(const pinocchio::Model& model, pinocchio::Data& data, KineticH
   const size_t nn = (size_t)nv * nv;
   subtree_terms(model, data, w, q, y);
   for (int j = 1; j < model.njoints; ++j) w.Icm[j] = w.Ic[j].matrix();
-  w.X = data.J;
+  const pinocchio::Data::Matrix6x& X = data.J;  // the world columns xi (subtree_terms)
   for (int k = 0; k < nv; ++k) {  // per dof: u_k, F_k = Ic_k xi_k, B_k = xi_k x* h_k - Ic_k u_k
     const int jk = w.joint[k];
-    const V6 xi = w.X.col(k);
+    const V6 xi = X.col(k);
     w.U.col(k) = motion_cross(xi, w.V[model.parents[jk]].toVector());
     w.Fm.col(k).noalias() = w.Icm[jk] * xi;
     w.Bm.col(k) = force_cross(xi, w.h[jk].toVector());
@@ -177,15 +177,15 @@ void mass_tensors(const pinocchio::Model& model, pinocchio::Data& data, KineticH
     if (model.parents[jk] == 0) continue;
     double* dMk = dM + k * nn;
     double* Tk = T + k * nn;
-    const V6 xk = w.X.col(k), uk = w.U.col(k);
+    const V6 xk = X.col(k), uk = w.U.col(k);
     const Eigen::Matrix<double, 6, 6>& Ick = w.Icm[jk];
     const auto& up = w.above[jk];
     for (int j = k0; j < k1; ++j) {  // J_k <= J_j
       const int jj = w.joint[j];
-      const V6 xj = w.X.col(j);
+      const V6 xj = X.col(j);
       const V6 fj = force_cross(xk, w.Fm.col(j));
-      dots(w.X, up, 0, nv, fj, 1.0, dMk + nv * j, 1);  // dM: J_a < J_k <= J_j, and its mirror
-      dots(w.X, up, 0, nv, fj, 1.0, dMk + j, nv);
+      dots(X, up, 0, nv, fj, 1.0, dMk + nv * j, 1);  // dM: J_a < J_k <= J_j, and its mirror
+      dots(X, up, 0, nv, fj, 1.0, dMk + j, nv);
       const V6 m = motion_cross(xj, uk);
       const int i0 = w.first_dof[jj], i1 = w.end_dof[jj];  // J_j <= J_i
       dots(w.Fm, i0, i1, m, Tk + nv * j);
@@ -194,28 +194,28 @@ void mass_tensors(const pinocchio::Model& model, pinocchio::Data& data, KineticH
       const Eigen::Matrix<double, 6, 6>& Icj = w.Icm[jj];
       V6 C = Icj * m;
       C -= force_cross(xj, Icj * uk);
-      dots(w.X, above_j, k0, nv, C, 1.0, Tk + nv * j, 1);  // J_i < J_j, J_k <= J_i
+      dots(X, above_j, k0, nv, C, 1.0, Tk + nv * j, 1);  // J_i < J_j, J_k <= J_i
       if (above_j.front().first >= k0) continue;
       const V6 C2 = force_cross(xk, w.Bm.col(j)) + C;
-      dots(w.X, above_j, 0, k0, C2, 1.0, Tk + nv * j, 1);  // J_i < J_k
+      dots(X, above_j, 0, k0, C2, 1.0, Tk + nv * j, 1);  // J_i < J_k
     }
     for (const auto& run : up) {
       for (int j = run.first; j < run.second; ++j) {  // J_j < J_k
         const int jj = w.joint[j], j0 = w.first_dof[jj];
-        const V6 xj = w.X.col(j), uj = w.U.col(j);
+        const V6 xj = X.col(j), uj = w.U.col(j);
         V6 fM = force_cross(xk, Ick * xj);
         fM.noalias() -= Ick * motion_cross(xk, xj);
-        dots(w.X, up, 0, j + 1, fM, 1.0, dMk + nv * j, 1);  // dM: J_a <= J_j < J_k (a <= j within a joint)
-        dots(w.X, up, 0, j + 1, fM, 1.0, dMk + j, nv);
+        dots(X, up, 0, j + 1, fM, 1.0, dMk + nv * j, 1);  // dM: J_a <= J_j < J_k (a <= j within a joint)
+        dots(X, up, 0, j + 1, fM, 1.0, dMk + j, nv);
         // j on a joint on the universe: u_j = 0 and nothing is above it, so its T entries are zero
         if (model.parents[jj] == 0) continue;
         const V6 m = motion_cross(xk, uj);
         dots(w.Fm, k0, k1, m, Tk + nv * j);  // J_k <= J_i
         V6 E = force_cross(xk, Ick * uj);
         E.noalias() -= Ick * m;
-        dots(w.X, up, j0, nv, E, -1.0, Tk + nv * j, 1);  // J_j <= J_i < J_k
+        dots(X, up, j0, nv, E, -1.0, Tk + nv * j, 1);  // J_j <= J_i < J_k
         const V6 f2 = force_cross(xj, w.Bm.col(k)) - E;
-        dots(w.X, w.above[jj], 0, nv, f2, 1.0, Tk + nv * j, 1);  // J_i < J_j
+        dots(X, w.above[jj], 0, nv, f2, 1.0, Tk + nv * j, 1);  // J_i < J_j
       }
     }
   }

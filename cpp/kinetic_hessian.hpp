@@ -77,11 +77,12 @@ struct KineticHessianWork {
   std::vector<Vector6> xi, u, A, A0, B, w;
   std::vector<int> joint;             // per dof: its joint
   std::vector<int> last;              // per joint: the last joint of its subtree (depth-first order)
-  // mass_tensors: per dof, as the columns of 6 x nv matrices, xi_k, u_k, F_k = Ic_k xi_k and B_k;
+  // mass_tensors: per dof, as the columns of 6 x nv matrices, u_k, F_k = Ic_k xi_k and B_k (xi_k is
+  // data.J's column);
   // per joint, Ic as a 6 x 6 matrix, the first dof of its subtree (its own first) and the end of its
   // subtree's (depth-first order: contiguous), and the dofs of the joints strictly supporting it as
   // runs [begin, end) of consecutive dofs, root first
-  Eigen::Matrix<double, 6, Eigen::Dynamic> X, U, Fm, Bm;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> U, Fm, Bm;
   std::vector<Eigen::Matrix<double, 6, 6>> Icm;
   std::vector<int> first_dof, end_dof;
   std::vector<std::vector<std::pair<int, int>>> above;
