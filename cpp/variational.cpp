@@ -138,15 +138,12 @@ void velocity_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 //      dual-number dJr), when M0 is kept as well;
 //   M0: q differs at most along the root's pose: M0 = M(q);
 //   D0: and v is the previous call's: D0 = D(q, v);
-//   D0_value (with D0 false): D(q, v) given, not computed (the dv directions: q is the base's and D
-//      is linear in its velocity argument);
 //   lin: y is the base call's, and Sq and R_y come from q+'s first-order model (QplusLinear,
 //      variational.hpp) instead of M(q+), D(q+, y), the kinetic-energy Hessian and the gravity
 //      terms at q+.
 struct Keep {
   bool v_terms = false, M0 = false, D0 = false;
   bool tensors = true;  // the base call: keep dM/dq and d/dq D at q+ (lagrangian_hessian)
-  const Eigen::MatrixXd* D0_value = nullptr;
   const QplusLinear* lin = nullptr;
 };
 
@@ -184,8 +181,7 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
     w.Sq -= dt * w.Hk;
   }
   if (!keep.M0) mass(vm, w, q, w.M0);
-  if (keep.D0_value) w.D0 = *keep.D0_value;
-  else if (!keep.D0) Dmat(vm, w, q, v, w.D0);
+  if (!keep.D0) Dmat(vm, w, q, v, w.D0);
   block_transpose_times(vm.groups, w.K0, w.D0, w.P2);
   if (Sq_zero) {
     J.leftCols(nv) = -w.P2;
@@ -589,9 +585,8 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   if (vm.root_dirs > 0 && !vm.gravity_free) turned = std::make_unique<TurnedGravity>(*vm.model);
   const int nq = vm.model->nq, nv = vm.model->nv, nz = 2 * nv + vm.m, nw = 3 * nv;
   qp.resize(nq);
-  e.resize(2 * nv);  // a step along (eta, dv); y is differenced apart
+  e.resize(2 * nv);  // a step along (eta, dv): the root's pose under gravity (residual_hessians)
   vp.resize(nv);
-  yp.resize(nv);
   Rz.resize(nv, nz);
   F1k.resize(nv, nz);
   Jm.resize(nv, nw);
@@ -601,7 +596,7 @@ VariationalNodeWork::VariationalNodeWork(const VariationalModel& vm) : w(vm) {
   CF.resize(nv, nz);
   stack.resize(nv, (Eigen::Index)nz * (nz + 1) / 2);  // the upper triangle of each P^T Ts_i P
   T.assign(nv, Eigen::MatrixXd(nw, nw));
-  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &Dpm, &M1b, &D1b, &Hp, &dSqj, &dRyj, &X}) M->resize(nv, nv);
+  for (Eigen::MatrixXd* M : {&Dbase, &Dl, &M1b, &Hp, &dSqj, &dRyj, &X}) M->resize(nv, nv);
   dMq.assign((size_t)nv * nv * nv, 0.0);
   d2qq.assign((size_t)nv * nv * nv, 0.0);
   lin.qn.resize(nq);
@@ -646,21 +641,165 @@ void D_unit(const std::vector<double>& dMdq, int nv, int l, Eigen::MatrixXd& out
                                                                   Eigen::OuterStride<>((Eigen::Index)nv * nv));
 }
 
-// R_ww after node_first_order (same q, v, y, the same work): nw.T[i](a, j) = d_j J(i, a), by
-// central differences of the analytic Jacobian.
+// d/dx [K(x)^T p] on one SO(3) or SE(3) group's block (dKT's block there): -K^T N with
+// N(:, c) = dJr/dx_c^T (K^T p), K = Jr(x)^-1.
+template <int N>
+typename FixedLie<N>::Mat group_kt(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p) {
+  typedef FixedLie<N> L;
+  const typename L::Coef k = L::coefficients(x);
+  const typename L::Mat K = L::inverse(L::jr(x, k));
+  const typename L::Vec s = K.transpose() * p;
+  typename L::Mat Nm;
+  L::djr_transpose_apply(x, s, Nm, k);
+  return -(K.transpose() * Nm);
+}
+
+// The x-derivative of group_kt along e_c at fixed p, by a central difference on the group's own
+// block (the second derivative of Jr has no closed form here; one_body_columns differences the
+// same terms): the one part of R_ww's dv and y columns below that is differenced.
+template <int N>
+typename FixedLie<N>::Mat group_kt_derivative(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p,
+                                              int c, double step) {
+  typename FixedLie<N>::Vec xp = x, xm = x;
+  xp[c] += step;
+  xm[c] -= step;
+  return (group_kt<N>(xp, p) - group_kt<N>(xm, p)) / (2.0 * step);
+}
+
+// R_ww's columns along dv for the dofs of one SO(3) or SE(3) group g (at o = g.idx_v), after the
+// base call: w holds its A0 = Ad_exp(-dt v), Jv0 = Jr(dt v), K0 = K(dt v), M0 = M(q), and nw its
+// D(q, v) (Dbase), q+'s first-order model (lin) and dM/dq at q (dMq). Along dv_l, l = o + c, only
+// g's blocks of A, Jv and K0 move:
+//   dJv = dt dJr(omega0)/dx_c,  dK0 = -K0 dJv K0,
+//   dA = -dt A0 ad(Jr(-omega0) e_c)  (exp(-omega0 - dt h e_c) = exp(-omega0) exp(-dt h Jr(-omega0) e_c)
+//   to first order);
+// q+ moves by xi = dt h Jv0 e_c (within g: so Sq and R_y by dt h sum_k Jv0(k, c) dSq[k], dRy[k]),
+// D(q, v) by h D(q, e_l), and Kt = d/dx[K(x)^T M0 v] at x = omega0 by its x-derivative along
+// dt e_c on g's block (group_kt_derivative) plus d/dx[K(x)^T M0 e_l] (linear in its vector). So
+//   d_l R_eta = dSq A0 + Sq0 dA - dK0^T D0 - K0^T D(q, e_l),
+//   d_l R_dv = dt (dSq Jv0 + Sq0 dJv) - dK0^T M0 - dt d_l Kt,  d_l R_y = dRy,
+// where central differences of the whole Jacobian had taken two residual_jacobian calls per
+// direction (integrate and difference, every group's blocks, the linear model's nv-term sums).
+template <int N>
+void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const JointGroup& g,
+                      const Eigen::VectorXd& v) {
+  typedef FixedLie<N> L;
+  typedef typename L::Mat Mat;
+  typedef typename L::Vec Vec;
+  const int nv = vm.model->nv, o = g.idx_v;
+  const double dt = vm.dt;
+  VariationalWork& w = nw.w;
+  const QplusLinear& lin = nw.lin;
+  const Vec x0 = dt * Vec(v.template segment<N>(o));
+  const Mat A0 = w.A.block<N, N>(o, o), Jv0 = w.Jv.block<N, N>(o, o), K0 = w.K0.block<N, N>(o, o);
+  Mat dJr[N];
+  L::djr(x0, dJr);
+  const Vec xm = -x0;
+  const Mat Jm = L::jr(xm, L::coefficients(xm));  // Jr(-omega0)
+  w.tmp.noalias() = w.M0 * v;
+  const Vec p = w.tmp.template segment<N>(o);  // (M0 v) on g
+  nw.vp = dt * v;                              // omega0
+  for (int c = 0; c < N; ++c) {
+    const int l = o + c, j = nv + l;
+    bool sq_moves = false, ry_moves = false;
+    nw.dSqj.setZero();
+    nw.dRyj.setZero();
+    for (int k = 0; k < N; ++k) {
+      const double a = dt * Jv0(k, c);
+      if (a == 0.0) continue;
+      if (!lin.dSq_zero[o + k]) nw.dSqj += a * lin.dSq[o + k], sq_moves = true;
+      if (!lin.dRy_zero[o + k]) nw.dRyj += a * lin.dRy[o + k], ry_moves = true;
+    }
+    const Mat dJv = dt * dJr[c];
+    const Mat dK0 = -(K0 * dJv * K0);
+    const Mat dA = -dt * (A0 * L::ad(Jm.col(c)));
+    D_unit(nw.dMq, nv, l, nw.Dl);  // D(q, e_l)
+    // eta rows
+    block_transpose_times(vm.groups, w.K0, nw.Dl, w.P2);
+    if (sq_moves) times_block(vm.groups, nw.dSqj, w.A, nw.X);
+    else nw.X.setZero();
+    nw.X -= w.P2;
+    if (!lin.Sq_zero) nw.X.template middleCols<N>(o).noalias() += lin.Sq0.template middleCols<N>(o) * dA;
+    nw.X.template middleRows<N>(o).noalias() -= dK0.transpose() * nw.Dbase.template middleRows<N>(o);
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j).head(nv) = nw.X.row(i).transpose();
+    // dv rows
+    w.tmp = w.M0.col(l);
+    dKT(vm, w, nw.vp, w.K0, w.tmp, w.S);
+    w.S.block<N, N>(o, o) += group_kt_derivative<N>(x0, p, c, dt * VARIATIONAL_FD_STEP) * dt;
+    if (sq_moves) {
+      times_block(vm.groups, nw.dSqj, w.Jv, nw.X);
+      nw.X *= dt;
+    } else {
+      nw.X.setZero();
+    }
+    if (!lin.Sq_zero) nw.X.template middleCols<N>(o).noalias() += dt * (lin.Sq0.template middleCols<N>(o) * dJv);
+    nw.X.template middleRows<N>(o).noalias() -= dK0.transpose() * w.M0.template middleRows<N>(o);
+    nw.X -= dt * w.S;
+    for (int i = 0; i < nv; ++i) nw.T[i].col(j).segment(nv, nv) = nw.X.row(i).transpose();
+    // y rows: R_y moves only with q+
+    for (int i = 0; i < nv; ++i) {
+      if (ry_moves) nw.T[i].col(j).tail(nv) = nw.dRyj.row(i).transpose();
+      else nw.T[i].col(j).tail(nv).setZero();
+    }
+  }
+}
+
+// R_ww's y-rows of the columns along y for the dofs of one SO(3) or SE(3) group g, with q+ and
+// M1 = M(q+) the base call's (nw.M1b), x1full = -dt y, K1 = K(x1full) and dM/dq at q+ (w.dMdq).
+// R_y = K1^T M1 - dt Kt1 - dt D(q+, y)^T with Kt1 = d/dx[K(x)^T M1 y] at x = -dt y; along y_l
+// (l = o + c) x moves by -dt h e_c on g's block, so dJr1 = -dt dJr(x1)/dx_c, dK1 = -K1 dJr1 K1
+// there, and
+//   d_l R_y = dK1^T M1 - dt d_l Kt1 - dt D(q+, e_l)^T,
+// d_l Kt1 the x-derivative on g's block (group_kt_derivative) plus d/dx[K(x)^T M1 e_l]: one
+// dKT instead of two velocity_jacobian calls of central differences.
+template <int N>
+void y_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const JointGroup& g,
+                     const Eigen::VectorXd& y, const Eigen::VectorXd& x1full, const Eigen::MatrixXd& K1,
+                     Eigen::MatrixXd& R) {
+  typedef FixedLie<N> L;
+  typedef typename L::Mat Mat;
+  typedef typename L::Vec Vec;
+  const int nv = vm.model->nv, o = g.idx_v;
+  const double dt = vm.dt;
+  VariationalWork& w = nw.w;
+  const Vec x1 = x1full.template segment<N>(o);
+  const Mat K1g = K1.block<N, N>(o, o);
+  Mat dJr[N];
+  L::djr(x1, dJr);
+  w.tmp.noalias() = nw.M1b * y;
+  const Vec p1 = w.tmp.template segment<N>(o);
+  for (int c = 0; c < N; ++c) {
+    const int l = o + c, j = 2 * nv + l;
+    D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l)
+    const Mat dK1 = dt * (K1g * dJr[c] * K1g);  // -K1 (-dt dJr) K1
+    w.tmp = nw.M1b.col(l);
+    dKT(vm, w, x1full, K1, w.tmp, w.S);
+    w.S.block<N, N>(o, o) -= group_kt_derivative<N>(x1, p1, c, dt * VARIATIONAL_FD_STEP) * dt;
+    R = -dt * w.S;
+    R.noalias() -= dt * nw.Dl.transpose();
+    R.template middleRows<N>(o).noalias() += dK1.transpose() * nw.M1b.template middleRows<N>(o);
+    for (int i = 0; i < nv; ++i)
+      for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = R(i, a);
+  }
+}
+
+// R_ww after node_first_order (same q, v, y, the same work): nw.T[i](a, j) = d_j J(i, a), J =
+// [R_eta, R_dv, R_y] the analytic Jacobian. Three things are central differences of analytic first
+// derivatives (no nested differences): the kinetic-energy Hessian along q+'s joint directions, the
+// x-derivative of d/dx[K(x)^T p] on an SO(3) or SE(3) group's block (group_kt_derivative), and the
+// whole Jacobian along the root's pose under gravity. Every other term is exact: the product and
+// chain rules on the base call's terms and the tensors dM/dq, d/dq D (mass_tensors).
 void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
                        const Eigen::VectorXd& v, const Eigen::VectorXd& y) {
   const Model& model = *vm.model;
   const int nv = model.nv;
   const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
   VariationalWork& w = nw.w;
-  // R_ww by central differences of the analytic Jacobian along eta and dv: T[i](a, j) = d_j J(i, a).
   // J depends on q+ = q exp(eta) exp(dt (v + dv)) only through Sq = dR/deta+ and R_y (M(q+),
-  // D(q+, y), the kinetic-energy Hessian and the gravity terms). Those are differenced once along
-  // q+'s own nv directions into the first-order model QplusLinear, and each eta or dv difference
-  // then reads them at xi = difference(q+, q+'): the chain rule, which halves the kinetic-energy
-  // Hessians (one per joint direction of q+ and sign, instead of one per joint direction of eta and
-  // of dv and sign). A free-flyer or spherical root's pose moves the mechanism rigidly (local
+  // D(q+, y), the kinetic-energy Hessian and the gravity terms). Those are taken once along q+'s
+  // own nv directions into the first-order model QplusLinear, and each eta or dv column reads them
+  // by the chain rule at xi = difference(q+, q+'), which halves the kinetic-energy Hessians (one per
+  // joint direction of q+ and sign, instead of one per joint direction of eta and of dv and sign). A free-flyer or spherical root's pose moves the mechanism rigidly (local
   // frames, gravity-free model): along it M, D and the kinetic-energy Hessian do not change, only
   // the gravity terms (nothing at all without gravity: those dSq, dRy are exactly zero, skipped).
   // One body: every direction is the root's.
@@ -670,7 +809,6 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   L.Sq0 = w.Sq;
   L.Ry0 = w.Ry;
   nw.M1b = w.M1;
-  nw.D1b = w.D1;
   const Eigen::MatrixXd K1 = w.K1;  // K(-dt y): y is fixed throughout
   // Along the root's pose only the generalised gravity's derivative G(q+) moves (rigid: M, D and
   // the kinetic-energy Hessian do not), and Sq = ... + dt G. G depends on the root's attitude only
@@ -732,26 +870,18 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   L.fixed = true;
   for (int k = 0; k < nv; ++k) L.fixed = L.fixed && L.dSq_zero[k] && L.dRy_zero[k];
   L.Sq_zero = L.fixed && L.Sq0.isZero(0.0);
-  // D(x) = D(q, x) is linear in x: along dv (q the base's) D(q, v +- h e_l) = D(q, v) +- h D(q, e_l),
-  // and along y D(q+, y +- h e_l) = D(q+, y) +- h D(q+, e_l): one first-order RNEA derivative per
-  // direction instead of two (none for one body: D = 0).
-  const bool linear_D = !vm.configuration_free;
-  if (linear_D) nw.Dbase = w.D0;  // the base call's D(q, v)
-  // dD0: D(q, e_j - nv) along a dv direction, so that D(q, v +- h e) = D(q, v) +- h dD0
-  auto difference_along = [&](int j, Keep keep, const Eigen::MatrixXd* dD0 = nullptr) {
+  // D(q, x) is linear in x: along dv (q the base's) it moves by h D(q, e_l) (dv_columns_group)
+  if (!vm.configuration_free) nw.Dbase = w.D0;  // the base call's D(q, v)
+  // central differences of the whole Jacobian along eta_j (the root's pose under gravity)
+  auto difference_along = [&](int j, Keep keep) {
     nw.e.setZero();
     nw.e[j] = h;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    if (dD0) {
-      nw.Dpm = nw.Dbase + h * *dD0;
-      keep.D0_value = &nw.Dpm;
-    }
     residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, keep);
     nw.e = -nw.e;
     pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
-    if (dD0) nw.Dpm = nw.Dbase - h * *dD0;
     residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, keep);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);
     for (int i = 0; i < nv; ++i) nw.T[i].col(j) = nw.Tj.row(i).transpose();
@@ -842,50 +972,35 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
       else nw.T[i].col(j).tail(nv) = dt * L.dRy[l].row(i).transpose();
     }
   }
-  for (int l = 0; l < nv; ++l) {  // dv: q is the base's (M(q) kept; D(q, v) linear in v)
-    if (vm.flat_dof[l]) continue;
-    keep.v_terms = keep.D0 = false;
-    keep.M0 = true;
-    if (linear_D) D_unit(nw.dMq, nv, l, nw.Dl);  // D(q, e_l)
-    difference_along(nv + l, keep, linear_D ? &nw.Dl : nullptr);
+  for (const JointGroup& g : vm.groups) {  // dv along an SO(3) or SE(3) group's dofs
+    if (g.kind == SE3) dv_columns_group<6>(vm, nw, g, v);
+    else if (g.kind == SO3) dv_columns_group<3>(vm, nw, g, v);
   }
-  // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y's columns need
-  // differencing: velocity_jacobian alone (one first-order RNEA derivative per point instead of
-  // residual_jacobian's two mass matrices, two RNEA derivatives, the kinetic-energy Hessian and the
-  // gravity derivatives). The (eta, dv) rows of a y-direction are the mixed partials d_y d_eta R,
-  // d_y d_dv R, already differenced along eta and dv: y is a flat coordinate of R, so they commute
-  // with it (only eta-eta does not: the right-trivialised base point moves), T[i](a, y) = T[i](y, a).
-  w.qn = L.qn;    // the base call's q+,
-  w.M1 = nw.M1b;  // M(q+)
-  auto Ry_at = [&](const Eigen::VectorXd& yy, double sign, Eigen::MatrixXd& out) {
-    w.x = -dt * yy;
-    Kmat(vm, w, w.x, w.K1);
-    if (linear_D) w.D1 = nw.D1b + (sign * h) * nw.Dl;  // D(q+, y +- h e_l), D1b = D(q+, y)
-    else w.D1.setZero();  // one body: D = 0
-    velocity_jacobian(vm, w, w.K1, w.D1, yy, out);
-  };
-  Eigen::MatrixXd &Rp = w.Kx, &Rm = w.Dx;  // the step's scratch, free here
+  // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y = K1^T M1 - dt Kt1 -
+  // dt D(q+, y)^T moves: exactly along a commutative group's dof (below) and along an SO(3) or
+  // SE(3) group's (y_columns_group, where only Kt1's own x-derivative is differenced, on the
+  // group's block). The (eta, dv) rows of a y-direction are the mixed partials d_y d_eta R, d_y
+  // d_dv R, already taken along eta and dv: y is a flat coordinate of R, so they commute with it
+  // (only eta-eta does not: the right-trivialised base point moves), T[i](a, y) = T[i](y, a).
+  Eigen::MatrixXd& R = w.Kx;  // the step's scratch, free here
+  for (int l = 0; l < nv; ++l) {
+    if (!vm.flat_dof[l]) continue;
+    // a dof of a commutative group: K(-dt y) does not move along it and R_y is linear in y there,
+    // d_l R_y = -dt d/dx[K(x)^T M1 e_l]|_(x = -dt y) - dt D(q+, e_l)^T
+    D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l), from the base call's dM/dq at q+
+    w.tmp = nw.M1b.col(l);
+    dKT(vm, w, x1, K1, w.tmp, w.S);
+    R = -dt * w.S;
+    R.noalias() -= dt * nw.Dl.transpose();
+    for (int i = 0; i < nv; ++i)
+      for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, 2 * nv + l) = R(i, a);
+  }
+  for (const JointGroup& g : vm.groups) {
+    if (g.kind == SE3) y_columns_group<6>(vm, nw, g, y, x1, K1, R);
+    else if (g.kind == SO3) y_columns_group<3>(vm, nw, g, y, x1, K1, R);
+  }
   for (int l = 0; l < nv; ++l) {
     const int j = 2 * nv + l;
-    if (linear_D) D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l), from the base call's dM/dq at q+
-    if (vm.flat_dof[l]) {
-      // a dof of a commutative group, exactly: K(-dt y) does not move along it and R_y is linear
-      // in y there, d_l R_y = -dt d/dx[K(x)^T M1 e_l]|_(x = -dt y) - dt D(q+, e_l)^T
-      w.tmp = nw.M1b.col(l);
-      dKT(vm, w, x1, K1, w.tmp, w.S);
-      Rp = -dt * w.S;
-      Rp.noalias() -= dt * nw.Dl.transpose();
-      for (int i = 0; i < nv; ++i)
-        for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = Rp(i, a);
-    } else {
-      nw.yp = y;
-      nw.yp[l] += h;
-      Ry_at(nw.yp, 1.0, Rp);
-      nw.yp[l] = y[l] - h;
-      Ry_at(nw.yp, -1.0, Rm);
-      for (int i = 0; i < nv; ++i)
-        for (int a = 0; a < nv; ++a) nw.T[i](2 * nv + a, j) = (Rp(i, a) - Rm(i, a)) / (2.0 * h);
-    }
     for (int i = 0; i < nv; ++i)
       for (int a = 0; a < 2 * nv; ++a) nw.T[i](a, j) = nw.T[i](j, a);
   }

@@ -8,15 +8,14 @@
 // from a spatial-vector recursion (kinetic_hessian.hpp) instead of central differences of D. So
 // the residual's Jacobian [R_eta, R_dv, R_y] is analytic throughout, and the second-order term
 // R_ww is at most one central difference of it (not the Python oracle's difference of a
-// difference): F2 = -R_y^-1 P^T R_ww P. Along dv and the root's pose the Jacobian is differenced
-// with its q+-dependent parts read from a first-order model differenced once along q+'s own
-// directions (QplusLinear: the chain rule, 2 nv evaluations of them, fewer on a free-flyer or
-// spherical root); along eta's joint directions its columns are exact (M(q) and D(q, v) move with
-// the tensors dM/dq and d/dq D of kinetic_hessian.hpp's recursion at q, q+ through QplusLinear);
-// along y only its R_y columns are differenced (cheap evaluations: q+ does not move), the other
-// entries of those directions being the mixed partials already taken along eta and dv; along dv
-// and y of a commutative joint (vector, SO(2)), where the Jacobian moves linearly, the columns are
-// exact too.
+// difference): F2 = -R_y^-1 P^T R_ww P. Its columns are exact (product and chain rules on the
+// base point's terms) but for three differenced parts: the kinetic-energy Hessian along q+'s own
+// joint directions (QplusLinear: q+'s first-order model, which the eta and dv columns read by the
+// chain rule), the x-derivative of d/dx[K(x)^T p] on each SO(3) or SE(3) group's block (dv and y
+// columns of those groups' dofs), and the whole Jacobian along the root's pose under gravity. Along
+// eta's joint directions M(q) and D(q, v) move with the tensors dM/dq and d/dq D of
+// kinetic_hessian.hpp's recursion at q; along y only R_y moves, the other entries of those
+// directions being the mixed partials already taken along eta and dv.
 //
 // Arrays as in dynamics.hpp: float64, row-major; z = (dq, dv, du), nz = 2 nv + m.
 #pragma once
@@ -90,11 +89,12 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
 
 // The residual Jacobian's q+-dependent parts near a node's q+, to first order: with
 // xi = difference(q+, q+') (nv), Sq(q+') = Sq0 + sum_k xi_k dSq[k] and R_y(q+') = Ry0 + sum_k xi_k dRy[k]
-// (Sq = dR/deta+; y fixed). R_ww's differences along eta and dv move q+ only through these, so
-// their central differences equal those of the exact terms to O(h^2) (variational.cpp,
-// residual_hessians), and q+'s nv directions are taken once instead of each of eta's and dv's:
-// dRy exactly (from the base point's dM/dq and d2tau/dq2), dSq with only its kinetic-energy
-// Hessian and gravity part differenced (exactly along the root's pose).
+// (Sq = dR/deta+; y fixed). R_ww's columns along eta and dv move q+ only through these (the chain
+// rule at d xi; the root's pose under gravity: central differences of the Jacobian, equal to
+// those of the exact terms to O(h^2); variational.cpp, residual_hessians), and q+'s nv directions
+// are taken once instead of each of eta's and dv's: dRy exactly (from the base point's dM/dq and
+// d2tau/dq2), dSq with only its kinetic-energy Hessian and gravity part differenced (exactly along
+// the root's pose).
 struct QplusLinear {
   Eigen::VectorXd qn, xi;
   Eigen::MatrixXd Sq0, Ry0;
@@ -107,14 +107,14 @@ struct QplusLinear {
 // Scratch of variational_node beyond VariationalWork (the second order's buffers).
 struct VariationalNodeWork {
   VariationalWork w;
-  Eigen::VectorXd qp, e, vp, yp;
+  Eigen::VectorXd qp, e, vp;
   Eigen::MatrixXd Rz, F1k, Jm, Tj, Ts, G, CF, stack;
   std::vector<Eigen::MatrixXd> T;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_y;  // R_y at the node
-  Eigen::MatrixXd Dbase, Dl, Dpm;             // D(q, v) at the base point, D(., e_l), D(q, v +- h e_l)
+  Eigen::MatrixXd Dbase, Dl;                  // D(q, v) at the base point, D(., e_l)
   QplusLinear lin;
-  // the base call's M(q+) and D(q+, y); the kinetic-energy Hessian at q+ exp(h e_k)
-  Eigen::MatrixXd M1b, D1b, Hp;
+  // the base call's M(q+); the kinetic-energy Hessian at q+ exp(h e_k)
+  Eigen::MatrixXd M1b, Hp;
   // dM/dq and d2tau/dq2 at (q, 0, v) (nv^3 each, as VariationalWork's at q+): the exact columns of
   // R_ww along eta's joint directions and D(q, e_l) along dv
   std::vector<double> dMq, d2qq;
