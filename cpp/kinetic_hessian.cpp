@@ -152,6 +152,34 @@ inline void dots(const Eigen::Matrix<double, 6, Eigen::Dynamic>& cols, int b, in
 
 }  // namespace
 
+void mass_velocity_derivative(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
+                              const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::MatrixXd& D) {
+  const int nv = model.nv;
+  subtree_terms(model, data, w, q, y);
+  const pinocchio::Data::Matrix6x& X = data.J;  // the world columns xi (subtree_terms)
+  for (int k = 0; k < nv; ++k) {  // per dof: u_k, F_k = Ic_k xi_k, B_k = xi_k x* h_k - Ic_k u_k
+    const int jk = w.joint[k];
+    const V6 xi = X.col(k);
+    const V6 uk = motion_cross(xi, w.V[model.parents[jk]].toVector());
+    w.U.col(k) = uk;
+    w.Fm.col(k) = (w.Ic[jk] * pinocchio::Motion(xi)).toVector();
+    w.Bm.col(k) = force_cross(xi, w.h[jk].toVector()) - (w.Ic[jk] * pinocchio::Motion(uk)).toVector();
+  }
+  D.setZero(nv, nv);
+  for (int k = 0; k < nv; ++k) {
+    const int jk = w.joint[k];
+    // J_k <= J_i (k's subtree, its own joint included): -F_i . u_k; zero on a joint on the universe
+    if (model.parents[jk] != 0) {
+      const V6 uk = w.U.col(k);
+      for (int i = w.first_dof[jk]; i < w.end_dof[jk]; ++i) D(i, k) = -w.Fm.col(i).dot(uk);
+    }
+    // J_i < J_k (the joints strictly above k's): xi_i . B_k
+    const V6 Bk = w.Bm.col(k);
+    for (const auto& run : w.above[jk])
+      for (int i = run.first; i < run.second; ++i) D(i, k) = X.col(i).dot(Bk);
+  }
+}
+
 void mass_tensors(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
                   const Eigen::VectorXd& q, const Eigen::VectorXd& y, double* dM, double* T) {
   const int nv = model.nv;

@@ -100,6 +100,15 @@ void kinetic_hessian(const pinocchio::Model& model, pinocchio::Data& data, Kinet
 void kinetic_gradient(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
                       const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::VectorXd& g);
 
+// D (nv, nv) = D(q, y) = d(M(q) y)/dq, trivialised as Pinocchio's dtau_dq at (q, 0, y) without
+// gravity (the header comment above: -F_i . u_k where k's joint is or supports i's, xi_i . B_k where
+// i's strictly supports k's, else 0, with F_i = Ic_i xi_i), in O(nv depth) 6-vector dot products
+// after the O(nv) recursion: the variational step's D at every Newton iteration and base point,
+// where Pinocchio's RNEA derivatives also form dtau/dv and M. `data` is the model's (its
+// kinematics are overwritten). Same requirement as kinetic_hessian.
+void mass_velocity_derivative(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
+                              const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::MatrixXd& D);
+
 // dM = dM/dq and T = d/dq D(q, y) (nv^3 each, column-major (i, j, k) as Pinocchio's d2tau_dadq and
 // d2tau_dqdq at (q, 0, y) without gravity; the header comment), overwritten. `data` is the model's
 // (its kinematics are overwritten). Same requirement as kinetic_hessian.

@@ -158,6 +158,20 @@ PYBIND11_MODULE(_core, m) {
       "H (nv, nv) = 1/2 d2/dq2 (y^T M(q) y), trivialised: H[k, l] the gradient's k-th entry differenced along\n"
       "q exp(eps e_l) (cpp/kinetic_hessian.hpp); gravity plays no part.");
   m.def(
+      "mass_velocity_derivative",
+      [](py::handle pm, const Arr& q, const Arr& y) {
+        return kinetic_call(pm, q, y, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv) {
+          Eigen::MatrixXd D(model.nv, model.nv);
+          geoddp::dyn::mass_velocity_derivative(model, data, w, qv, yv, D);
+          Arr out({(py::ssize_t)model.nv, (py::ssize_t)model.nv});
+          Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), model.nv, model.nv) = D;
+          return py::object(out);
+        });
+      },
+      py::arg("model"), py::arg("q"), py::arg("y"),
+      "D (nv, nv) = d(M(q) y)/dq, trivialised as Pinocchio's dtau_dq at (q, 0, y) without gravity, by the\n"
+      "spatial-vector recursion of cpp/kinetic_hessian.hpp; gravity plays no part.");
+  m.def(
       "mass_tensors",
       [](py::handle pm, const Arr& q, const Arr& y) {
         return kinetic_call(pm, q, y, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv) {

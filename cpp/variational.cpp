@@ -47,16 +47,17 @@ void mass(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd&
   M.triangularView<Eigen::StrictlyLower>() = M.transpose();
 }
 
-// D(q, x) = d(M(q) x)/dq, right-trivialised: RNEA's dtau/dq at (q, 0, x) without gravity (zero for
-// one body, whose M is constant in its own frame).
+// D(q, x) = d(M(q) x)/dq, right-trivialised as RNEA's dtau/dq at (q, 0, x) without gravity (zero
+// for one body, whose M is constant in its own frame), from the kinetic-energy recursion
+// (kinetic_hessian.hpp's mass_velocity_derivative: O(nv depth) dot products where Pinocchio's RNEA
+// derivatives also formed dtau/dv and M).
 void Dmat(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q, const Eigen::VectorXd& x,
           Eigen::MatrixXd& D) {
   if (vm.configuration_free) {
     D.setZero(vm.model->nv, vm.model->nv);
     return;
   }
-  pinocchio::computeRNEADerivatives(vm.free_model, w.fdata, q, w.zero, x);
-  D = w.fdata.dtau_dq;
+  mass_velocity_derivative(vm.free_model, w.fdata, w.kh, q, x, D);
 }
 
 // Jr(x)^-1 into K (block-diagonal).
@@ -516,7 +517,6 @@ VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), 
     M->resize(nv, nv);
   J.resize(nv, 3 * nv);
   Jp.resize(nv, 3 * nv);
-  zero = Eigen::VectorXd::Zero(nv);
   for (Eigen::VectorXd* v : {&y, &r, &g1, &b, &tmp, &s, &x, &omega, &r0, &rt, &yt, &dy, &xi, &grad}) v->resize(nv);
   dMdq.assign((size_t)nv * nv * nv, 0.0);
   d2q.assign((size_t)nv * nv * nv, 0.0);
