@@ -150,21 +150,30 @@ inline void dots(const Eigen::Matrix<double, 6, Eigen::Dynamic>& cols, int b, in
   for (int i = b; i < e; ++i) out[i] = cols.col(i).dot(f);
 }
 
+// After subtree_terms: per joint Ic as a 6 x 6 matrix (w.Icm), and per dof, as the columns of
+// w.U, w.Fm, w.Bm: u_k = xi_k x V_p(k), F_k = Ic_k xi_k and B_k = xi_k x* h_k - Ic_k u_k (what
+// mass_velocity_derivative and mass_tensors read).
+void dof_terms(const pinocchio::Model& model, const pinocchio::Data& data, KineticHessianWork& w) {
+  for (int j = 1; j < model.njoints; ++j) w.Icm[j] = w.Ic[j].matrix();
+  const pinocchio::Data::Matrix6x& X = data.J;
+  for (int k = 0; k < model.nv; ++k) {
+    const int jk = w.joint[k];
+    const V6 xi = X.col(k);
+    w.U.col(k) = motion_cross(xi, w.V[model.parents[jk]].toVector());
+    w.Fm.col(k).noalias() = w.Icm[jk] * xi;
+    w.Bm.col(k) = force_cross(xi, w.h[jk].toVector());
+    w.Bm.col(k).noalias() -= w.Icm[jk] * w.U.col(k);
+  }
+}
+
 }  // namespace
 
 void mass_velocity_derivative(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
                               const Eigen::VectorXd& q, const Eigen::VectorXd& y, Eigen::MatrixXd& D) {
   const int nv = model.nv;
   subtree_terms(model, data, w, q, y);
+  dof_terms(model, data, w);
   const pinocchio::Data::Matrix6x& X = data.J;  // the world columns xi (subtree_terms)
-  for (int k = 0; k < nv; ++k) {  // per dof: u_k, F_k = Ic_k xi_k, B_k = xi_k x* h_k - Ic_k u_k
-    const int jk = w.joint[k];
-    const V6 xi = X.col(k);
-    const V6 uk = motion_cross(xi, w.V[model.parents[jk]].toVector());
-    w.U.col(k) = uk;
-    w.Fm.col(k) = (w.Ic[jk] * pinocchio::Motion(xi)).toVector();
-    w.Bm.col(k) = force_cross(xi, w.h[jk].toVector()) - (w.Ic[jk] * pinocchio::Motion(uk)).toVector();
-  }
   D.setZero(nv, nv);
   for (int k = 0; k < nv; ++k) {
     const int jk = w.joint[k];
@@ -185,16 +194,8 @@ void mass_tensors(const pinocchio::Model& model, pinocchio::Data& data, KineticH
   const int nv = model.nv;
   const size_t nn = (size_t)nv * nv;
   subtree_terms(model, data, w, q, y);
-  for (int j = 1; j < model.njoints; ++j) w.Icm[j] = w.Ic[j].matrix();
+  dof_terms(model, data, w);
   const pinocchio::Data::Matrix6x& X = data.J;  // the world columns xi (subtree_terms)
-  for (int k = 0; k < nv; ++k) {  // per dof: u_k, F_k = Ic_k xi_k, B_k = xi_k x* h_k - Ic_k u_k
-    const int jk = w.joint[k];
-    const V6 xi = X.col(k);
-    w.U.col(k) = motion_cross(xi, w.V[model.parents[jk]].toVector());
-    w.Fm.col(k).noalias() = w.Icm[jk] * xi;
-    w.Bm.col(k) = force_cross(xi, w.h[jk].toVector());
-    w.Bm.col(k).noalias() -= w.Icm[jk] * w.U.col(k);
-  }
   std::fill(dM, dM + nn * nv, 0.0);
   std::fill(T, T + nn * nv, 0.0);
   // page k: the header comment's cases, by where j (or b) sits: in k's subtree, or strictly above
