@@ -58,6 +58,13 @@ static py::object kinetic_call(py::handle pm, const Arr& q, const Arr& y, Fill&&
   return fill(model, data, w, qv, yv);
 }
 
+// An (nv, nv) Eigen matrix as a new row-major numpy array (the kinetic bindings' matrix results).
+static py::object row_major_array(const Eigen::MatrixXd& X) {
+  Arr out({(py::ssize_t)X.rows(), (py::ssize_t)X.cols()});
+  Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), X.rows(), X.cols()) = X;
+  return py::object(out);
+}
+
 PYBIND11_MODULE(_core, m) {
   m.doc() = "geoddp's compiled kernels: the multibody core over Pinocchio, the satellite's TSO(3) closed forms, the backward passes (C++17)";
   // The extension must run with the pin it was compiled against (pinocchio::Model's layout).
@@ -149,9 +156,7 @@ PYBIND11_MODULE(_core, m) {
         return kinetic_call(pm, q, y, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv) {
           Eigen::MatrixXd H(model.nv, model.nv);
           geoddp::dyn::kinetic_hessian(model, data, w, qv, yv, H);
-          Arr out({(py::ssize_t)model.nv, (py::ssize_t)model.nv});
-          Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), model.nv, model.nv) = H;
-          return py::object(out);
+          return row_major_array(H);
         });
       },
       py::arg("model"), py::arg("q"), py::arg("y"),
@@ -163,9 +168,7 @@ PYBIND11_MODULE(_core, m) {
         return kinetic_call(pm, q, y, [](const auto& model, auto& data, auto& w, const auto& qv, const auto& yv) {
           Eigen::MatrixXd D(model.nv, model.nv);
           geoddp::dyn::mass_velocity_derivative(model, data, w, qv, yv, D);
-          Arr out({(py::ssize_t)model.nv, (py::ssize_t)model.nv});
-          Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data(), model.nv, model.nv) = D;
-          return py::object(out);
+          return row_major_array(D);
         });
       },
       py::arg("model"), py::arg("q"), py::arg("y"),

@@ -513,7 +513,7 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
 
 VariationalWork::VariationalWork(const VariationalModel& vm) : data(*vm.model), fdata(vm.free_model), kh(vm.free_model) {
   const int nv = vm.model->nv, nq = vm.model->nq;
-  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &Hkin, &T, &Sq, &Ry, &Kx, &Dx, &P1, &P2})
+  for (Eigen::MatrixXd* M : {&M0, &M1, &K0, &K1, &D0, &D1, &A, &Jv, &Jr, &Kt, &S, &N, &Hk, &Hkin, &T, &Sq, &Ry, &Kx, &P1, &P2})
     M->resize(nv, nv);
   J.resize(nv, 3 * nv);
   Jp.resize(nv, 3 * nv);

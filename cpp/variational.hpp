@@ -74,7 +74,7 @@ struct VariationalModel {
 struct VariationalWork {
   pinocchio::Data data, fdata;
   KineticHessianWork kh;
-  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, Dx, P1, P2;
+  Eigen::MatrixXd M0, M1, K0, K1, D0, D1, A, Jv, Jr, Kt, S, N, Hk, Hkin, J, Jp, T, Sq, Ry, Kx, P1, P2;
   Eigen::VectorXd qn, y, r, g1, b, tmp, s, x, omega, r0, rt, yt, dy, xi, grad;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   // dM/dq and d/dq D(q+, y) (nv^3 each, column-major as Pinocchio's d2tau_dadq, d2tau_dqdq at
