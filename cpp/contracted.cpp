@@ -155,7 +155,9 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   // sweep (four independent sums per column; Eigen's four gemv calls cost more than their flops)
   r4.resize(4 * (size_t)nn);
   double *rqq = r4.data(), *rvv = rqq + nn, *rqv = rvv + nn, *rdm = rqv + nn;
-  {
+  if (t.recursion) {  // the same four contractions by the recursion, at (q_k, v_k, a_k)
+    dyn::rnea_hessian_at_node(t, k, mu.data(), r4.data());
+  } else {
     const double *Xqq = t.Iqq.data() + k * n3, *Xvv = t.Ivv.data() + k * n3, *Xqv = t.Iqv.data() + k * n3,
                  *Xdm = t.dM.data() + k * n3;
     const double* w = mu.data();

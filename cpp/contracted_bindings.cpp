@@ -27,8 +27,14 @@ void bind_contracted(py::module_& m) {
       "V_x' on demand instead of forming Theta, Gamma, Xi.",
       // local to this module: a second build of _core in the same process (benchmarks/speed_vs_main.py
       // loads another checkout's as geoddp_ref._core) would otherwise fail to register it again
-      py::module_local())
+      py::module_local(),
+      // the terms hold a pointer to the model (the recursion reads it in the pass, rnea_hessian.hpp):
+      // their Python object keeps the model's alive as its attribute _model
+      py::dynamic_attr())
       .def_readonly("N", &SecondOrderTerms::N)
+      .def_readonly("recursion", &SecondOrderTerms::recursion,
+                    "Whether RNEA's second order is contracted in the pass by the recursion (cpp/rnea_hessian.hpp)\n"
+                    "instead of read from Pinocchio's tensors stored per node.")
       .def_readonly("nv", &SecondOrderTerms::nv)
       .def_readonly("m", &SecondOrderTerms::m)
       .def(
@@ -65,7 +71,9 @@ void bind_contracted(py::module_& m) {
           dyn::expansion_contracted(s, Q.data(), V.data(), U.data(), N, threads, Phi.mutable_data(), B.mutable_data(),
                                     *terms);
         }
-        return py::make_tuple(Phi, B, terms);
+        py::object out = py::cast(terms);
+        out.attr("_model") = pm;
+        return py::make_tuple(Phi, B, out);
       },
       py::arg("model"), py::arg("actuation"), py::arg("dt"), py::arg("integrator"), py::arg("Q"), py::arg("V"),
       py::arg("U"), py::arg("threads") = 0,

@@ -13,6 +13,7 @@
 #include <pinocchio/spatial.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <mutex>
 #include <cmath>
 #include <stdexcept>
@@ -20,6 +21,7 @@
 
 #include "lie.hpp"
 #include "one_body.hpp"
+#include "rnea_hessian.hpp"
 #include "pool.hpp"
 #include "rkmk4.hpp"
 #include "variational.hpp"
@@ -695,7 +697,20 @@ void buffer_give(double* p, size_t n) {
   for (double* d : drop) delete[] d;
 }
 
-void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_) {
+namespace {
+std::atomic<bool> RECURSION{true};
+std::atomic<unsigned long long> TERMS_ID{0};
+}  // namespace
+
+void set_rnea_hessian_recursion(bool on) { RECURSION = on; }
+bool rnea_hessian_recursion() { return RECURSION; }
+
+void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, bool semi_, bool variational_,
+                              bool recursion_) {
+  const Model& model = model_;
+  this->model = &model_;
+  id = ++TERMS_ID;
+  recursion = recursion_ && !variational_;
   N = N_;
   nv = model.nv;
   m = m_;
@@ -712,7 +727,8 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
     gD += g.nv * g.nv * g.nv;
     gW += g.nv * nz;
   }
-  const size_t n3 = variational ? 0 : (size_t)N * nv * nv * nv;
+  const size_t n3 = variational || recursion ? 0 : (size_t)N * nv * nv * nv;
+  rnea.resize(recursion ? (size_t)N * rnea_hessian_node_size(model) : 0);
   for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
   Minv.resize((size_t)N * nv * nv);
   az.resize(variational ? 0 : (size_t)N * nv * nz);
@@ -722,6 +738,44 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
   Dsym.resize((size_t)N * gD);
   As.resize((size_t)N * gJ);
   JWs.resize((size_t)N * gW);
+}
+
+// What a Data and RneaHessianWork depend on: the tree's shape and its joints' kinds.
+static std::vector<int> model_structure(const Model& model) {
+  std::vector<int> x{model.njoints, model.nq, model.nv};
+  for (int j = 0; j < model.njoints; ++j) {
+    x.push_back((int)model.parents[j]);
+    x.push_back(model.nvs[j]);
+    x.push_back(model.nqs[j]);
+    x.push_back(model.joints[j].toVariant().which());
+  }
+  return x;
+}
+
+void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4) {
+  // One work (and Data) per thread: the pass may contract on the pool's second worker, and two
+  // passes may run side by side (ladder.hpp's speculation). Every linearisation makes new terms
+  // (a new id); a work is rebuilt only if their model is another (a Data costs more than a node).
+  struct Cache {
+    std::unique_ptr<RneaHessianWork> work;
+    const Model* model = nullptr;
+    std::vector<int> structure;
+    unsigned long long served = 0;
+  };
+  thread_local Cache c;
+  const Model& model = *t.model;
+  if (c.served != t.id) {
+    std::vector<int> structure = model_structure(model);
+    if (!c.work || c.model != &model || c.structure != structure) {
+      c.work = std::make_unique<RneaHessianWork>(model);
+      c.model = &model;
+      c.structure = std::move(structure);
+    }
+    c.served = t.id;
+  }
+  const size_t nn = (size_t)model.nv * model.nv;
+  rnea_hessian_contract(model, *c.work, t.rnea.data() + (size_t)k * rnea_hessian_node_size(model), mu, r4, r4 + nn,
+                        r4 + 2 * nn, r4 + 3 * nn);
 }
 
 // Node k's reconstruction group blocks (Jr, As, JWs, Dsym) into t, from block_ad_jr's A, Jr, D
@@ -763,15 +817,16 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
   // reconstruction is explicit Euler's, so the group blocks below are those of euler
   const std::unique_ptr<VariationalModel> vmod =
       s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
-  t.resize(model, m, N, dt, semi, vmod != nullptr);
+  const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, !vmod);
+  t.resize(model, m, N, dt, semi, vmod != nullptr, !vmod && !one_body && rnea_hessian_recursion());
   t.variational_separable = vmod && vmod->configuration_free;
   const std::vector<JointGroup> groups = joint_groups(model);
   CMatMap Hm(s.H, nv, m);
   const size_t n3 = (size_t)nv * nv * nv, nts = (size_t)variational_upper_size(nv) * nv;
-  const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, !vmod);
   parallel_for(N, threads, [&](int b0, int e0, int) {
     const std::unique_ptr<NodeWork> ew = vmod ? nullptr : std::make_unique<NodeWork>(model, m);
     const std::unique_ptr<VariationalNodeWork> vw = vmod ? std::make_unique<VariationalNodeWork>(*vmod) : nullptr;
+    const std::unique_ptr<RneaHessianWork> rw = t.recursion ? std::make_unique<RneaHessianWork>(model) : nullptr;
     RowMat F1(nv, nz), W1(nv, nz), JW(nv, nz), G1(n, nz);
     RowMat A(nv, nv), Jr(nv, nv);
     std::vector<double> Dt((size_t)nv * nv * nv);
@@ -799,6 +854,9 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
         if (one_body) {
           one_body->at(w.q.data(), t.Iqq.data() + k * n3, t.Ivv.data() + k * n3, t.Iqv.data() + k * n3,
                        t.dM.data() + k * n3);
+        } else if (t.recursion) {  // contracted in the pass (rnea_hessian.hpp): its mu-free terms
+          rnea_hessian_node(model, *rw, w.q.data(), w.v.data(), w.a.data(),
+                            t.rnea.data() + (size_t)k * rnea_hessian_node_size(model));
         } else {
           pinocchio_second_order(model, w.data, w.q, w.v, w.a, t.Iqq.data() + k * n3, t.Ivv.data() + k * n3,
                                  t.Iqv.data() + k * n3, t.dM.data() + k * n3);

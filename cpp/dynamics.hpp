@@ -159,15 +159,37 @@ struct SecondOrderTerms {
   int N = 0, nv = 0, m = 0;
   double dt = 0.0;
   bool semi = false, variational = false;
+  // RNEA's contracted second derivatives come from the recursion of rnea_hessian.hpp inside the pass,
+  // from each node's mu-free terms (rnea, N x rnea_hessian_node_size doubles, made by the expansion
+  // in parallel), instead of Pinocchio's tensors Iqq, Ivv, Iqv, dM (left empty): every articulated
+  // model with an Euler scheme, unless set_rnea_hessian_recursion(false). `model` is the
+  // expansion's, `id` new at every resize (the pass's per-thread work is kept per id).
+  bool recursion = false;
+  const Model* model = nullptr;
+  unsigned long long id = 0;
   // The variational step of one body (VariationalModel::configuration_free): R_y depends on y alone,
   // so the residual Hessians' (eta, dv)-y blocks are exactly zero and the contraction skips them.
   bool variational_separable = false;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
-  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts;
+  Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts, rnea;
   int nz() const { return 2 * nv + m; }
-  void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false);
+  void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false,
+              bool recursion_ = false);
 };
+
+// Whether expansion_contracted leaves RNEA's second order to the recursion of rnea_hessian.hpp
+// (default) or stores Pinocchio's tensors (ComputeRNEASecondOrderDerivatives per node), for every
+// articulated model with an Euler scheme; one-body models keep their shortcut (one_body.hpp). The
+// two agree to round-off (tests/test_core_rnea_hessian.py); the switch is for tests and benchmarks.
+void set_rnea_hessian_recursion(bool on);
+bool rnea_hessian_recursion();
+
+// For the contracted pass (t.recursion): RNEA's second derivatives at node k contracted with mu (nv)
+// by the recursion of rnea_hessian.hpp, from the node's stored terms, into r4 (4 nv^2, each
+// (nv, nv) column-major: sum_i mu_i X(i, j, l) at j + nv l for X = d2tau_dqdq, d2tau_dvdv,
+// d2tau_dqdv, d2tau_dadq). Keeps one work and Data per thread and set of terms (rnea_hessian.cpp).
+void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4);
 
 // Phi (N, n, n), B (N, n, m) exactly as expansion(order=1), and the factored second-order terms.
 void expansion_contracted(const Setup& s, const double* Q, const double* V, const double* U, int N, int threads,

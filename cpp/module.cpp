@@ -14,6 +14,7 @@
 #include "contracted.hpp"
 #include "dynamics.hpp"
 #include "kinetic_hessian.hpp"
+#include "rnea_hessian.hpp"
 #include "lie.hpp"
 #include "pin_model.hpp"
 #include "pool.hpp"
@@ -135,6 +136,37 @@ PYBIND11_MODULE(_core, m) {
       py::arg("model"), py::arg("q"), py::arg("v"), py::arg("a"), py::arg("one_body"),
       "(d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq), each (nv, nv, nv) indexed (i, j, k) as Pinocchio's;\n"
       "with one_body, from the one-body shortcut the expansions use (cpp/one_body.hpp).");
+  m.def(
+      "rnea_hessian",
+      [](py::handle pm, const Arr& q, const Arr& v, const Arr& a, const Arr& mu) {
+        // For the tests: RNEA's second derivatives contracted with mu by the recursion the
+        // contracted pass runs (cpp/rnea_hessian.hpp)
+        const pinocchio::Model& model = geoddp::model_from_python(pm);
+        check_shape(q, {model.nq}, "q");
+        check_shape(v, {model.nv}, "v");
+        check_shape(a, {model.nv}, "a");
+        check_shape(mu, {model.nv}, "mu");
+        geoddp::joint_groups(model);  // refuses, by name, a joint whose motion subspace moves
+        const py::ssize_t nv = model.nv;
+        // each (nv, nv) column-major, entry (j, l) at j + nv l: numpy's Fortran order
+        std::vector<py::ssize_t> shape{nv, nv}, strides{8, 8 * nv};
+        py::array_t<double> Hqq(shape, strides), Hvv(shape, strides), Hqv(shape, strides), Dm(shape, strides);
+        {
+          py::gil_scoped_release release;
+          geoddp::dyn::RneaHessianWork w(model);
+          geoddp::dyn::rnea_hessian(model, w, q.data(), v.data(), a.data(), mu.data(), Hqq.mutable_data(),
+                                    Hvv.mutable_data(), Hqv.mutable_data(), Dm.mutable_data());
+        }
+        return py::make_tuple(Hqq, Hvv, Hqv, Dm);
+      },
+      py::arg("model"), py::arg("q"), py::arg("v"), py::arg("a"), py::arg("mu"),
+      "(Hqq, Hvv, Hqv, Dm), each (nv, nv): sum_i mu_i X(i, j, l) for Pinocchio's second-order RNEA tensors\n"
+      "X = d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq at (q, v, a), by the recursion of cpp/rnea_hessian.hpp.");
+  m.def("set_rnea_hessian_recursion", &geoddp::dyn::set_rnea_hessian_recursion, py::arg("on"),
+        "Whether the contracted pass takes RNEA's second order from the recursion (True, the default) or from\n"
+        "Pinocchio's tensors stored per node (False): for tests and benchmarks; the two agree to round-off.");
+  m.def("rnea_hessian_recursion", &geoddp::dyn::rnea_hessian_recursion,
+        "Whether the contracted pass takes RNEA's second order from the recursion (cpp/rnea_hessian.hpp).");
   m.def("one_body_applies", [](py::handle pm) { return geoddp::dyn::one_body_applies(geoddp::model_from_python(pm)); },
         py::arg("model"), "Whether the expansions take RNEA's second-order tensors from the one-body shortcut.");
   m.def(
