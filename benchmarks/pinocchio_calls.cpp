@@ -3,8 +3,10 @@
 // instantiation inside the pin wheel's libpinocchio_default (called through Eigen::Ref arguments),
 // computeABADerivatives (the first-order expansion) and ComputeRNEASecondOrderDerivatives (the
 // exact second-order expansion), and geoddp's kinetic-energy Hessian (cpp/kinetic_hessian.cpp, the
-// variational step's second order) against the second-order RNEA it replaces at (q, 0, y). Built
-// and run by benchmarks/pinocchio_calls.py.
+// variational step's second order) against the second-order RNEA it replaces at (q, 0, y), and
+// RNEA's second order contracted with mu by the recursion (cpp/rnea_hessian.cpp, the contracted
+// pass's, since 2026-12-01) against that RNEA, whole and its part in the pass. Built and run by
+// benchmarks/pinocchio_calls.py.
 //
 // Models are built here, with random inertias and joint placements (seeded), in the shapes of the
 // benchmark cases: a single free-flying body (nv 6: the docking spacecraft, the quadrotors), a
@@ -18,6 +20,7 @@
 #include <pinocchio/multibody.hpp>
 
 #include "kinetic_hessian.cpp"
+#include "rnea_hessian.cpp"
 
 #include <algorithm>
 #include <chrono>
@@ -64,8 +67,9 @@ int main() {
   std::printf("| model | aba, this program -O2 (us) | aba, the wheel's (us) | wheel / -O2 | computeABADerivatives (us) | "
               "ComputeRNEASecondOrderDerivatives (us) | RNEA second order / ABA derivatives | "
               "kinetic_hessian (us) | RNEA second order at (q, 0, y) / kinetic_hessian | mass_tensors (us) | "
-              "RNEA second order at (q, 0, y) / mass_tensors |\n");
-  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+              "RNEA second order at (q, 0, y) / mass_tensors | rnea_hessian (us) | RNEA second order / rnea_hessian | "
+              "of which in the pass: rnea_hessian_contract (us) |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const Case& c : cases) {
     const Model model = build(c.ff, c.joints);
     Data data(model);
@@ -77,6 +81,10 @@ int main() {
     geoddp::dyn::KineticHessianWork kw(model);
     Eigen::MatrixXd H(model.nv, model.nv);
     std::vector<double> dM((size_t)model.nv * model.nv * model.nv), T(dM.size());
+    geoddp::dyn::RneaHessianWork rw(model);
+    const Eigen::VectorXd mu = Eigen::VectorXd::Random(model.nv);
+    std::vector<double> r4(4 * (size_t)model.nv * model.nv);
+    const size_t nn = (size_t)model.nv * model.nv;
     const int reps = model.nv > 10 ? 2000 : 10000;
     std::vector<std::function<void()>> calls = {
         [&] { aba(model, data, q, v, tau); },                          // instantiated here (plain VectorXd)
@@ -86,6 +94,12 @@ int main() {
         [&] { ComputeRNEASecondOrderDerivatives(model, data, q, zero, v); },  // what the variational step ran
         [&] { geoddp::dyn::kinetic_hessian(model, data, kw, q, v, H); },
         [&] { geoddp::dyn::mass_tensors(model, data, kw, q, v, dM.data(), T.data()); },  // its tensors
+        // RNEA's second order contracted with mu (cpp/rnea_hessian.hpp), what the contracted pass runs
+        [&] { geoddp::dyn::rnea_hessian(model, rw, q.data(), v.data(), a.data(), mu.data(), r4.data(), r4.data() + nn,
+                                        r4.data() + 2 * nn, r4.data() + 3 * nn); },
+        // its part that needs mu, which the pass runs (the rest runs in the expansion, node-parallel)
+        [&] { geoddp::dyn::rnea_hessian_contract(model, rw, rw.node.data(), mu.data(), r4.data(), r4.data() + nn,
+                                                 r4.data() + 2 * nn, r4.data() + 3 * nn); },
     };
     std::vector<std::vector<double>> t(calls.size());
     for (int round = 0; round < 8; ++round)
@@ -97,9 +111,9 @@ int main() {
         if (round > 0) t[i].push_back(us);  // round 0 warms up
       }
     const double a_here = median(t[0]), a_lib = median(t[1]), dab = median(t[2]), so = median(t[3]);
-    const double so_y = median(t[4]), kh = median(t[5]), mt = median(t[6]);
-    std::printf("| %s | %.2f | %.2f | %.2fx | %.2f | %.2f | %.1fx | %.2f | %.1fx | %.2f | %.1fx |\n", c.name, a_here, a_lib,
-                a_lib / a_here, dab, so, so / dab, kh, so_y / kh, mt, so_y / mt);
+    const double so_y = median(t[4]), kh = median(t[5]), mt = median(t[6]), rh = median(t[7]), rc = median(t[8]);
+    std::printf("| %s | %.2f | %.2f | %.2fx | %.2f | %.2f | %.1fx | %.2f | %.1fx | %.2f | %.1fx | %.2f | %.1fx | %.2f |\n",
+                c.name, a_here, a_lib, a_lib / a_here, dab, so, so / dab, kh, so_y / kh, mt, so_y / mt, rh, so / rh, rc);
   }
   return 0;
 }

@@ -10,7 +10,10 @@ Pinocchio sets under the second-order expansion's cost relative to the first-ord
 two columns time geoddp's kinetic-energy Hessian (cpp/kinetic_hessian.cpp) against the
 second-order RNEA at (q, 0, y) from which the variational step had contracted it, and the last two
 its tensors dM/dq and d/dq D(q, y) (mass_tensors, the same file) against that RNEA, which had
-given them at the variational step's base points.
+given them at the variational step's base points. The last three: RNEA's second order contracted
+with a vector by the recursion (cpp/rnea_hessian.cpp) against ComputeRNEASecondOrderDerivatives at
+(q, v, a), which the contracted pass's expansion had run per node, and the recursion's part that
+needs the vector (rnea_hessian_contract), which runs in the pass.
 Needs g++ and the build requirements; the compile takes about 90 s.
 
     python benchmarks/pinocchio_calls.py
