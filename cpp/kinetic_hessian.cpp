@@ -2,6 +2,7 @@
 // spatial-vector recursions (kinetic_hessian.hpp).
 // Included by core_algorithms.cpp (the translation unit of Pinocchio's algorithm instantiations).
 #include "kinetic_hessian.hpp"
+#include "spatial.hpp"
 
 #include <pinocchio/algorithm/jacobian.hpp>
 
@@ -116,22 +117,9 @@ void kinetic_hessian(const pinocchio::Model& model, pinocchio::Data& data, Kinet
 
 namespace {
 
-typedef Eigen::Matrix<double, 6, 1> V6;
-
-// Spatial products on plain 6-vectors ([linear; angular], Pinocchio's order): a x b for motions,
-// a x* f of a motion on a force.
-inline V6 motion_cross(const V6& a, const V6& b) {
-  V6 r;
-  r.head<3>() = a.tail<3>().cross(b.head<3>()) + a.head<3>().cross(b.tail<3>());
-  r.tail<3>() = a.tail<3>().cross(b.tail<3>());
-  return r;
-}
-inline V6 force_cross(const V6& a, const V6& f) {
-  V6 r;
-  r.head<3>() = a.tail<3>().cross(f.head<3>());
-  r.tail<3>() = a.head<3>().cross(f.head<3>()) + a.tail<3>().cross(f.tail<3>());
-  return r;
-}
+typedef spatial::V6 V6;
+using spatial::force_cross;
+using spatial::motion_cross;
 
 // out[i * stride] = scale cols(i) . f (6 x nv `cols`) for the dofs i of `runs` within [lo, hi):
 // fixed-size 6-vector dot products (a dynamic-size product per run dispatched and allocated more

@@ -1,6 +1,7 @@
 // RNEA's second derivatives contracted with mu by a spatial-vector recursion (rnea_hessian.hpp).
 // Included by core_algorithms.cpp (the translation unit of Pinocchio's algorithm instantiations).
 #include "rnea_hessian.hpp"
+#include "spatial.hpp"
 
 #include <pinocchio/algorithm/jacobian.hpp>
 
@@ -14,20 +15,9 @@ namespace {
 typedef RneaHessianWork::V6 V6;
 typedef RneaHessianWork::M6 M6;
 
-// Spatial products on plain 6-vectors ([linear; angular]): a x b of motions, a x* f of a motion on
-// a force.
-inline V6 mcross(const V6& a, const V6& b) {
-  V6 r;
-  r.head<3>() = a.tail<3>().cross(b.head<3>()) + a.head<3>().cross(b.tail<3>());
-  r.tail<3>() = a.tail<3>().cross(b.tail<3>());
-  return r;
-}
-inline V6 fcross(const V6& a, const V6& f) {
-  V6 r;
-  r.head<3>() = a.tail<3>().cross(f.head<3>());
-  r.tail<3>() = a.head<3>().cross(f.head<3>()) + a.tail<3>().cross(f.tail<3>());
-  return r;
-}
+// a x b of motions, a x* f of a motion on a force
+inline V6 mcross(const V6& a, const V6& b) { return spatial::motion_cross(a, b); }
+inline V6 fcross(const V6& a, const V6& f) { return spatial::force_cross(a, f); }
 
 // -((V x)^T I + I (V x)): the symmetric 6 x 6 matrix with <m, N n> = -<V x m, I n> - <m, I (V x n)>
 // for the motion V = [v; w], whose cross-product matrix is X = [[w^, v^], [0, w^]]: I X from the
