@@ -117,7 +117,9 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
 //   P_i(j, b) = sum_l dM(i, l, j) a_z(l, b) on the q rows j (dynamics.cpp, node_derivatives). The
 //   semi-implicit reconstruction adds dt Jr F2 to the q rows, so both contract with
 //   c = lv + [semi] dt Jr^T lq, and sum_p c_p F2_p = sum_i mu_i T_i with mu = -dt Minv c;
-//   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) are mu^T times Pinocchio's column-major tensors;
+//   sum_i mu_i ID_zz,i and sum_i mu_i dM(i, ., .) come from the recursion of rnea_hessian.hpp
+//   (t.recursion: articulated models) or are mu^T times Pinocchio's column-major tensors (one body,
+//   or set_rnea_hessian_recursion(false));
 //   for the variational step (t.variational) v+ is implicit instead: variational_upper;
 // * reconstruction rows of each SO(3)/SE(3) group s (reconstruction_upper): dt^2 W_s^T (sum_p lq_p Dsym_p) W_s and
 //   Ml = dt/2 As^T (sum_p lq_p C_p) JWs on the group's q rows plus its transpose (the dense
@@ -155,7 +157,7 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   // sweep (four independent sums per column; Eigen's four gemv calls cost more than their flops)
   r4.resize(4 * (size_t)nn);
   double *rqq = r4.data(), *rvv = rqq + nn, *rqv = rvv + nn, *rdm = rqv + nn;
-  if (t.recursion) {  // the same four contractions by the recursion, at (q_k, v_k, a_k)
+  if (t.recursion) {  // the same four contractions by the recursion, from node k's stored terms
     dyn::rnea_hessian_at_node(t, k, mu.data(), r4.data());
   } else {
     const double *Xqq = t.Iqq.data() + k * n3, *Xvv = t.Ivv.data() + k * n3, *Xqv = t.Iqv.data() + k * n3,
