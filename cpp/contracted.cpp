@@ -159,6 +159,20 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   double *rqq = r4.data(), *rvv = rqq + nn, *rqv = rvv + nn, *rdm = rqv + nn;
   if (t.recursion) {  // the same four contractions by the recursion, from node k's stored terms
     dyn::rnea_hessian_at_node(t, k, mu.data(), r4.data());
+  } else if (t.one_body) {  // one body: Ivv constant, Iqq only under gravity, Iqv = dM = 0
+    const double *Xqq = t.one_body_gravity ? t.Iqq.data() + k * n3 : nullptr, *Xvv = t.Ivv.data();
+    const double* w = mu.data();
+    for (int col = 0; col < nn; ++col) {
+      const size_t o = (size_t)col * nv;
+      double a = 0.0, b = 0.0;
+      for (int i = 0; i < nv; ++i) b += Xvv[o + i] * w[i];
+      if (Xqq)
+        for (int i = 0; i < nv; ++i) a += Xqq[o + i] * w[i];
+      rqq[col] = a;
+      rvv[col] = b;
+      rqv[col] = 0.0;
+      rdm[col] = 0.0;
+    }
   } else {
     const double *Xqq = t.Iqq.data() + k * n3, *Xvv = t.Ivv.data() + k * n3, *Xqv = t.Iqv.data() + k * n3,
                  *Xdm = t.dM.data() + k * n3;
@@ -189,6 +203,10 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   }
   // Y(l, j) = sum_i mu_i dM(i, l, j); R = Y^T a_z (nv, nz) on the q rows, and its transpose on the
   // q columns: upper entries S(j, b) += R(j, b) (b >= j) + R(b, j) (b < nv). rdm read row-major is Y^T.
+  if (t.one_body) {  // dM = 0: no (q, z) terms
+    reconstruction_upper(t, k, lq, S);
+    return;
+  }
   R.resize((size_t)nv * nz);
   gemm::gemm(false, nv, nz, nv, 1.0, rdm, nv, t.az.data() + (size_t)k * nv * nz, nz, false, R.data(), nz);
   for (int j = 0; j < nv; ++j) {

@@ -706,11 +706,13 @@ void set_rnea_hessian_recursion(bool on) { RECURSION = on; }
 bool rnea_hessian_recursion() { return RECURSION; }
 
 void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, bool semi_, bool variational_,
-                              bool recursion_) {
+                              bool recursion_, bool one_body_, bool one_body_gravity_) {
   const Model& model = model_;
   this->model = &model_;
   id = ++TERMS_ID;
   recursion = recursion_ && !variational_;
+  one_body = one_body_ && !variational_ && !recursion;
+  one_body_gravity = one_body && one_body_gravity_;
   N = N_;
   nv = model.nv;
   m = m_;
@@ -729,9 +731,16 @@ void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, b
   }
   const size_t n3 = variational || recursion ? 0 : (size_t)N * nv * nv * nv;
   rnea.resize(recursion ? (size_t)N * rnea_hessian_node_size(model) : 0);
-  for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
+  if (one_body) {
+    Iqq.resize(one_body_gravity ? n3 : 0);
+    Ivv.resize((size_t)nv * nv * nv);
+    Iqv.resize(0);
+    dM.resize(0);
+  } else {
+    for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
+  }
   Minv.resize((size_t)N * nv * nv);
-  az.resize(variational ? 0 : (size_t)N * nv * nz);
+  az.resize(variational || one_body ? 0 : (size_t)N * nv * nz);  // one body: read only with dM = 0
   Ts.resize(variational ? (size_t)N * variational_upper_size(nv) * nv : 0);
   F1.resize((size_t)N * nv * nz);
   Jr.resize((size_t)N * gJ);
@@ -818,7 +827,9 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
   const std::unique_ptr<VariationalModel> vmod =
       s.integrator == VARIATIONAL ? std::make_unique<VariationalModel>(model, s.H, m, dt) : nullptr;
   const std::unique_ptr<OneBodySecondOrder> one_body = one_body_for(model, !vmod);
-  t.resize(model, m, N, dt, semi, vmod != nullptr, !vmod && !one_body && rnea_hessian_recursion());
+  t.resize(model, m, N, dt, semi, vmod != nullptr, !vmod && !one_body && rnea_hessian_recursion(), one_body != nullptr,
+           one_body && one_body->with_gravity());
+  if (t.one_body) std::copy(one_body->d2tau_dvdv().begin(), one_body->d2tau_dvdv().end(), t.Ivv.data());
   t.variational_separable = vmod && vmod->configuration_free;
   const std::vector<JointGroup> groups = joint_groups(model);
   CMatMap Hm(s.H, nv, m);
@@ -851,9 +862,8 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
         NodeWork& w = *ew;
         // the velocity update's second order: RNEA's tensors at (q, v, a), as node_derivatives uses
         // them (the one-body shortcut writes them in place); the variational step's are written above
-        if (one_body) {
-          one_body->at(w.q.data(), t.Iqq.data() + k * n3, t.Ivv.data() + k * n3, t.Iqv.data() + k * n3,
-                       t.dM.data() + k * n3);
+        if (one_body) {  // d2tau_dqdq only (the rest is zero or constant, stored once above)
+          if (t.one_body_gravity) one_body->dqdq_at(w.q.data(), t.Iqq.data() + k * n3);
         } else if (t.recursion) {  // contracted in the pass (rnea_hessian.hpp): its mu-free terms
           rnea_hessian_node(model, *rw, w.q.data(), w.v.data(), w.a.data(),
                             t.rnea.data() + (size_t)k * rnea_hessian_node_size(model));
@@ -862,10 +872,12 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
                                  t.Iqv.data() + k * n3, t.dM.data() + k * n3);
         }
         MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
-        MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);
-        azk.leftCols(nv) = w.aq;
-        azk.middleCols(nv, nv) = w.av;
-        azk.rightCols(m) = w.au;
+        if (!t.one_body) {
+          MatMap azk(t.az.data() + (size_t)k * nv * nz, nv, nz);
+          azk.leftCols(nv) = w.aq;
+          azk.middleCols(nv, nv) = w.av;
+          azk.rightCols(m) = w.au;
+        }
       }
       MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = F1;
       store_group_blocks(groups, t, k, Jr, A, JW, Dt, nv, nz);

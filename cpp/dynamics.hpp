@@ -167,6 +167,10 @@ struct SecondOrderTerms {
   bool recursion = false;
   const Model* model = nullptr;
   unsigned long long id = 0;
+  // One body on a free-flyer or spherical root (one_body.hpp): d2tau_dqdv = d2tau_dadq = 0 and
+  // d2tau_dvdv constant, so Iqv and dM are left empty, Ivv holds the one constant tensor (nv^3),
+  // and Iqq holds one tensor per node with gravity (one_body_gravity) and is empty without.
+  bool one_body = false, one_body_gravity = false;
   // The variational step of one body (VariationalModel::configuration_free): R_y depends on y alone,
   // so the residual Hessians' (eta, dv)-y blocks are exactly zero and the contraction skips them.
   bool variational_separable = false;
@@ -175,7 +179,7 @@ struct SecondOrderTerms {
   Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts, rnea;
   int nz() const { return 2 * nv + m; }
   void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false,
-              bool recursion_ = false);
+              bool recursion_ = false, bool one_body_ = false, bool one_body_gravity_ = false);
 };
 
 // Whether expansion_contracted leaves RNEA's second order to the recursion of rnea_hessian.hpp

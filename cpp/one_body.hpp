@@ -78,6 +78,16 @@ class OneBodySecondOrder {
     std::copy(Ivv_.begin(), Ivv_.end(), Ivv);
     std::fill(Iqv, Iqv + n3, 0.0);
     std::fill(dM, dM + n3, 0.0);
+    dqdq_at(q, Iqq);
+  }
+
+  // Whether d2tau_dqdq is nonzero (gravity on); d2tau_dqdv and d2tau_dadq are always zero.
+  bool with_gravity() const { return with_gravity_; }
+  // The constant d2tau_dvdv (nv^3, column-major).
+  const std::vector<double>& d2tau_dvdv() const { return Ivv_; }
+  // d2tau_dqdq alone at configuration q (what at() writes into Iqq); zero without gravity.
+  void dqdq_at(const double* q, double* Iqq) const {
+    const size_t n3 = (size_t)nv_ * nv_ * nv_;
     if (!with_gravity_) {
       std::fill(Iqq, Iqq + n3, 0.0);
       return;
