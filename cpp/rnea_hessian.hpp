@@ -29,10 +29,23 @@
 // * differentiating those again by the same rule (each composite turns with the subtree and
 //   deviates by what its bodies' W, V, A deviate; the 6 x 6 composites N = -sum ((V_i x)^T I_i +
 //   I_i (V_i x)) and NW (the same with W_i) carry the bilinear parts) gives every entry as at most
-//   three 6-vector dot products between per-dof vectors (rnea_hessian.cpp lists them):
-//     l's joint L is or supports J:  Hqq(k, l) = -<dF_k, t_l> - <dP_k, s'_l> + <cu_k, u_l>,
-//                                    Dm(k, l) = -<Ic_J xi_k, t_l>, and Hqv, Hvv likewise;
-//     J strictly supports L:         Hqq(k, l) = -<t_k, dF_l> - <s'_k, dP_l> - <u_k, dY_l>, ...;
+//   three 6-vector dot products between per-dof vectors. Per dof k (joint J, parent p), with
+//   z_k = xi_k x (V_J + V_p), b_k = xi_k x* P_J and the composites of J:
+//     dF_k  = xi_k x* F - u_k x* H - Ic s'_k - N u_k        (F's rate along q_k)
+//     dP_k  = b_k - Ic t_k                                   (P's)
+//     g_k   = t_k x* H - N t_k + NW u_k,
+//     dY_k  = xi_k x* Y - u_k x* P + g_k                      (Y's)
+//     dFv_k = xi_k x* H + N xi_k - Ic z_k,  dYv_k = b_k - NW xi_k   (F's and Y's along v_k)
+//     e1_k  = g_k + u_k x* P,  e2_k = V_p x* b_k - xi_k x* (V_p x* P) - u_k x* P + xi_k x* Y,
+//     cu_k  = -(e1_k + e2_k);
+//   then, for the pairs:
+//     L (l's joint) strictly supports J:
+//       Hqq(k, l) = -<dF_k, t_l> - <dP_k, s'_l> + <cu_k, u_l>,  Dm(k, l) = -<Ic_J xi_k, t_l>,
+//       Hqv(k, l) = <xi_l, e1_k + e2_k> + <z_l, Ic_J t_k - b_k>,  Hvv(k, l) = <xi_l, b_k - NW_J xi_k>;
+//     L = J: the same without e2_k, b_k in Hqv and b_k in Hvv;
+//     J strictly supports L:
+//       Hqq(k, l) = -<t_k, dF_l> - <s'_k, dP_l> - <u_k, dY_l>,  Dm(k, l) = <xi_k, dP_l>,
+//       Hqv(k, l) = -<t_k, dFv_l> - <u_k, dYv_l>,  Hvv(k, l) = <xi_k, dYv_l>;
 //     otherwise 0.
 // Checked against Pinocchio's second-order RNEA contracted with mu (1e-12) and central differences
 // of Pinocchio's analytic first derivatives (1e-7) in tests/test_core_rnea_hessian.py, on the
