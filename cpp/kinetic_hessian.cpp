@@ -12,27 +12,9 @@ namespace geoddp {
 namespace dyn {
 
 KineticHessianWork::KineticHessianWork(const pinocchio::Model& model)
-    : V(model.njoints), h(model.njoints), Ic(model.njoints), xi(model.nv), u(model.nv), A(model.nv), A0(model.nv),
-      B(model.nv), w(model.nv), joint(model.nv), last(model.njoints), U(6, model.nv),
-      Fm(6, model.nv), Bm(6, model.nv), Icm(model.njoints), first_dof(model.njoints), end_dof(model.njoints),
-      above(model.njoints) {
-  for (int j = 0; j < model.njoints; ++j) {
-    last[j] = j;
-    for (const auto s : model.subtrees[j]) last[j] = std::max(last[j], (int)s);
-  }
-  for (int j = 1; j < model.njoints; ++j) {
-    for (int d = 0; d < model.nvs[j]; ++d) joint[model.idx_vs[j] + d] = j;
-    // depth-first order: a subtree's joints, hence its dofs, are contiguous
-    first_dof[j] = model.idx_vs[j];
-    end_dof[j] = model.idx_vs[last[j]] + model.nvs[last[j]];
-    for (const auto s : model.supports[j]) {  // the universe, ..., j
-      if (s == 0 || (int)s == j) continue;
-      const int b0 = model.idx_vs[s], b1 = b0 + model.nvs[s];
-      if (!above[j].empty() && above[j].back().second == b0) above[j].back().second = b1;
-      else above[j].emplace_back(b0, b1);
-    }
-  }
-}
+    : TreeDofs(model), V(model.njoints), h(model.njoints), Ic(model.njoints), xi(model.nv), u(model.nv),
+      A(model.nv), A0(model.nv), B(model.nv), w(model.nv), U(6, model.nv), Fm(6, model.nv), Bm(6, model.nv),
+      Icm(model.njoints) {}
 
 namespace {
 

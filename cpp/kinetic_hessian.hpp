@@ -36,6 +36,8 @@
 
 #include <pinocchio/multibody.hpp>
 
+#include "tree_dofs.hpp"
+
 #include <Eigen/Core>
 #include <utility>
 #include <vector>
@@ -67,7 +69,9 @@ namespace dyn {
 // (q, 0, y) (benchmarks/pinocchio_calls.py), 28 against 94 us at nv 18 on a 12-joint chain.
 
 // Per-call scratch, sized once for a model.
-struct KineticHessianWork {
+// Per-call scratch, sized once for a model; where each dof sits in the tree (joint, last,
+// first_dof, end_dof, above) from TreeDofs.
+struct KineticHessianWork : TreeDofs {
   std::vector<pinocchio::Motion> V;   // world velocity of each joint's body (V[0] = 0: the universe)
   std::vector<pinocchio::Force> h;    // the subtree's momentum, world frame
   std::vector<pinocchio::Inertia> Ic; // the subtree's composite inertia, world frame
@@ -75,17 +79,10 @@ struct KineticHessianWork {
   // A_k = P_k - S_k - R_k, A0_k = P_k - S_k, B_k = Q_k - w_k, w_k (kinetic_hessian.hpp's header)
   typedef Eigen::Matrix<double, 6, 1> Vector6;
   std::vector<Vector6> xi, u, A, A0, B, w;
-  std::vector<int> joint;             // per dof: its joint
-  std::vector<int> last;              // per joint: the last joint of its subtree (depth-first order)
   // mass_tensors: per dof, as the columns of 6 x nv matrices, u_k, F_k = Ic_k xi_k and B_k (xi_k is
-  // data.J's column);
-  // per joint, Ic as a 6 x 6 matrix, the first dof of its subtree (its own first) and the end of its
-  // subtree's (depth-first order: contiguous), and the dofs of the joints strictly supporting it as
-  // runs [begin, end) of consecutive dofs, root first
+  // data.J's column); per joint, Ic as a 6 x 6 matrix
   Eigen::Matrix<double, 6, Eigen::Dynamic> U, Fm, Bm;
   std::vector<Eigen::Matrix<double, 6, 6>> Icm;
-  std::vector<int> first_dof, end_dof;
-  std::vector<std::vector<std::pair<int, int>>> above;
   explicit KineticHessianWork(const pinocchio::Model& model);
 };
 

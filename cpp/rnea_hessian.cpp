@@ -60,22 +60,9 @@ struct NodeView {
 }  // namespace
 
 RneaHessianWork::RneaHessianWork(const pinocchio::Model& model)
-    : data(model), W(model.njoints), P(model.njoints), Y(model.njoints), NW(model.njoints), joint(model.nv),
-      own_end(model.njoints), end_dof(model.njoints), above(model.njoints), node(rnea_hessian_node_size(model)) {
-  for (Cols* c : {&t, &b, &cu, &e1, &e2, &Ict, &nw, &dP, &dY, &dYv}) c->setZero(6, model.nv);
-  for (int j = 1; j < model.njoints; ++j) {
-    int last = j;
-    for (const auto s : model.subtrees[j]) last = std::max(last, (int)s);
-    for (int d = 0; d < model.nvs[j]; ++d) joint[model.idx_vs[j] + d] = j;
-    own_end[j] = model.idx_vs[j] + model.nvs[j];
-    end_dof[j] = model.idx_vs[last] + model.nvs[last];
-    for (const auto s : model.supports[j]) {  // the universe, ..., j
-      if (s == 0 || (int)s == j) continue;
-      const int b0 = model.idx_vs[s], b1 = b0 + model.nvs[s];
-      if (!above[j].empty() && above[j].back().second == b0) above[j].back().second = b1;
-      else above[j].emplace_back(b0, b1);
-    }
-  }
+    : TreeDofs(model), data(model), W(model.njoints), P(model.njoints), Y(model.njoints), NW(model.njoints),
+      node(rnea_hessian_node_size(model)) {
+  for (Cols* c : {&t, &dP, &dY, &dYv, &e1, &e12, &Ict, &nw}) c->setZero(6, model.nv);
 }
 
 void rnea_hessian_node(const pinocchio::Model& model, RneaHessianWork& w, const double* q_, const double* v_,
@@ -179,7 +166,6 @@ void rnea_hessian_contract(const pinocchio::Model& model, RneaHessianWork& w, co
     g.noalias() -= n.N(J) * t;
     g.noalias() += NW * u;
     w.t.col(k) = t;
-    w.b.col(k) = b;
     w.Ict.col(k) = Ict;
     w.nw.col(k) = nw;
     w.dP.col(k) = b - Ict;
@@ -188,8 +174,7 @@ void rnea_hessian_contract(const pinocchio::Model& model, RneaHessianWork& w, co
     const V6 e1 = g + uP;
     const V6 e2 = fcross(Vp, b) - fcross(xk, fcross(Vp, PJ)) - uP + xY;
     w.e1.col(k) = e1;
-    w.e2.col(k) = e2;
-    w.cu.col(k) = -(e1 + e2);
+    w.e12.col(k) = e1 + e2;  // cu_k = -(e1_k + e2_k)
   }
   std::fill(Hqq, Hqq + nn, 0.0);
   std::fill(Hvv, Hvv + nn, 0.0);
@@ -198,31 +183,23 @@ void rnea_hessian_contract(const pinocchio::Model& model, RneaHessianWork& w, co
   // pairs (k, l), entries at k + nv l
   for (int k = 0; k < nv; ++k) {
     const int J = w.joint[k];
-    const V6 dFk = n.dF(k), dPk = w.dP.col(k), cuk = w.cu.col(k), Fmk = n.Fm(k), e1k = w.e1.col(k),
-             e12k = e1k + w.e2.col(k), Ictk = w.Ict.col(k), bk = w.b.col(k), nwk = w.nw.col(k);
-    const V6 Ictbk = Ictk - bk, nwbk = bk - nwk;
-    // l's joint supports k's strictly (the first loop) or is k's own (the second)
-    for (const auto& run : w.above[J])
-      for (int l = run.first; l < run.second; ++l) {
-        const size_t e = (size_t)k + (size_t)nv * l;
-        const double* x = n.dof(l);  // xi, u, sp, z
-        const Eigen::Map<const V6> xl(x), ul(x + 6), spl(x + 12), zl(x + 18);
-        const V6 tl = w.t.col(l);
-        Hqq[e] = -dFk.dot(tl) - dPk.dot(spl) + cuk.dot(ul);
-        Dm[e] = -Fmk.dot(tl);
-        Hqv[e] = xl.dot(e12k) + zl.dot(Ictbk);
-        Hvv[e] = xl.dot(nwbk);
-      }
-    for (int l = model.idx_vs[J]; l < w.own_end[J]; ++l) {
+    const V6 dFk = n.dF(k), dPk = w.dP.col(k), e12k = w.e12.col(k), Fmk = n.Fm(k);
+    // l's joint L strictly supports k's (strict) or is k's own: Hqv = <xi_l, qv_x> + <z_l, qv_z>,
+    // Hvv = <xi_l, vv> with, strictly, e1 + e2, Ict - b = -dP and b - nw = dYv, else e1, Ict, -nw
+    const V6 e1k = w.e1.col(k), Ictk = w.Ict.col(k), mnwk = -w.nw.col(k), mdPk = -dPk, dYvk = w.dYv.col(k);
+    auto upper = [&](int l, const V6& qv_x, const V6& qv_z, const V6& vv) {
       const size_t e = (size_t)k + (size_t)nv * l;
-      const double* x = n.dof(l);
+      const double* x = n.dof(l);  // xi, u, sp, z
       const Eigen::Map<const V6> xl(x), ul(x + 6), spl(x + 12), zl(x + 18);
       const V6 tl = w.t.col(l);
-      Hqq[e] = -dFk.dot(tl) - dPk.dot(spl) + cuk.dot(ul);
+      Hqq[e] = -dFk.dot(tl) - dPk.dot(spl) - e12k.dot(ul);  // + <cu_k, u_l>
       Dm[e] = -Fmk.dot(tl);
-      Hqv[e] = xl.dot(e1k) + zl.dot(Ictk);
-      Hvv[e] = -xl.dot(nwk);
-    }
+      Hqv[e] = xl.dot(qv_x) + zl.dot(qv_z);
+      Hvv[e] = xl.dot(vv);
+    };
+    for (const auto& run : w.above[J])
+      for (int l = run.first; l < run.second; ++l) upper(l, e12k, mdPk, dYvk);
+    for (int l = w.first_dof[J]; l < w.own_end[J]; ++l) upper(l, e1k, Ictk, mnwk);
     // k's joint supports l's strictly: the dofs of J's subtree after its own
     const V6 xk = n.xi(k), tk = w.t.col(k), spk = n.sp(k), uk = n.u(k);
     for (int l = w.own_end[J]; l < w.end_dof[J]; ++l) {

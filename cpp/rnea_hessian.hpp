@@ -55,6 +55,8 @@
 
 #include <pinocchio/multibody.hpp>
 
+#include "tree_dofs.hpp"
+
 #include <Eigen/Core>
 #include <utility>
 #include <vector>
@@ -69,8 +71,9 @@ namespace dyn {
 //   node_size(model) doubles, written into the caller's buffer (SecondOrderTerms keeps one per node);
 // * the contraction (rnea_hessian_contract, with mu): W, P, Y, NW and the per-dof vectors that
 //   read them, then the pairs.
-// Per-call scratch and the model's Data, sized once for a model.
-struct RneaHessianWork {
+// Per-call scratch and the model's Data, sized once for a model; where each dof sits in the tree
+// (joint, own_end, end_dof, above) from TreeDofs.
+struct RneaHessianWork : TreeDofs {
   typedef Eigen::Matrix<double, 6, 1> V6;
   typedef Eigen::Matrix<double, 6, 6> M6;
   typedef Eigen::Matrix<double, 6, Eigen::Dynamic> Cols;
@@ -78,12 +81,9 @@ struct RneaHessianWork {
   // the contraction's per joint terms (index 0: the universe) and per dof vectors (columns)
   std::vector<V6> W, P, Y;
   std::vector<M6> NW;
-  Cols t, b, cu, e1, e2, Ict, nw, dP, dY, dYv;
-  std::vector<int> joint;     // per dof: its joint
-  std::vector<int> own_end;   // per joint: the end of its own dofs
-  std::vector<int> end_dof;   // per joint: the end of its subtree's dofs (depth-first: contiguous)
-  std::vector<std::vector<std::pair<int, int>>> above;  // per joint: dofs of the joints strictly above, as runs
-  std::vector<double> node;   // one node's terms, for rnea_hessian
+  // t, dP, dY, dYv are read for every dof l of a pair, e1 (e1 + e2 in e12), Ict and nw only for k
+  Cols t, dP, dY, dYv, e1, e12, Ict, nw;
+  std::vector<double> node;  // one node's terms, for rnea_hessian
   explicit RneaHessianWork(const pinocchio::Model& model);
 };
 
