@@ -118,8 +118,8 @@ def tensor_form():
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_contracted_terms_equal_pinocchio_form(case, integrator, tensor_form):
-    """S = sum_i Vx_i G2_i from the recursion equals S from Pinocchio's stored tensors, and the
-    dense expansion's Theta, Gamma, Xi (tests/test_core_contracted.py checks those)."""
+    """S = sum_i Vx_i G2_i from the recursion equals S from Pinocchio's stored tensors (the dense
+    Theta, Gamma, Xi are compared with the default, recursive form in tests/test_core_contracted.py)."""
     urdf, root, gravity = case
     mb = Multibody(urdf_file(urdf), root=root, dt=0.01, integrator=integrator, gravity=gravity)
     rng = np.random.default_rng(5)
