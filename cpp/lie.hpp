@@ -395,6 +395,201 @@ inline void se3_djr_transpose_apply(const Eigen::Matrix<double, 6, 1>& x, const 
   se3_djr_transpose_apply(x, s, N, se3_jr_coefficients(x));
 }
 
+// ---------------------------------------------------------------- second derivatives of Jr
+// E[b](:, a) = d^2 (Jr(x)^T u) / dx_a dx_b at fixed u (symmetric in a, b): the x-derivative of
+// djr_transpose_apply's column a along x_b. The variational step's second order needs it for the
+// Hessian of x -> Jr(x)^-T p (cpp/variational.cpp, implicit_second_derivative), which central
+// differences of the analytic first derivative had given to ~1e-10 at 4 N closed-form Jacobians.
+// Closed forms: the product rule on the terms of the first derivatives above, with the scalar
+// coefficients' second derivatives in t2 = |w|^2 from a second-order Taylor jet (Jet2) through their
+// series (below |w| = 1.5, where the closed forms' second derivatives cancel to ~1e-11) or closed
+// forms. Checked against O(h^4) differences of djr_transpose_apply from the identity to near pi
+// (tests/test_core_dynamics.py).
+
+// f, f' and f'' in one variable, propagated by the chain and product rules.
+struct Jet2 {
+  double v, d, dd;
+  Jet2(double v_ = 0.0, double d_ = 0.0, double dd_ = 0.0) : v(v_), d(d_), dd(dd_) {}
+};
+inline Jet2 operator+(const Jet2& a, const Jet2& b) { return Jet2(a.v + b.v, a.d + b.d, a.dd + b.dd); }
+inline Jet2 operator-(const Jet2& a, const Jet2& b) { return Jet2(a.v - b.v, a.d - b.d, a.dd - b.dd); }
+inline Jet2 operator*(const Jet2& a, const Jet2& b) {
+  return Jet2(a.v * b.v, a.d * b.v + a.v * b.d, a.dd * b.v + 2.0 * a.d * b.d + a.v * b.dd);
+}
+inline Jet2 operator/(const Jet2& a, const Jet2& b) {
+  const double q = a.v / b.v, qd = (a.d - q * b.d) / b.v;
+  return Jet2(q, qd, (a.dd - 2.0 * qd * b.d - q * b.dd) / b.v);
+}
+inline Jet2 sin(const Jet2& a) {
+  const double s = std::sin(a.v), c = std::cos(a.v);
+  return Jet2(s, c * a.d, c * a.dd - s * a.d * a.d);
+}
+inline Jet2 cos(const Jet2& a) {
+  const double s = std::sin(a.v), c = std::cos(a.v);
+  return Jet2(c, -s * a.d, -s * a.dd - c * a.d * a.d);
+}
+inline Jet2 sqrt(const Jet2& a) {
+  const double r = std::sqrt(a.v);
+  return Jet2(r, 0.5 * a.d / r, 0.5 * a.dd / r - 0.25 * a.d * a.d / (r * a.v));
+}
+
+// Fourteen-term series in t2 of a = (1 - cos t) / t^2, b = (t - sin t) / t^3 and the coupling's
+// c1 (= b), c2, c3 (SO3Series' q2, q3 continued): round-off accurate below t = 1.5.
+struct CurvatureSeries {
+  static constexpr int n = 14;
+  double a[n], b[n], q2[n], q3[n];
+  CurvatureSeries() {
+    for (int k = 0; k < n; ++k) {
+      const double sgn = (k % 2 == 0) ? 1.0 : -1.0;
+      a[k] = sgn / factorial(2 * k + 2);
+      b[k] = sgn / factorial(2 * k + 3);
+      q2[k] = sgn / factorial(2 * k + 4);
+      q3[k] = sgn * (k + 1) / factorial(2 * k + 5);
+    }
+  }
+};
+
+inline const CurvatureSeries& curvature_series() {
+  static const CurvatureSeries s;
+  return s;
+}
+
+// The second t2-derivatives a'', b'' of Jr3's coefficients and c1'', c2'', c3'' of the coupling's,
+// at t2 = |w|^2.
+struct SecondCoefficients {
+  double a2, b2, c2[3];
+};
+inline SecondCoefficients second_coefficients(double t2v) {
+  const CurvatureSeries& s = curvature_series();
+  const Jet2 t2(t2v, 1.0);
+  Jet2 a, b, c2, c3;
+  if (std::sqrt(t2v) < 1.5) {
+    a = poly(s.a, s.n, t2);
+    b = poly(s.b, s.n, t2);
+    c2 = poly(s.q2, s.n, t2);
+    c3 = poly(s.q3, s.n, t2);
+  } else {
+    const Jet2 t = sqrt(t2), sn = sin(t), cs = cos(t), one(1.0), two(2.0);
+    a = (one - cs) / t2;
+    b = (t - sn) / (t2 * t);
+    c2 = (t2 + two * cs - two) / (two * t2 * t2);
+    c3 = (two * t - Jet2(3.0) * sn + t * cs) / (two * t2 * t2 * t);
+  }
+  return SecondCoefficients{a.dd, b.dd, {b.dd, c2.dd, c3.dd}};
+}
+
+// E[b](i, l) = d^2 (Jr(x)^T u)_i / dx_l dx_b of SO(3), added to E (E += ...), from Jr's
+// coefficients a, b, alpha, beta at x (so3_coefficients) and ga = 4 a'', de = 4 b'' (t2-derivatives).
+// With m = x × u, n = x × (x × u) (Jr^T u = u + a m + b n), da/dx_j = alpha x_j, d alpha/dx_j = ga x_j
+// (and b, beta, de alike):
+//   d_j d_l (Jr^T u) = (ga x_j x_l + alpha d_jl) m + alpha (x_l e_j × u + x_j e_l × u)
+//                      + (de x_j x_l + beta d_jl) n + beta (x_l d_j n + x_j d_l n) + b d_jl n,
+//   d_l n = e_l × (x × u) + x × (e_l × u),  d_j d_l n = e_j u_l + e_l u_j - 2 d_jl u.
+inline void so3_jr_transpose_hessian_add(const Vec3& x, const Vec3& u, double b, double al, double be, double ga,
+                                         double de, Mat3 E[3]) {
+  const Vec3 m = x.cross(u), n = x.cross(m);
+  Vec3 dn[3], eu[3];
+  for (int l = 0; l < 3; ++l) {
+    eu[l] = Vec3::Unit(l).cross(u);
+    dn[l] = Vec3::Unit(l).cross(m) + x.cross(eu[l]);
+  }
+  for (int j = 0; j < 3; ++j)
+    for (int l = j; l < 3; ++l) {
+      Vec3 h = (ga * x[j] * x[l]) * m + al * (x[l] * eu[j] + x[j] * eu[l]) + (de * x[j] * x[l]) * n +
+               be * (x[l] * dn[j] + x[j] * dn[l]);
+      h[j] += b * u[l];
+      h[l] += b * u[j];
+      if (j == l) h += (al * m + be * n) - (2.0 * b) * u;
+      E[j].col(l) += h;
+      if (l != j) E[l].col(j) += h;
+    }
+}
+
+// E[b](i, l) = d^2 (Jr(x)^T u)_i / dx_l dx_b of SO(3), from Jr's coefficients at x.
+inline void so3_jr_transpose_hessian(const Vec3& x, const Vec3& u, double b, double al, double be, Mat3 E[3]) {
+  const SecondCoefficients k2 = second_coefficients(x.squaredNorm());
+  for (int l = 0; l < 3; ++l) E[l].setZero();
+  so3_jr_transpose_hessian_add(x, u, b, al, be, 4.0 * k2.a2, 4.0 * k2.b2, E);
+}
+
+// The same of SE(3), x = [linear; angular], from Jr's coefficients at x (se3_jr_coefficients).
+// Jr^T u = [J3^T u_t; Q(r, p)^T u_t + J3^T u_b] (r = -x_lin, p = -w): the rotation blocks' Hessians
+// as SO(3)'s, and that of f = Q^T s (s = u_t), linear in r, so zero along two linear directions.
+// From se3_djr_transpose_apply's f = 1/2 s × r + c1 A + c2 B - 2 c3 C with (rho = p.r, sig = p.s,
+// k = s × p, kap = k.r, w = p × r, all polynomials in p)
+//   A = (s.r) p + sig r - 2 rho s - rho k,  B = kap p - sig w + rho k,  C = rho (sig p - t2 s),
+// the p-p block is sum_i [(4 c_i'' p_a p_b + 2 c_i' d_ab) X_i + 2 c_i' (p_a d_b X_i + p_b d_a X_i)
+// + c_i d_a d_b X_i] (X = A, B, C with the weights 1, 1, -2), and the r_a-p_b block the p_b-derivative
+// of df/dr_a = 1/2 s × e_a + c1 A_a + c2 B_a - 2 c3 C_a,
+//   A_a = s_a p + sig e_a - 2 p_a s - p_a k,  B_a = k_a p - sig (p × e_a) + p_a k,  C_a = p_a (sig p - t2 s).
+// Two minus signs (x = -(r, p)) cancel in every second derivative.
+inline void se3_jr_transpose_hessian(const Eigen::Matrix<double, 6, 1>& x, const Eigen::Matrix<double, 6, 1>& u,
+                                     const Se3JrCoefficients& k, Mat6 E[6]) {
+  const Vec3 xw = x.tail<3>(), r = -x.head<3>(), p = -xw, s = u.head<3>();
+  const double t2 = p.squaredNorm();
+  const SecondCoefficients k2 = second_coefficients(t2);
+  for (int l = 0; l < 6; ++l) E[l].setZero();
+  // rotation blocks: top-right from u_t, bottom-right from u_b (rows 0-2 and 3-5, angular columns)
+  Mat3 Et[3] = {Mat3::Zero(), Mat3::Zero(), Mat3::Zero()}, Eb[3] = {Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
+  so3_jr_transpose_hessian_add(xw, s, k.b, k.al, k.be, 4.0 * k2.a2, 4.0 * k2.b2, Et);
+  so3_jr_transpose_hessian_add(xw, u.tail<3>(), k.b, k.al, k.be, 4.0 * k2.a2, 4.0 * k2.b2, Eb);
+  const double c[3] = {k.c1.v, k.c2.v, -2.0 * k.c3.v}, cp[3] = {k.c1.d, k.c2.d, -2.0 * k.c3.d},
+               cpp[3] = {k2.c2[0], k2.c2[1], -2.0 * k2.c2[2]};
+  const double sig = p.dot(s), rho = p.dot(r), sr = s.dot(r);
+  const Vec3 kk = s.cross(p), w = p.cross(r), rxs = r.cross(s);
+  const double kap = kk.dot(r);
+  Vec3 X[3], dX[3][3], sxe[3];
+  X[0] = sr * p + sig * r - (2.0 * rho) * s - rho * kk;
+  X[1] = kap * p - sig * w + rho * kk;
+  X[2] = rho * (sig * p - t2 * s);
+  for (int b = 0; b < 3; ++b) {
+    const Vec3 e = Vec3::Unit(b);
+    sxe[b] = s.cross(e);
+    dX[0][b] = sr * e + s[b] * r - (2.0 * r[b]) * s - r[b] * kk - rho * sxe[b];
+    dX[1][b] = rxs[b] * p + kap * e - s[b] * w - sig * e.cross(r) + r[b] * kk + rho * sxe[b];
+    dX[2][b] = (r[b] * sig + rho * s[b]) * p + (rho * sig) * e - (r[b] * t2 + 2.0 * rho * p[b]) * s;
+  }
+  for (int a = 0; a < 3; ++a)
+    for (int b = a; b < 3; ++b) {
+      const Vec3 ea = Vec3::Unit(a), eb = Vec3::Unit(b);
+      Vec3 ddX[3];
+      ddX[0] = -r[b] * sxe[a] - r[a] * sxe[b];
+      ddX[1] = rxs[b] * ea + rxs[a] * eb - s[b] * ea.cross(r) - s[a] * eb.cross(r) + r[b] * sxe[a] + r[a] * sxe[b];
+      ddX[2] = (r[b] * s[a] + r[a] * s[b]) * p + (r[b] * sig + rho * s[b]) * ea + (r[a] * sig + rho * s[a]) * eb -
+               (2.0 * (r[b] * p[a] + r[a] * p[b])) * s;
+      if (a == b) ddX[2] -= (2.0 * rho) * s;
+      Vec3 h = Vec3::Zero();
+      for (int i = 0; i < 3; ++i) {
+        double f2 = 4.0 * cpp[i] * p[a] * p[b];
+        if (a == b) f2 += 2.0 * cp[i];
+        h += f2 * X[i] + (2.0 * cp[i]) * (p[a] * dX[i][b] + p[b] * dX[i][a]) + c[i] * ddX[i];
+      }
+      E[3 + a].block<3, 1>(3, 3 + b) = h;
+      E[3 + b].block<3, 1>(3, 3 + a) = h;
+    }
+  // the r_a-p_b block: d/dp_b of df/dr_a (the mixed second derivative along x_lin_a, w_b)
+  for (int a = 0; a < 3; ++a) {
+    const Vec3 ea = Vec3::Unit(a), pxe = p.cross(ea);
+    const Vec3 Xa[3] = {s[a] * p + sig * ea - (2.0 * p[a]) * s - p[a] * kk, kk[a] * p - sig * pxe + p[a] * kk,
+                        p[a] * (sig * p - t2 * s)};
+    for (int b = 0; b < 3; ++b) {
+      const Vec3 eb = Vec3::Unit(b);
+      const Vec3 dXa[3] = {
+          s[a] * eb + s[b] * ea - (a == b ? Vec3(2.0 * s + kk) : Vec3::Zero()) - p[a] * sxe[b],
+          sxe[b][a] * p + kk[a] * eb - s[b] * pxe - sig * eb.cross(ea) + (a == b ? kk : Vec3(Vec3::Zero())) + p[a] * sxe[b],
+          (a == b ? Vec3(sig * p - t2 * s) : Vec3::Zero()) + p[a] * (s[b] * p + sig * eb - (2.0 * p[b]) * s)};
+      Vec3 h = Vec3::Zero();
+      for (int i = 0; i < 3; ++i) h += (2.0 * cp[i] * p[b]) * Xa[i] + c[i] * dXa[i];
+      E[3 + b].block<3, 1>(3, a) = h;  // d/dw_b of column a (linear)
+      E[a].block<3, 1>(3, 3 + b) = h;  // d/dx_lin_a of column 3 + b
+    }
+  }
+  for (int l = 0; l < 3; ++l) {
+    E[3 + l].block<3, 3>(0, 3) += Et[l];
+    E[3 + l].block<3, 3>(3, 3) += Eb[l];
+  }
+}
+
 // Structure constants of so(3) and se(3): [x, y]_i = sum_{p, q} C[i](p, q) x_p y_q
 // (geoddp.configuration._SO3_C, _SE3_C: ad of se(3) in [linear; angular] order).
 inline void so3_structure(Mat3 C[3]) {

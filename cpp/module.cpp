@@ -396,6 +396,39 @@ PYBIND11_MODULE(_core, m) {
       "step's dK^T terms; cpp/lie.hpp).");
 
   m.def(
+      "jr_transpose_hessian",
+      [](const Arr& x, const Arr& u) {
+        const py::ssize_t n = x.ndim() == 1 ? x.shape(0) : -1;
+        if (n != 3 && n != 6) throw py::value_error("x: expected shape (3,) (SO(3)) or (6,) (SE(3))");
+        check_shape(u, {(long)n}, "u");
+        Arr out = empty({n, n, n});
+        double* E = out.mutable_data();
+        if (n == 3) {
+          const geoddp::lie::Vec3 xv = Eigen::Map<const geoddp::lie::Vec3>(x.data());
+          double a, b, al, be;
+          geoddp::lie::so3_coefficients(xv.norm(), a, b, al, be);
+          geoddp::lie::Mat3 H[3];
+          geoddp::lie::so3_jr_transpose_hessian(xv, Eigen::Map<const geoddp::lie::Vec3>(u.data()), b, al, be, H);
+          for (int i = 0; i < 3; ++i)
+            for (int l = 0; l < 3; ++l)
+              for (int c = 0; c < 3; ++c) E[(i * 3 + l) * 3 + c] = H[c](i, l);
+        } else {
+          const Eigen::Matrix<double, 6, 1> xv = Eigen::Map<const Eigen::Matrix<double, 6, 1>>(x.data());
+          geoddp::lie::Mat6 H[6];
+          geoddp::lie::se3_jr_transpose_hessian(xv, Eigen::Map<const Eigen::Matrix<double, 6, 1>>(u.data()),
+                                                geoddp::lie::se3_jr_coefficients(xv), H);
+          for (int i = 0; i < 6; ++i)
+            for (int l = 0; l < 6; ++l)
+              for (int c = 0; c < 6; ++c) E[(i * 6 + l) * 6 + c] = H[c](i, l);
+        }
+        return out;
+      },
+      py::arg("x"), py::arg("u"),
+      "E (n, n, n), E[i, a, b] = d^2 (Jr(x)^T u)_i / dx_a dx_b for an SO(3) (n = 3) or SE(3) (n = 6,\n"
+      "[linear; angular]) tangent x: the second derivatives of the right Jacobian the variational\n"
+      "step's exact second order contracts (cpp/lie.hpp).");
+
+  m.def(
       "backward_pass",
       [](const Arr& Phi, const Arr& B, const Arr& lx, const Arr& lu, const Arr& lxx, const Arr& lux, const Arr& luu,
          const Arr& Vx_final, const Arr& Vxx_final, const Arr& Theta, const Arr& Gamma, const Arr& Xi,

@@ -209,8 +209,8 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
 // ---------------------------------------------------------------- one body, fixed size
 // A model of one body on a free-flyer (N = 6) or spherical (N = 3) root without configuration
 // dependence (VariationalModel::configuration_free: M constant, D = 0): the residual's velocity
-// Jacobians are d/dp [K(c p)^T M p] (c = dt for R_dv's, c = -dt for R_y), and residual_hessians
-// differences them 4 N times per node, and each step's Newton iteration solves with them. Here
+// Jacobians are d/dp [K(c p)^T M p] (c = dt for R_dv's, c = -dt for R_y), residual_hessians takes
+// their p-derivatives (phi_hessian), and each step's Newton iteration solves with them. Here
 // they run on fixed-size matrices, where the general path's dynamic ones spent as long in Eigen's
 // GEMM kernels, zero D products and block copies as in the closed forms they wrap (with the SE(3)
 // inverse and dJr^T s in closed form, lie::se3_jr_inverse and lie::se3_djr_transpose_apply, the
@@ -230,6 +230,9 @@ struct FixedLie<6> {
   static Mat inverse(const Mat& J) { return lie::se3_jr_inverse(J); }
   static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N, const Coef& k) {
     lie::se3_djr_transpose_apply(x, s, N, k);
+  }
+  static void jr_transpose_hessian(const Vec& x, const Vec& u, const Coef& k, Mat E[6]) {
+    lie::se3_jr_transpose_hessian(x, u, k, E);
   }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp6(pinocchio::Motion(-x)).toActionMatrix(); }
   static void djr(const Vec& x, Mat D[6]) { lie::se3_djr(x, D); }
@@ -252,6 +255,9 @@ struct FixedLie<3> {
   static Mat inverse(const Mat& J) { return J.inverse(); }
   static void djr_transpose_apply(const Vec& x, const Vec& s, Mat& N, const Coef& k) {
     lie::so3_djr_transpose_apply(x, s, k.a, k.b, k.al, k.be, N);
+  }
+  static void jr_transpose_hessian(const Vec& x, const Vec& u, const Coef& k, Mat E[3]) {
+    lie::so3_jr_transpose_hessian(x, u, k.b, k.al, k.be, E);
   }
   static Mat ad_exp_minus(const Vec& x) { return pinocchio::exp3(x).transpose(); }
   static void djr(const Vec& x, Mat D[3]) { lie::so3_djr(x, D); }
@@ -282,6 +288,48 @@ typename FixedLie<N>::Mat phi_jacobian(const typename FixedLie<N>::Mat& M, const
   const typename L::Mat J = L::jr(x, k);
   if (jr) *jr = J;
   return phi_jacobian_K<N>(M, p, c, L::inverse(J), k);
+}
+
+// The second derivatives of u(z) solving Jr(c z)^T u = b(z), b affine in z, from u, its first
+// derivatives du (column a: du/dz_a) and Jr's coefficients k and inverse K at x = c z. Once more
+// differentiating Jr^T du_a = db/dz_a - c G_a(u), G_a(w) = (dJr/dx_a)^T w (djr_transpose_apply's
+// column a), gives
+//   Jr^T d2u_al = -c (c E_al(u) + G_a(du_l) + G_l(du_a)),
+// E_al(u) = dG_a(u)/dx_l (lie's jr_transpose_hessian): H[l](:, a) = d2u/dz_a dz_l, exact, where
+// central differences of du had taken 2 N closed-form evaluations. Two uses: u = K(c p)^T M p
+// (phi_hessian: z = p) and u = K(x)^T p at fixed p (kt_hessian: z = x, c = 1).
+template <int N>
+void implicit_second_derivative(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Coef& k,
+                                const typename FixedLie<N>::Mat& K, const typename FixedLie<N>::Vec& u,
+                                const typename FixedLie<N>::Mat& du, double c, typename FixedLie<N>::Mat H[N]) {
+  typedef FixedLie<N> L;
+  typedef typename L::Mat Mat;
+  Mat G[N], E[N];  // G[a](:, l) = G_l(du_a)
+  for (int a = 0; a < N; ++a) L::djr_transpose_apply(x, du.col(a), G[a], k);
+  L::jr_transpose_hessian(x, u, k, E);
+  const Mat cKt = -c * K.transpose();
+  for (int l = 0; l < N; ++l) {
+    Mat S;
+    for (int a = 0; a < N; ++a) S.col(a) = c * E[l].col(a) + G[l].col(a) + G[a].col(l);
+    H[l].noalias() = cKt * S;
+  }
+}
+
+// H[l] = d/dp_l of phi_jacobian(M, p, c) = d/dp [K(c p)^T M p], exactly (implicit_second_derivative).
+template <int N>
+void phi_hessian(const typename FixedLie<N>::Mat& M, const typename FixedLie<N>::Vec& p, double c,
+                 typename FixedLie<N>::Mat H[N]) {
+  typedef FixedLie<N> L;
+  typedef typename L::Mat Mat;
+  typedef typename L::Vec Vec;
+  const Vec x = c * p;
+  const typename L::Coef k = L::coefficients(x);
+  const Mat K = L::inverse(L::jr(x, k));
+  const Vec u = K.transpose() * (M * p);
+  Mat Nu;
+  L::djr_transpose_apply(x, u, Nu, k);
+  const Mat du = K.transpose() * (M - c * Nu);  // phi_jacobian_K's
+  implicit_second_derivative<N>(x, k, K, u, du, c, H);
 }
 
 // variational_step for such a body on fixed-size matrices: the same start and damped Newton
@@ -392,9 +440,9 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   w.D1.setZero();
 }
 
-// residual_hessians' columns for such a body (after the q+ model L), on fixed-size matrices: the
-// central differences of the general path for the d/dp[K(c p)^T M p] parts, and exact chain-rule
-// terms for everything Sq touches (below). Along dv,
+// residual_hessians' columns for such a body (after the q+ model L), on fixed-size matrices, exactly:
+// the d/dp[K(c p)^T M p] parts from phi_hessian, and chain-rule terms for everything Sq touches
+// (below). Along dv,
 // J = [Sq Ad_exp(-dt v'), dt Sq Jr(dt v') - d/dp[K(dt p)^T M p](v'), R_y] with R_y fixed (the
 // root's pose moves the body rigidly: L.dRy all zero) and Sq that of L at q+' = q exp(dt v');
 // along y only R_y = d/dp[K(-dt p)^T M p](y') moves.
@@ -404,7 +452,7 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
   typedef FixedLie<N> L;
   typedef typename L::Mat Mat;
   typedef typename L::Vec Vec;
-  const double dt = vm.dt, h = VARIATIONAL_FD_STEP;
+  const double dt = vm.dt;
   const QplusLinear& lin = nw.lin;
   VariationalWork& w = nw.w;
   const Mat M = w.M0;  // M(q) = M(q+): constant for such a body
@@ -416,7 +464,7 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
   //   d xi / d eta = Ad_exp(-omega0) = A0, since exp(-omega0) exp(eta) exp(omega0) = exp(A0 eta);
   //   d xi / d dv  = dt Jr(omega0) = dt Jv0, since exp(-omega0) exp(omega0 + dt dv) = exp(dt Jv0 dv + ...).
   // The terms Sq multiplies are exact too: d/d dv_l Ad_exp(-dt v) = -dt A0 ad(Jr(-omega0) e_l) and
-  // d/d dv_l Jr(dt v) = dt dJr(omega0)/dx_l. Only the d/dp[K(c p)^T M p] parts are differenced.
+  // d/d dv_l Jr(dt v) = dt dJr(omega0)/dx_l.
   const Vec omega0 = dt * v0;
   Mat A0, Jv0, dSq_eta[N], dSq_dv[N], dA[N], dJv[N];
   if (!Sq_zero) {
@@ -455,11 +503,11 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
   }
   // dv: J = [Sq A, dt Sq Jv - d/dp[K(dt p)^T M p](v), R_y] with R_y fixed (the root's pose moves
   // the body rigidly: L.dRy all zero); the product rule on Sq A and Sq Jv
+  Mat Hv[N], Hy[N];  // d/dv_l and d/dy_l of the velocity Jacobians d/dp[K(c p)^T M p]
+  phi_hessian<N>(M, v0, dt, Hv);
+  phi_hessian<N>(M, y0, -dt, Hy);
   for (int l = 0; l < N; ++l) {
-    Vec vp = v0, vm_ = v0;
-    vp[l] += h;
-    vm_[l] -= h;
-    Mat Tdv = (phi_jacobian<N>(M, vm_, dt) - phi_jacobian<N>(M, vp, dt)) / (2.0 * h);
+    Mat Tdv = -Hv[l];
     Mat Teta;
     if (!Sq_zero) {
       Tdv.noalias() += dt * (dSq_dv[l] * Jv0);
@@ -477,10 +525,7 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
     }
   }
   for (int l = 0; l < N; ++l) {
-    Vec yp = y0, ym = y0;
-    yp[l] += h;
-    ym[l] -= h;
-    const Mat Ty = (phi_jacobian<N>(M, yp, -dt) - phi_jacobian<N>(M, ym, -dt)) / (2.0 * h);
+    const Mat& Ty = Hy[l];
     const int j = 2 * N + l;
     for (int i = 0; i < N; ++i) {
       Eigen::MatrixXd& T = nw.T[i];
@@ -641,29 +686,19 @@ void D_unit(const std::vector<double>& dMdq, int nv, int l, Eigen::MatrixXd& out
                                                                   Eigen::OuterStride<>((Eigen::Index)nv * nv));
 }
 
-// d/dx [K(x)^T p] on one SO(3) or SE(3) group's block (dKT's block there): -K^T N with
-// N(:, c) = dJr/dx_c^T (K^T p), K = Jr(x)^-1.
+// H[c] = d/dx_c of d/dx [K(x)^T p] at fixed p on one SO(3) or SE(3) group's block (dKT's block
+// there: its columns du_a = -K^T G_a(u), u = K^T p), exactly (implicit_second_derivative).
 template <int N>
-typename FixedLie<N>::Mat group_kt(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p) {
+void kt_hessian(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p, typename FixedLie<N>::Mat H[N]) {
   typedef FixedLie<N> L;
+  typedef typename L::Mat Mat;
   const typename L::Coef k = L::coefficients(x);
-  const typename L::Mat K = L::inverse(L::jr(x, k));
-  const typename L::Vec s = K.transpose() * p;
-  typename L::Mat Nm;
-  L::djr_transpose_apply(x, s, Nm, k);
-  return -(K.transpose() * Nm);
-}
-
-// The x-derivative of group_kt along e_c at fixed p, by a central difference on the group's own
-// block (the second derivative of Jr has no closed form here; one_body_columns differences the
-// same terms): the one part of R_ww's dv and y columns below that is differenced.
-template <int N>
-typename FixedLie<N>::Mat group_kt_derivative(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p,
-                                              int c, double step) {
-  typename FixedLie<N>::Vec xp = x, xm = x;
-  xp[c] += step;
-  xm[c] -= step;
-  return (group_kt<N>(xp, p) - group_kt<N>(xm, p)) / (2.0 * step);
+  const Mat K = L::inverse(L::jr(x, k));
+  const typename L::Vec u = K.transpose() * p;
+  Mat Nu;
+  L::djr_transpose_apply(x, u, Nu, k);
+  const Mat du = -(K.transpose() * Nu);
+  implicit_second_derivative<N>(x, k, K, u, du, 1.0, H);
 }
 
 // R_ww's columns along dv for the dofs of one SO(3) or SE(3) group g (at o = g.idx_v), after the
@@ -675,7 +710,7 @@ typename FixedLie<N>::Mat group_kt_derivative(const typename FixedLie<N>::Vec& x
 //   to first order);
 // q+ moves by xi = dt h Jv0 e_c (within g: so Sq and R_y by dt h sum_k Jv0(k, c) dSq[k], dRy[k]),
 // D(q, v) by h D(q, e_l), and Kt = d/dx[K(x)^T M0 v] at x = omega0 by its x-derivative along
-// dt e_c on g's block (group_kt_derivative) plus d/dx[K(x)^T M0 e_l] (linear in its vector). So
+// dt e_c on g's block (kt_hessian) plus d/dx[K(x)^T M0 e_l] (linear in its vector). So
 //   d_l R_eta = dSq A0 + Sq0 dA - dK0^T D0 - K0^T D(q, e_l),
 //   d_l R_dv = dt (dSq Jv0 + Sq0 dJv) - dK0^T M0 - dt d_l Kt,  d_l R_y = dRy,
 // where central differences of the whole Jacobian had taken two residual_jacobian calls per
@@ -699,6 +734,8 @@ void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const
   w.tmp.noalias() = w.M0 * v;
   const Vec p = w.tmp.template segment<N>(o);  // (M0 v) on g
   nw.vp = dt * v;                              // omega0
+  Mat Hk[N];
+  kt_hessian<N>(x0, p, Hk);
   for (int c = 0; c < N; ++c) {
     const int l = o + c, j = nv + l;
     bool sq_moves = false, ry_moves = false;
@@ -725,7 +762,7 @@ void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const
     // dv rows
     w.tmp = w.M0.col(l);
     dKT(vm, w, nw.vp, w.K0, w.tmp, w.S);
-    w.S.block<N, N>(o, o) += group_kt_derivative<N>(x0, p, c, dt * VARIATIONAL_FD_STEP) * dt;
+    w.S.block<N, N>(o, o) += Hk[c] * dt;
     if (sq_moves) {
       times_block(vm.groups, nw.dSqj, w.Jv, nw.X);
       nw.X *= dt;
@@ -750,8 +787,8 @@ void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const
 // (l = o + c) x moves by -dt h e_c on g's block, so dJr1 = -dt dJr(x1)/dx_c, dK1 = -K1 dJr1 K1
 // there, and
 //   d_l R_y = dK1^T M1 - dt d_l Kt1 - dt D(q+, e_l)^T,
-// d_l Kt1 the x-derivative on g's block (group_kt_derivative) plus d/dx[K(x)^T M1 e_l]: one
-// dKT instead of two velocity_jacobian calls of central differences.
+// d_l Kt1 the x-derivative on g's block (kt_hessian) plus d/dx[K(x)^T M1 e_l]: one dKT instead of
+// two velocity_jacobian calls of central differences.
 template <int N>
 void y_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const JointGroup& g,
                      const Eigen::VectorXd& y, const Eigen::VectorXd& x1full, const Eigen::MatrixXd& K1,
@@ -768,13 +805,15 @@ void y_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const 
   L::djr(x1, dJr);
   w.tmp.noalias() = nw.M1b * y;
   const Vec p1 = w.tmp.template segment<N>(o);
+  Mat Hk[N];
+  kt_hessian<N>(x1, p1, Hk);
   for (int c = 0; c < N; ++c) {
     const int l = o + c, j = 2 * nv + l;
     D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l)
     const Mat dK1 = dt * (K1g * dJr[c] * K1g);  // -K1 (-dt dJr) K1
     w.tmp = nw.M1b.col(l);
     dKT(vm, w, x1full, K1, w.tmp, w.S);
-    w.S.block<N, N>(o, o) -= group_kt_derivative<N>(x1, p1, c, dt * VARIATIONAL_FD_STEP) * dt;
+    w.S.block<N, N>(o, o) -= Hk[c] * dt;
     R = -dt * w.S;
     R.noalias() -= dt * nw.Dl.transpose();
     R.template middleRows<N>(o).noalias() += dK1.transpose() * nw.M1b.template middleRows<N>(o);
@@ -784,11 +823,12 @@ void y_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const 
 }
 
 // R_ww after node_first_order (same q, v, y, the same work): nw.T[i](a, j) = d_j J(i, a), J =
-// [R_eta, R_dv, R_y] the analytic Jacobian. Three things are central differences of analytic first
-// derivatives (no nested differences): the kinetic-energy Hessian along q+'s joint directions, the
-// x-derivative of d/dx[K(x)^T p] on an SO(3) or SE(3) group's block (group_kt_derivative), and the
-// whole Jacobian along the root's pose under gravity. Every other term is exact: the product and
-// chain rules on the base call's terms and the tensors dM/dq, d/dq D (mass_tensors).
+// [R_eta, R_dv, R_y] the analytic Jacobian. Two things are central differences of analytic first
+// derivatives (no nested differences), both only on articulated models: the kinetic-energy Hessian
+// along q+'s joint directions, and the whole Jacobian along the root's pose under gravity. Every
+// other term is exact: the product and chain rules on the base call's terms, the tensors dM/dq,
+// d/dq D (mass_tensors) and the x-derivative of d/dx[K(x)^T p] on an SO(3) or SE(3) group's block
+// (kt_hessian). One body (one_body_columns): every term exact.
 void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, const Eigen::VectorXd& q,
                        const Eigen::VectorXd& v, const Eigen::VectorXd& y) {
   const Model& model = *vm.model;
@@ -978,8 +1018,8 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   }
   // Along y, q and v (so q+ = q exp(dt v) and M(q+)) stay fixed and only R_y = K1^T M1 - dt Kt1 -
   // dt D(q+, y)^T moves: exactly along a commutative group's dof (below) and along an SO(3) or
-  // SE(3) group's (y_columns_group, where only Kt1's own x-derivative is differenced, on the
-  // group's block). The (eta, dv) rows of a y-direction are the mixed partials d_y d_eta R, d_y
+  // SE(3) group's (y_columns_group, with Kt1's own x-derivative on the group's block from
+  // kt_hessian). The (eta, dv) rows of a y-direction are the mixed partials d_y d_eta R, d_y
   // d_dv R, already taken along eta and dv: y is a flat coordinate of R, so they commute with it
   // (only eta-eta does not: the right-trivialised base point moves), T[i](a, y) = T[i](y, a).
   Eigen::MatrixXd& R = w.Kx;  // the step's scratch, free here

@@ -9,11 +9,13 @@
 // the residual's Jacobian [R_eta, R_dv, R_y] is analytic throughout, and the second-order term
 // R_ww is at most one central difference of it (not the Python oracle's difference of a
 // difference): F2 = -R_y^-1 P^T R_ww P. Its columns are exact (product and chain rules on the
-// base point's terms) but for three differenced parts: the kinetic-energy Hessian along q+'s own
-// joint directions (QplusLinear: q+'s first-order model, which the eta and dv columns read by the
-// chain rule), the x-derivative of d/dx[K(x)^T p] on each SO(3) or SE(3) group's block (dv and y
-// columns of those groups' dofs), and the whole Jacobian along the root's pose under gravity. Along
-// eta's joint directions M(q) and D(q, v) move with the tensors dM/dq and d/dq D of
+// base point's terms; the x-derivatives of d/dx[K(x)^T p] on each SO(3) or SE(3) group's block by
+// implicit differentiation of Jr^T u = p, with Jr's second derivatives from lie.hpp's
+// jr_transpose_hessian) but for two differenced parts of an articulated model: the kinetic-energy
+// Hessian along q+'s own joint directions (QplusLinear: q+'s first-order model, which the eta and
+// dv columns read by the chain rule), and the whole Jacobian along the root's pose under gravity.
+// One body on a free-flyer or spherical root: exact throughout. Along eta's joint directions M(q)
+// and D(q, v) move with the tensors dM/dq and d/dq D of
 // kinetic_hessian.hpp's recursion at q; along y only R_y moves, the other entries of those
 // directions being the mixed partials already taken along eta and dv.
 //

@@ -240,6 +240,37 @@ def test_se3_djr_transpose_apply_equals_the_derivative(angle):
             assert np.abs(N[:, l] - d.T @ s).max() < 1e-9 * max(1.0, np.abs(s).max())
 
 
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 1e-2, 0.3, 0.59, 0.61, 1.0, 1.49, 1.51, 2.0, 3.1, np.pi - 1e-6])
+def test_jr_transpose_hessian_equals_the_derivative_of_djr(angle):
+    """The variational second order's exact d/dx terms of d/dx[Jr(x)^-T p] rest on E[i, a, b] =
+    d^2 (Jr(x)^T u)_i / dx_a dx_b in closed form (cpp/lie.hpp, jr_transpose_hessian): equal to O(h^4)
+    differences of the first derivatives, for SO(3) the Python closed form dJr
+    (SO3.right_jacobian_derivative_batch) and for SE(3) se3_djr_transpose_apply (checked above against
+    the Python Jr), from the identity through both sides of every series branch (|w| = 0.6 and 1.5) to
+    near pi; symmetric in (a, b) to round-off, and zero along two linear directions of SE(3)."""
+    rng = np.random.default_rng(int(angle * 1e4) + 9)
+    h = 2e-3
+    for _ in range(10):
+        axis = rng.normal(size=3)
+        w = angle * axis / np.linalg.norm(axis)
+        u3, x6, u6 = rng.normal(size=3), np.concatenate([rng.normal(size=3), w]), rng.normal(size=6)
+        E3, E6 = core.jr_transpose_hessian(w, u3), core.jr_transpose_hessian(x6, u6)
+
+        def g3(x):  # (dJr(x)/dx_l)^T u, (3, 3) over (i, l)
+            return np.einsum("jil,j->il", cfg.SO3.right_jacobian_derivative_batch(x[None])[0], u3)
+
+        for E, g, x, u in ((E3, g3, w, u3), (E6, lambda y: core.se3_djr_transpose_apply(y, u6), x6, u6)):
+            n = len(x)
+            for b in range(n):
+                e = h * np.eye(n)[b]
+                d = (8 * (g(x + e) - g(x - e)) - (g(x + 2 * e) - g(x - 2 * e))) / (12 * h)
+                assert np.abs(E[:, :, b] - d).max() < 1e-10 * max(1.0, np.abs(d).max()), (n, b)
+            assert np.abs(E - np.swapaxes(E, 1, 2)).max() <= 1e-15 * max(1.0, np.abs(E).max())
+        assert np.abs(E6[:, :3, :3]).max() == 0.0 and np.abs(E6[:3, :, :3]).max() == 0.0
+    with pytest.raises(ValueError, match="x: expected shape"):
+        core.jr_transpose_hessian(np.zeros(4), np.zeros(4))
+
+
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
 @pytest.mark.parametrize("case", CASES, ids=IDS)
 def test_expansion_equals_python(case, integrator, monkeypatch):
