@@ -74,6 +74,45 @@ void dKT(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& 
   out = -out;
 }
 
+}  // namespace
+
+void KtMap::set(const std::vector<JointGroup>& groups, const Eigen::VectorXd& x, const Eigen::MatrixXd& K) {
+  blocks.clear();
+  for (const JointGroup& g : groups) {
+    if (g.kind != SO3 && g.kind != SE3) continue;
+    Block b;
+    b.o = g.idx_v;
+    b.n = g.kind == SE3 ? 6 : 3;
+    if (b.n == 6) {
+      lie::Mat6 D[6];
+      lie::se3_djr(x.segment<6>(b.o), D);
+      const lie::Mat6 Kt = K.block<6, 6>(b.o, b.o).transpose();
+      for (int c = 0; c < 6; ++c) b.C[c] = -(Kt * D[c].transpose()) * Kt;
+    } else {
+      lie::Mat3 D[3];
+      lie::so3_djr(x.segment<3>(b.o), D);
+      const lie::Mat3 Kt = K.block<3, 3>(b.o, b.o).transpose();
+      for (int c = 0; c < 3; ++c) b.C[c].topLeftCorner<3, 3>() = -(Kt * D[c].transpose()) * Kt;
+    }
+    blocks.push_back(b);
+  }
+}
+
+void KtMap::apply(const Eigen::VectorXd& p, Eigen::MatrixXd& out) const {
+  out.setZero();
+  for (const Block& b : blocks) {
+    if (b.n == 6) {
+      const Eigen::Matrix<double, 6, 1> pg = p.segment<6>(b.o);
+      for (int c = 0; c < 6; ++c) out.block<6, 1>(b.o, b.o + c).noalias() = b.C[c] * pg;
+    } else {
+      const lie::Vec3 pg = p.segment<3>(b.o);
+      for (int c = 0; c < 3; ++c) out.block<3, 1>(b.o, b.o + c).noalias() = b.C[c].topLeftCorner<3, 3>() * pg;
+    }
+  }
+}
+
+namespace {
+
 // d/deta [dL/dq(q exp(eta), v)] at eta = 0 into w.Hk: the kinetic part exact, 1/2 d/dq_j of
 // D(q, v)^T v = 1/2 sum_p v_p d2tau_p/dq_i dq_j (the (i, j) order is that of differentiating the
 // trivialised D along q exp(h e_j), as the Python oracle's differences do), minus the generalised
@@ -733,7 +772,6 @@ void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const
   const Mat Jm = L::jr(xm, L::coefficients(xm));  // Jr(-omega0)
   w.tmp.noalias() = w.M0 * v;
   const Vec p = w.tmp.template segment<N>(o);  // (M0 v) on g
-  nw.vp = dt * v;                              // omega0
   Mat Hk[N];
   kt_hessian<N>(x0, p, Hk);
   for (int c = 0; c < N; ++c) {
@@ -761,7 +799,7 @@ void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const
     for (int i = 0; i < nv; ++i) nw.T[i].col(j).head(nv) = nw.X.row(i).transpose();
     // dv rows
     w.tmp = w.M0.col(l);
-    dKT(vm, w, nw.vp, w.K0, w.tmp, w.S);
+    nw.kt0.apply(w.tmp, w.S);
     w.S.block<N, N>(o, o) += Hk[c] * dt;
     if (sq_moves) {
       times_block(vm.groups, nw.dSqj, w.Jv, nw.X);
@@ -812,7 +850,7 @@ void y_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const 
     D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l)
     const Mat dK1 = dt * (K1g * dJr[c] * K1g);  // -K1 (-dt dJr) K1
     w.tmp = nw.M1b.col(l);
-    dKT(vm, w, x1full, K1, w.tmp, w.S);
+    nw.kt1.apply(w.tmp, w.S);
     w.S.block<N, N>(o, o) -= Hk[c] * dt;
     R = -dt * w.S;
     R.noalias() -= dt * nw.Dl.transpose();
@@ -888,11 +926,15 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   // (w.dMdq, w.d2q: the base call's, column-major (i, j, k); page k is the nv x nv slice at k nv^2)
   const size_t nn = (size_t)nv * nv;
   const Eigen::VectorXd x1 = -dt * y;
+  if (!vm.configuration_free) {  // the base call's K(dt v) and K(-dt y)
+    nw.kt0.set(vm.groups, w.omega, w.K0);
+    nw.kt1.set(vm.groups, x1, K1);
+  }
   for (int k = root; k < nv; ++k) {
     L.dSq_zero[k] = L.dRy_zero[k] = 0;
     const Eigen::Map<const Eigen::MatrixXd> dM(w.dMdq.data() + k * nn, nv, nv), dD(w.d2q.data() + k * nn, nv, nv);
     w.tmp.noalias() = dM * y;
-    dKT(vm, w, x1, K1, w.tmp, w.S);
+    nw.kt1.apply(w.tmp, w.S);
     block_transpose_times(vm.groups, K1, dM, L.dRy[k]);
     L.dRy[k] -= dt * w.S;
     L.dRy[k].noalias() -= dt * dD.transpose();
@@ -958,7 +1000,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     nw.X -= w.P2;
     for (int i = 0; i < nv; ++i) nw.T[i].col(j).head(nv) = nw.X.row(i).transpose();
     w.tmp.noalias() = dM * v;
-    dKT(vm, w, w.omega, w.K0, w.tmp, w.S);
+    nw.kt0.apply(w.tmp, w.S);
     times_block(vm.groups, nw.dSqj, w.Jv, nw.X);
     nw.X *= dt;
     block_transpose_times(vm.groups, w.K0, dM, w.P2);
@@ -998,7 +1040,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     }
     for (int i = 0; i < nv; ++i) nw.T[i].col(j).head(nv) = nw.X.row(i).transpose();
     w.tmp = w.M0.col(l);
-    dKT(vm, w, w.omega, w.K0, w.tmp, w.S);
+    nw.kt0.apply(w.tmp, w.S);
     if (L.dSq_zero[l]) {
       nw.X = -dt * w.S;
     } else {
@@ -1029,7 +1071,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     // d_l R_y = -dt d/dx[K(x)^T M1 e_l]|_(x = -dt y) - dt D(q+, e_l)^T
     D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l), from the base call's dM/dq at q+
     w.tmp = nw.M1b.col(l);
-    dKT(vm, w, x1, K1, w.tmp, w.S);
+    nw.kt1.apply(w.tmp, w.S);
     R = -dt * w.S;
     R.noalias() -= dt * nw.Dl.transpose();
     for (int i = 0; i < nv; ++i)

@@ -106,6 +106,24 @@ struct QplusLinear {
   bool Sq_zero = false;  // and Sq0 = 0 (no D, no kinetic-energy Hessian, no gravity): R_eta = 0
 };
 
+// d/dx [K(x)^T p] (K = Jr(x)^-1, block-diagonal over the joint groups) at one x, for any p: the
+// map is linear in p, zero outside the SO(3) and SE(3) groups' diagonal blocks, and there
+// -K^T N, N(:, c) = (dJr/dx_c)^T K^T p, so column c is C_c p with C_c = -K^T dJr_c^T K^T, formed once
+// at x from dJr's matrices (lie::so3_djr, se3_djr). residual_hessians applies it about 2 nv times a
+// node at each of two points (x = dt v and -dt y), where each call had re-evaluated the closed-form
+// gradients, their coefficients and the dense block products (variational.cpp's dKT).
+struct KtMap {
+  struct Block {
+    int o, n;                        // offset and size (3 or 6) of the group's velocity block
+    Eigen::Matrix<double, 6, 6> C[6];  // the top-left n x n of each, c < n
+  };
+  std::vector<Block> blocks;
+  // at x, with K = Jr(x)^-1 (nv x nv, the blocks() of x)
+  void set(const std::vector<JointGroup>& groups, const Eigen::VectorXd& x, const Eigen::MatrixXd& K);
+  // out = d/dx [K(x)^T p] (nv x nv)
+  void apply(const Eigen::VectorXd& p, Eigen::MatrixXd& out) const;
+};
+
 // Scratch of variational_node beyond VariationalWork (the second order's buffers).
 struct VariationalNodeWork {
   VariationalWork w;
@@ -121,6 +139,7 @@ struct VariationalNodeWork {
   // R_ww along eta's joint directions and D(q, e_l) along dv
   std::vector<double> dMq, d2qq;
   Eigen::MatrixXd dSqj, dRyj, X;  // scratch of those columns
+  KtMap kt0, kt1;                 // d/dx[K(x)^T p] at x = dt v (K0) and x = -dt y (K1)
   // a copy of the model whose gravity residual_hessians turns (the root's rotation directions;
   // made only for a free-flyer or spherical root under gravity)
   struct TurnedGravity {
