@@ -343,13 +343,14 @@ void implicit_second_derivative(const typename FixedLie<N>::Vec& x, const typena
                                 const typename FixedLie<N>::Mat& du, double c, typename FixedLie<N>::Mat H[N]) {
   typedef FixedLie<N> L;
   typedef typename L::Mat Mat;
-  Mat G[N], E[N];  // G[a](:, l) = G_l(du_a)
-  for (int a = 0; a < N; ++a) L::djr_transpose_apply(x, du.col(a), G[a], k);
+  Mat D[N], G[N], E[N];  // G[l](:, a) = G_l(du_a) = dJr_l^T du_a, from dJr's matrices formed once
+  L::djr(x, D);
+  for (int l = 0; l < N; ++l) G[l].noalias() = D[l].transpose() * du;
   L::jr_transpose_hessian(x, u, k, E);
   const Mat cKt = -c * K.transpose();
   for (int l = 0; l < N; ++l) {
     Mat S;
-    for (int a = 0; a < N; ++a) S.col(a) = c * E[l].col(a) + G[l].col(a) + G[a].col(l);
+    for (int a = 0; a < N; ++a) S.col(a) = c * E[l].col(a) + G[a].col(l) + G[l].col(a);
     H[l].noalias() = cKt * S;
   }
 }
@@ -626,7 +627,8 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   w.b.noalias() = w.K0.transpose() * w.tmp;
   w.b += dt * tau;
   mass(vm, w, w.qn, w.M1);
-  w.g1 = pinocchio::computeGeneralizedGravity(model, w.data, w.qn);
+  if (vm.gravity_free) w.g1.setZero();  // no gravity: no Pinocchio call
+  else w.g1 = pinocchio::computeGeneralizedGravity(model, w.data, w.qn);
   // Start from the better of v and the explicit (symplectic) Euler velocity; damped Newton
   // (backtracking on |R|) keeps stiff light links from throwing the iteration off.
   Eigen::VectorXd& y = w.y;
