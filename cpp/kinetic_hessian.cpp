@@ -14,16 +14,31 @@ namespace dyn {
 KineticHessianWork::KineticHessianWork(const pinocchio::Model& model)
     : TreeDofs(model), V(model.njoints), h(model.njoints), Ic(model.njoints), xi(model.nv), u(model.nv),
       A(model.nv), A0(model.nv), B(model.nv), w(model.nv), U(6, model.nv), Fm(6, model.nv), Bm(6, model.nv),
-      Icm(model.njoints) {}
+      Icm(model.njoints), Iw(model.njoints) {}
 
 namespace {
 
-// The world-frame terms both functions start from: data.oMi and the columns data.J, the body
-// velocities w.V, and the subtrees' momenta w.h and composite inertias w.Ic.
+// The world-frame terms every function here starts from: data.oMi and the columns data.J, the body
+// velocities w.V, and the subtrees' momenta w.h and composite inertias w.Ic. The configuration's
+// part (kinematics, w.Iw, w.Ic) is kept from the previous call at the same q and Data
+// (KineticHessianWork::q_kin).
 void subtree_terms(const pinocchio::Model& model, pinocchio::Data& data, KineticHessianWork& w,
                    const Eigen::VectorXd& q, const Eigen::VectorXd& y) {
   const int nj = model.njoints;
-  pinocchio::computeJointJacobians(model, data, q);
+  if (!(w.data_kin == &data && w.q_kin.size() == q.size() && w.q_kin == q)) {
+    pinocchio::computeJointJacobians(model, data, q);
+    // world inertias, and the subtrees' composites (backward)
+    for (int j = 1; j < nj; ++j) {
+      w.Iw[j] = data.oMi[j].act(model.inertias[j]);
+      w.Ic[j] = w.Iw[j];
+    }
+    for (int j = nj - 1; j > 1; --j) {
+      const int p = model.parents[j];
+      if (p != 0) w.Ic[p] += w.Ic[j];
+    }
+    w.q_kin = q;
+    w.data_kin = &data;
+  }
   // forward: world body velocities V_j = V_parent + sum of the joint's columns times y
   w.V[0].setZero();
   for (int j = 1; j < nj; ++j) {
@@ -31,16 +46,11 @@ void subtree_terms(const pinocchio::Model& model, pinocchio::Data& data, Kinetic
     w.V[j] = w.V[model.parents[j]];
     w.V[j].toVector().noalias() += data.J.middleCols(i0, n) * y.segment(i0, n);
   }
-  // backward: subtree momenta and composite inertias (world frame)
-  for (int j = 1; j < nj; ++j) {
-    w.Ic[j] = data.oMi[j].act(model.inertias[j]);
-    w.h[j] = w.Ic[j] * w.V[j];
-  }
+  // backward: subtree momenta (world frame)
+  for (int j = 1; j < nj; ++j) w.h[j] = w.Iw[j] * w.V[j];
   for (int j = nj - 1; j > 1; --j) {
     const int p = model.parents[j];
-    if (p == 0) continue;
-    w.Ic[p] += w.Ic[j];
-    w.h[p] += w.h[j];
+    if (p != 0) w.h[p] += w.h[j];
   }
 }
 

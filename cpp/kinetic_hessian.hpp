@@ -83,6 +83,16 @@ struct KineticHessianWork : TreeDofs {
   // data.J's column); per joint, Ic as a 6 x 6 matrix
   Eigen::Matrix<double, 6, Eigen::Dynamic> U, Fm, Bm;
   std::vector<Eigen::Matrix<double, 6, 6>> Icm;
+  // Each body's inertia in the world frame, and the configuration (and Data) at which data's
+  // kinematics, Iw and Ic were last formed: a call at the same q with the same Data keeps them
+  // (bitwise what it would form) and redoes only the velocity terms. The variational step's Newton
+  // iteration evaluates these recursions 6-7 times per step at one q+ with a moving velocity, and
+  // its expansion 2-3 times at each of q and q+. The contract: nothing else writes that Data's
+  // kinematics (oMi, J) between calls, or the caller calls forget() first.
+  std::vector<pinocchio::Inertia> Iw;
+  Eigen::VectorXd q_kin;
+  const pinocchio::Data* data_kin = nullptr;
+  void forget() { data_kin = nullptr; }
   explicit KineticHessianWork(const pinocchio::Model& model);
 };
 
