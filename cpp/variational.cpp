@@ -84,15 +84,17 @@ void KtMap::set(const std::vector<JointGroup>& groups, const Eigen::VectorXd& x,
     b.o = g.idx_v;
     b.n = g.kind == SE3 ? 6 : 3;
     if (b.n == 6) {
-      lie::Mat6 D[6];
-      lie::se3_djr(x.segment<6>(b.o), D);
+      lie::se3_djr(x.segment<6>(b.o), b.D);
       const lie::Mat6 Kt = K.block<6, 6>(b.o, b.o).transpose();
-      for (int c = 0; c < 6; ++c) b.C[c] = -(Kt * D[c].transpose()) * Kt;
+      for (int c = 0; c < 6; ++c) b.C[c] = -(Kt * b.D[c].transpose()) * Kt;
     } else {
       lie::Mat3 D[3];
       lie::so3_djr(x.segment<3>(b.o), D);
       const lie::Mat3 Kt = K.block<3, 3>(b.o, b.o).transpose();
-      for (int c = 0; c < 3; ++c) b.C[c].topLeftCorner<3, 3>() = -(Kt * D[c].transpose()) * Kt;
+      for (int c = 0; c < 3; ++c) {
+        b.D[c].topLeftCorner<3, 3>() = D[c];
+        b.C[c].topLeftCorner<3, 3>() = -(Kt * D[c].transpose()) * Kt;
+      }
     }
     blocks.push_back(b);
   }
@@ -339,12 +341,12 @@ typename FixedLie<N>::Mat phi_jacobian(const typename FixedLie<N>::Mat& M, const
 // (phi_hessian: z = p) and u = K(x)^T p at fixed p (kt_hessian: z = x, c = 1).
 template <int N>
 void implicit_second_derivative(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Coef& k,
-                                const typename FixedLie<N>::Mat& K, const typename FixedLie<N>::Vec& u,
-                                const typename FixedLie<N>::Mat& du, double c, typename FixedLie<N>::Mat H[N]) {
+                                const typename FixedLie<N>::Mat& K, const typename FixedLie<N>::Mat D[N],
+                                const typename FixedLie<N>::Vec& u, const typename FixedLie<N>::Mat& du, double c,
+                                typename FixedLie<N>::Mat H[N]) {
   typedef FixedLie<N> L;
   typedef typename L::Mat Mat;
-  Mat D[N], G[N], E[N];  // G[l](:, a) = G_l(du_a) = dJr_l^T du_a, from dJr's matrices formed once
-  L::djr(x, D);
+  Mat G[N], E[N];  // G[l](:, a) = G_l(du_a) = dJr_l^T du_a, from dJr's matrices D at x
   for (int l = 0; l < N; ++l) G[l].noalias() = D[l].transpose() * du;
   L::jr_transpose_hessian(x, u, k, E);
   const Mat cKt = -c * K.transpose();
@@ -369,7 +371,9 @@ void phi_hessian(const typename FixedLie<N>::Mat& M, const typename FixedLie<N>:
   Mat Nu;
   L::djr_transpose_apply(x, u, Nu, k);
   const Mat du = K.transpose() * (M - c * Nu);  // phi_jacobian_K's
-  implicit_second_derivative<N>(x, k, K, u, du, c, H);
+  Mat D[N];
+  L::djr(x, D);
+  implicit_second_derivative<N>(x, k, K, D, u, du, c, H);
 }
 
 // variational_step for such a body on fixed-size matrices: the same start and damped Newton
@@ -728,9 +732,11 @@ void D_unit(const std::vector<double>& dMdq, int nv, int l, Eigen::MatrixXd& out
 }
 
 // H[c] = d/dx_c of d/dx [K(x)^T p] at fixed p on one SO(3) or SE(3) group's block (dKT's block
-// there: its columns du_a = -K^T G_a(u), u = K^T p), exactly (implicit_second_derivative).
+// there: its columns du_a = -K^T G_a(u), u = K^T p), exactly (implicit_second_derivative), from
+// dJr's matrices D at x.
 template <int N>
-void kt_hessian(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p, typename FixedLie<N>::Mat H[N]) {
+void kt_hessian(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p,
+                const typename FixedLie<N>::Mat D[N], typename FixedLie<N>::Mat H[N]) {
   typedef FixedLie<N> L;
   typedef typename L::Mat Mat;
   const typename L::Coef k = L::coefficients(x);
@@ -739,7 +745,7 @@ void kt_hessian(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::
   Mat Nu;
   L::djr_transpose_apply(x, u, Nu, k);
   const Mat du = -(K.transpose() * Nu);
-  implicit_second_derivative<N>(x, k, K, u, du, 1.0, H);
+  implicit_second_derivative<N>(x, k, K, D, u, du, 1.0, H);
 }
 
 // R_ww's columns along dv for the dofs of one SO(3) or SE(3) group g (at o = g.idx_v), after the
@@ -768,14 +774,15 @@ void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const
   const QplusLinear& lin = nw.lin;
   const Vec x0 = dt * Vec(v.template segment<N>(o));
   const Mat A0 = w.A.block<N, N>(o, o), Jv0 = w.Jv.block<N, N>(o, o), K0 = w.K0.block<N, N>(o, o);
-  Mat dJr[N];
-  L::djr(x0, dJr);
+  Mat dJr[N];  // dJr at x0 on g's block, as kt0 formed them
+  const Eigen::Matrix<double, 6, 6>* D0 = nw.kt0.djr(o);
+  for (int c = 0; c < N; ++c) dJr[c] = D0[c].template topLeftCorner<N, N>();
   const Vec xm = -x0;
   const Mat Jm = L::jr(xm, L::coefficients(xm));  // Jr(-omega0)
   w.tmp.noalias() = w.M0 * v;
   const Vec p = w.tmp.template segment<N>(o);  // (M0 v) on g
   Mat Hk[N];
-  kt_hessian<N>(x0, p, Hk);
+  kt_hessian<N>(x0, p, dJr, Hk);
   for (int c = 0; c < N; ++c) {
     const int l = o + c, j = nv + l;
     bool sq_moves = false, ry_moves = false;
@@ -841,12 +848,13 @@ void y_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const 
   VariationalWork& w = nw.w;
   const Vec x1 = x1full.template segment<N>(o);
   const Mat K1g = K1.block<N, N>(o, o);
-  Mat dJr[N];
-  L::djr(x1, dJr);
+  Mat dJr[N];  // dJr at x1 on g's block, as kt1 formed them
+  const Eigen::Matrix<double, 6, 6>* D1 = nw.kt1.djr(o);
+  for (int c = 0; c < N; ++c) dJr[c] = D1[c].template topLeftCorner<N, N>();
   w.tmp.noalias() = nw.M1b * y;
   const Vec p1 = w.tmp.template segment<N>(o);
   Mat Hk[N];
-  kt_hessian<N>(x1, p1, Hk);
+  kt_hessian<N>(x1, p1, dJr, Hk);
   for (int c = 0; c < N; ++c) {
     const int l = o + c, j = 2 * nv + l;
     D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l)

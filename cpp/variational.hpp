@@ -114,14 +114,21 @@ struct QplusLinear {
 // gradients, their coefficients and the dense block products (variational.cpp's dKT).
 struct KtMap {
   struct Block {
-    int o, n;                        // offset and size (3 or 6) of the group's velocity block
+    int o, n;                          // offset and size (3 or 6) of the group's velocity block
     Eigen::Matrix<double, 6, 6> C[6];  // the top-left n x n of each, c < n
+    Eigen::Matrix<double, 6, 6> D[6];  // dJr/dx_c on the block (top-left n x n), which residual_hessians also reads
   };
   std::vector<Block> blocks;
   // at x, with K = Jr(x)^-1 (nv x nv, the blocks() of x)
   void set(const std::vector<JointGroup>& groups, const Eigen::VectorXd& x, const Eigen::MatrixXd& K);
   // out = d/dx [K(x)^T p] (nv x nv)
   void apply(const Eigen::VectorXd& p, Eigen::MatrixXd& out) const;
+  // the dJr matrices of the group block at velocity offset o (nullptr if none is there)
+  const Eigen::Matrix<double, 6, 6>* djr(int o) const {
+    for (const Block& b : blocks)
+      if (b.o == o) return b.D;
+    return nullptr;
+  }
 };
 
 // Scratch of variational_node beyond VariationalWork (the second order's buffers).
