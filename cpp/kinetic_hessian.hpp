@@ -87,12 +87,12 @@ struct KineticHessianWork : TreeDofs {
   // kinematics, Iw and Ic were last formed: a call at the same q with the same Data keeps them
   // (bitwise what it would form) and redoes only the velocity terms. The variational step's Newton
   // iteration evaluates these recursions 6-7 times per step at one q+ with a moving velocity, and
-  // its expansion 2-3 times at each of q and q+. The contract: nothing else writes that Data's
-  // kinematics (oMi, J) between calls, or the caller calls forget() first.
+  // its expansion 2-3 times at each of q and q+. The contract: nothing but these functions writes
+  // that Data's kinematics (oMi, J) while the work is in use (VariationalWork's fdata, the bindings'
+  // Data made per call).
   std::vector<pinocchio::Inertia> Iw;
   Eigen::VectorXd q_kin;
   const pinocchio::Data* data_kin = nullptr;
-  void forget() { data_kin = nullptr; }
   explicit KineticHessianWork(const pinocchio::Model& model);
 };
 

@@ -357,10 +357,11 @@ void implicit_second_derivative(const typename FixedLie<N>::Vec& x, const typena
   }
 }
 
-// H[l] = d/dp_l of phi_jacobian(M, p, c) = d/dp [K(c p)^T M p], exactly (implicit_second_derivative).
+// H[l] = d/dp_l of phi_jacobian(M, p, c) = d/dp [K(c p)^T M p], exactly (implicit_second_derivative),
+// from dJr's matrices D at c p.
 template <int N>
 void phi_hessian(const typename FixedLie<N>::Mat& M, const typename FixedLie<N>::Vec& p, double c,
-                 typename FixedLie<N>::Mat H[N]) {
+                 const typename FixedLie<N>::Mat D[N], typename FixedLie<N>::Mat H[N]) {
   typedef FixedLie<N> L;
   typedef typename L::Mat Mat;
   typedef typename L::Vec Vec;
@@ -368,12 +369,7 @@ void phi_hessian(const typename FixedLie<N>::Mat& M, const typename FixedLie<N>:
   const typename L::Coef k = L::coefficients(x);
   const Mat K = L::inverse(L::jr(x, k));
   const Vec u = K.transpose() * (M * p);
-  Mat Nu;
-  L::djr_transpose_apply(x, u, Nu, k);
-  const Mat du = K.transpose() * (M - c * Nu);  // phi_jacobian_K's
-  Mat D[N];
-  L::djr(x, D);
-  implicit_second_derivative<N>(x, k, K, D, u, du, c, H);
+  implicit_second_derivative<N>(x, k, K, D, u, phi_jacobian_K<N>(M, p, c, K, k), c, H);
 }
 
 // variational_step for such a body on fixed-size matrices: the same start and damped Newton
@@ -510,13 +506,15 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
   // The terms Sq multiplies are exact too: d/d dv_l Ad_exp(-dt v) = -dt A0 ad(Jr(-omega0) e_l) and
   // d/d dv_l Jr(dt v) = dt dJr(omega0)/dx_l.
   const Vec omega0 = dt * v0;
+  Mat Dv[N], Dy[N];  // dJr at omega0 = dt v0 and at -dt y0 (phi_hessian's points)
+  L::djr(omega0, Dv);
+  L::djr(Vec(-dt * y0), Dy);
   Mat A0, Jv0, dSq_eta[N], dSq_dv[N], dA[N], dJv[N];
   if (!Sq_zero) {
     A0 = w.A;  // the base call's (one_body_jacobian)
     Jv0 = w.Jv;
     const Vec xm = -omega0;
     const Mat Jm = L::jr(xm, L::coefficients(xm));  // Jr(-omega0)
-    L::djr(omega0, dJv);
     for (int l = 0; l < N; ++l) {
       dSq_eta[l].setZero();
       dSq_dv[l].setZero();
@@ -526,7 +524,7 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
         dSq_dv[l] += (dt * Jv0(k, l)) * lin.dSq[k];
       }
       dA[l] = -dt * (A0 * L::ad(Jm.col(l)));
-      dJv[l] *= dt;
+      dJv[l] = Dv[l] * dt;
     }
   }
   const Mat Sq0 = Sq_zero ? Mat::Zero() : Mat(lin.Sq0);
@@ -548,8 +546,8 @@ void one_body_columns(const VariationalModel& vm, VariationalNodeWork& nw, const
   // dv: J = [Sq A, dt Sq Jv - d/dp[K(dt p)^T M p](v), R_y] with R_y fixed (the root's pose moves
   // the body rigidly: L.dRy all zero); the product rule on Sq A and Sq Jv
   Mat Hv[N], Hy[N];  // d/dv_l and d/dy_l of the velocity Jacobians d/dp[K(c p)^T M p]
-  phi_hessian<N>(M, v0, dt, Hv);
-  phi_hessian<N>(M, y0, -dt, Hy);
+  phi_hessian<N>(M, v0, dt, Dv, Hv);
+  phi_hessian<N>(M, y0, -dt, Dy, Hy);
   for (int l = 0; l < N; ++l) {
     Mat Tdv = -Hv[l];
     Mat Teta;
@@ -733,14 +731,14 @@ void D_unit(const std::vector<double>& dMdq, int nv, int l, Eigen::MatrixXd& out
 
 // H[c] = d/dx_c of d/dx [K(x)^T p] at fixed p on one SO(3) or SE(3) group's block (dKT's block
 // there: its columns du_a = -K^T G_a(u), u = K^T p), exactly (implicit_second_derivative), from
-// dJr's matrices D at x.
+// the block's K = Jr(x)^-1 and dJr's matrices D at x.
 template <int N>
 void kt_hessian(const typename FixedLie<N>::Vec& x, const typename FixedLie<N>::Vec& p,
-                const typename FixedLie<N>::Mat D[N], typename FixedLie<N>::Mat H[N]) {
+                const typename FixedLie<N>::Mat& K, const typename FixedLie<N>::Mat D[N],
+                typename FixedLie<N>::Mat H[N]) {
   typedef FixedLie<N> L;
   typedef typename L::Mat Mat;
   const typename L::Coef k = L::coefficients(x);
-  const Mat K = L::inverse(L::jr(x, k));
   const typename L::Vec u = K.transpose() * p;
   Mat Nu;
   L::djr_transpose_apply(x, u, Nu, k);
@@ -782,7 +780,7 @@ void dv_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const
   w.tmp.noalias() = w.M0 * v;
   const Vec p = w.tmp.template segment<N>(o);  // (M0 v) on g
   Mat Hk[N];
-  kt_hessian<N>(x0, p, dJr, Hk);
+  kt_hessian<N>(x0, p, K0, dJr, Hk);
   for (int c = 0; c < N; ++c) {
     const int l = o + c, j = nv + l;
     bool sq_moves = false, ry_moves = false;
@@ -854,7 +852,7 @@ void y_columns_group(const VariationalModel& vm, VariationalNodeWork& nw, const 
   w.tmp.noalias() = nw.M1b * y;
   const Vec p1 = w.tmp.template segment<N>(o);
   Mat Hk[N];
-  kt_hessian<N>(x1, p1, dJr, Hk);
+  kt_hessian<N>(x1, p1, K1g, dJr, Hk);
   for (int c = 0; c < N; ++c) {
     const int l = o + c, j = 2 * nv + l;
     D_unit(w.dMdq, nv, l, nw.Dl);  // D(q+, e_l)
