@@ -267,6 +267,35 @@ def test_package_uri_resolving_nowhere_names_package_dirs(tmp_path):
     assert robots.resolve_mesh("meshes/a.stl", base_dir=tmp_path / "pkg") == tmp_path / "pkg" / "meshes" / "a.stl"
 
 
+def test_meshes_found_before_are_checked_again_on_disk(tmp_path, monkeypatch):
+    """check_meshes remembers where a URDF's meshes were all found (a sweep checks one robot per
+    case) but still sees each file: one removed since is reported missing, one restored is found
+    again, and a changed search path or URDF is resolved anew."""
+    (tmp_path / "pkg" / "meshes").mkdir(parents=True)
+    for name in ("a.stl", "b.stl"):
+        (tmp_path / "pkg" / "meshes" / name).write_text("solid a\nendsolid a\n")
+    urdf = tmp_path / "two.urdf"
+    mesh = '<visual><geometry><mesh filename="package://pkg/meshes/{}"/></geometry></visual>'
+    urdf.write_text(f'<robot name="two"><link name="a">{mesh.format("a.stl")}</link>'
+                    f'<link name="b">{mesh.format("b.stl")}</link></robot>')
+    resolved = []
+    real = robots.resolve_mesh
+    monkeypatch.setattr(robots, "resolve_mesh", lambda *a: resolved.append(a[0]) or real(*a))
+    assert robots.check_meshes(urdf, [str(tmp_path)]) == [] and len(resolved) == 2
+    assert robots.check_meshes(urdf, [str(tmp_path)]) == [] and len(resolved) == 2  # found again, not resolved
+    (tmp_path / "pkg" / "meshes" / "b.stl").rename(tmp_path / "b.stl")
+    assert robots.check_meshes(urdf, [str(tmp_path)]) == ["package://pkg/meshes/b.stl"]
+    assert robots.check_meshes(urdf, [str(tmp_path)]) == ["package://pkg/meshes/b.stl"]  # a miss is never kept
+    (tmp_path / "b.stl").rename(tmp_path / "pkg" / "meshes" / "b.stl")
+    assert robots.check_meshes(urdf, [str(tmp_path)]) == []
+    n = len(resolved)
+    other = tmp_path / "other"
+    (other / "pkg" / "meshes").mkdir(parents=True)
+    assert robots.check_meshes(urdf, [str(other), str(tmp_path)]) == [] and len(resolved) == n + 2  # new search path
+    urdf.write_text(f'<robot name="two"><link name="a">{mesh.format("a.stl")}</link></robot>')
+    assert robots.check_meshes(urdf, [str(tmp_path)]) == [] and len(resolved) == n + 3  # new URDF text
+
+
 def test_missing_mesh_leaves_the_solve_unchanged_and_the_replay_names_it(tmp_path, ur5_solution):
     """The UR5 URDF with its forearm mesh renamed to a file that does not exist (its package
     does): the model, and so the solve, is the same to the last bit; the replay warns naming the

@@ -124,3 +124,55 @@ def test_captured_stderr_restores_fd2(capfd):
         os.write(2, b"from C++\n")
     os.write(2, b"after\n")
     assert lines == ["from C++"] and capfd.readouterr().err == "after\n"
+
+
+def _same_model(a, b):
+    assert (a.nq, a.nv, a.njoints, list(a.names)) == (b.nq, b.nv, b.njoints, list(b.names))
+    for x, y in zip(a.inertias, b.inertias):
+        np.testing.assert_array_equal(x.matrix(), y.matrix())
+    for x, y in zip(a.jointPlacements, b.jointPlacements):
+        np.testing.assert_array_equal(x.homogeneous, y.homogeneous)
+    np.testing.assert_array_equal(a.gravity.vector, b.gravity.vector)
+
+
+def test_a_urdf_built_before_is_copied_and_an_edited_one_is_built_again(tmp_path, monkeypatch):
+    """The per-process memo of build_checked_model (a sweep builds one robot for every case):
+    a second call builds nothing and returns an equal, separate model, which the caller may edit;
+    an edited file, another root joint or a root joint with parameters is built anew, and a
+    refused file is refused on every call."""
+    import pinocchio as pin
+
+    import geoddp.urdf_checks as uc
+
+    builds = []
+    real = pin.buildModelFromXML
+    monkeypatch.setattr(uc.pin, "buildModelFromXML", lambda *a: builds.append(len(a)) or real(*a))
+    path = _write(tmp_path, ixx="0.125")  # a text no other test builds
+    first = build_checked_model(path)
+    assert len(builds) == 1
+    first.gravity = pin.Motion.Zero()  # the caller's edits stay in its copy
+    first.inertias[1] = pin.Inertia.Identity()
+    second = build_checked_model(path)
+    assert len(builds) == 1 and second is not first
+    _same_model(second, pin.buildModelFromUrdf(str(path)))
+    third = build_checked_model(path)
+    assert third is not second
+    _same_model(third, second)
+    # another root joint: another model (free flyer: nq 7 + 2)
+    ff = build_checked_model(path, pin.JointModelFreeFlyer())
+    assert len(builds) == 2 and (ff.nq, ff.nv) == (9, 8)
+    assert build_checked_model(path, pin.JointModelFreeFlyer()).nq == 9 and len(builds) == 2
+    # a root joint with parameters (its axis) is not told apart by its type's name: built each time
+    axis = pin.JointModelRevoluteUnaligned(np.array([0.0, 0.6, 0.8]))
+    build_checked_model(path, axis)
+    build_checked_model(path, axis)
+    assert len(builds) == 4
+    # the file edited in place: its new text is a new model
+    path = _write(tmp_path, ixx="0.125", mass="2.5")
+    assert build_checked_model(path).inertias[1].mass == 2.5 and len(builds) == 5
+    # a refused file is refused every time, and once mended it builds
+    _write(tmp_path, ixx="0.125", mass="2.5", axis="0 0 0")
+    for _ in range(2):
+        _refused(path, "joint 'shoulder'", "is zero")
+    _write(tmp_path, ixx="0.125", mass="2.5")
+    assert build_checked_model(path).inertias[1].mass == 2.5

@@ -17,7 +17,9 @@ import math
 import os
 import re
 import tempfile
+import threading
 import xml.etree.ElementTree as ET
+from collections import OrderedDict
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -177,9 +179,45 @@ def captured_stderr() -> Iterator[list[str]]:
             lines.extend(t for t in tmp.read().decode("utf-8", "replace").splitlines() if t.strip())
 
 
+# Models built and checked in this process, by (root joint, URDF text): a sweep or a loop over
+# scenes builds the same robot for every case, twice (the scene reader builds it to check names
+# against it, the builder for the problem), and building and checking is 1-3 ms where a solve of
+# the UR5 takes 4 (benchmarks/case_overhead.py). The key is the text itself, so an edited file is
+# a new model; only models that passed every check are kept; callers get copies (they set the
+# gravity, reduce or edit them).
+_BUILT: OrderedDict[tuple[str, str], pin.Model] = OrderedDict()
+_BUILT_MAX = 16
+_BUILT_LOCK = threading.Lock()
+# root joints that the name of their type determines ("" = none, a fixed root)
+_UNPARAMETRISED = ("", "JointModelFreeFlyer", "JointModelSpherical", "JointModelSphericalZYX", "JointModelPlanar",
+                   "JointModelTranslation")
+
+
 def build_checked_model(path: str | Path, root_joint: object | None = None, name: str = "urdf") -> pin.Model:
-    """Read, check and build a URDF model (see the module docstring). InputError naming ``name``."""
+    """Read, check and build a URDF model (see the module docstring). InputError naming ``name``.
+
+    The model is a new copy on every call; a URDF text already built and checked in this
+    process (with the same root joint) is copied from the one built then, not built again.
+    """
     text = read_urdf_text(path, name)
+    kind = "" if root_joint is None else root_joint.shortname()
+    if kind not in _UNPARAMETRISED:  # a root joint with parameters (an axis, a pitch): built each time
+        return _build_checked(text, path, root_joint, name)
+    key = (kind, text)
+    with _BUILT_LOCK:
+        built = _BUILT.get(key)
+        if built is not None:
+            _BUILT.move_to_end(key)
+            return pin.Model(built)
+    model = _build_checked(text, path, root_joint, name)
+    with _BUILT_LOCK:
+        _BUILT[key] = pin.Model(model)
+        while len(_BUILT) > _BUILT_MAX:
+            _BUILT.popitem(last=False)
+    return model
+
+
+def _build_checked(text: str, path: str | Path, root_joint: object | None, name: str) -> pin.Model:
     check_urdf_text(text, name)
     with captured_stderr() as lines:
         try:
