@@ -20,7 +20,10 @@ target, H = 1500 steps, ~20-60 ms per solve: the issue's ">= 20 ms" cases):
    cluster (Dask documents ~1 ms or less per task), and our runner's own per-case overhead:
    (wall x workers - sum of the cases' own times) / cases.
 
-Usage: python benchmarks/sweep.py [--cases 200] [--steps 1500] [--noop 2000] [--rounds 3]
+With ``--robot`` the cases are the Solo12 of example-robot-data turning its base by a uniformly
+drawn angle (10-40 deg), ~50-60 ms each: reading such a case builds the robot's model.
+
+Usage: python benchmarks/sweep.py [--cases 200] [--steps 1500] [--noop 2000] [--rounds 3] [--robot]
 Timings on a shared machine are not valid: run on an idle one.
 """
 from __future__ import annotations
@@ -52,6 +55,20 @@ key = "target.quaternion"
 distribution = "haar"
 """
 
+# --robot: the Solo12 of example-robot-data turning its base by a drawn angle (~50-60 ms a case),
+# where reading a case builds the robot's model and checks its meshes (benchmarks/case_overhead.py)
+ROBOT_SWEEP = """
+[sweep]
+scene = "solo12_reorient"
+seed = 2
+samples = {cases}
+[[random]]
+key = "terminal_costs[0].angle_deg"
+distribution = "uniform"
+low = 10.0
+high = 40.0
+"""
+
 
 def noop(x: int) -> int:
     return x
@@ -79,13 +96,16 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of the scaling runs")
     ap.add_argument("--steps", type=int, default=1500, help="horizon H of each case (dt = 2 ms)")
     ap.add_argument("--noop", type=int, default=2000, help="no-op tasks for the scheduler overhead")
+    ap.add_argument("--robot", action="store_true", help="Solo12 reorientation cases (example-robot-data) "
+                    "instead of the satellite's (--steps is then unused)")
     args = ap.parse_args()
     from distributed import Client
 
     tmp = Path(tempfile.mkdtemp(prefix="geoddp-sweep-bench-"))
     try:
         path = tmp / "bench.toml"
-        path.write_text(textwrap.dedent(SWEEP.format(cases=args.cases, tf=args.steps * 0.002)))
+        text = ROBOT_SWEEP.format(cases=args.cases) if args.robot else SWEEP.format(cases=args.cases, tf=args.steps * 0.002)
+        path.write_text(textwrap.dedent(text))
         cases = expand(load_sweep(path))
         specs = [parse_scene(c.scene, c.source) for c in cases]
         solve_scene(specs[0], verbose=False)  # warm: imports
@@ -156,7 +176,8 @@ def main() -> None:
                          f"{100 * (ratio(f'dask{n}', 'direct') - 1):+.1f} %; runner overhead {1e3 * over:.2f} ms/case"))
             rows.append((f"plain process pool, {n} process(es)", med[f"pool{n}"],
                          f"{100 * (ratio(f'pool{n}', 'direct') - 1):+.1f} %"))
-        print(f"{len(cases)} cases, H = {args.steps}, {per_case * 1e3:.1f} ms per direct solve, "
+        what = "Solo12 reorientation" if args.robot else f"satellite, H = {args.steps}"
+        print(f"{len(cases)} cases ({what}), {per_case * 1e3:.1f} ms per direct solve, "
               f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}; a process's first sweep also pays "
               f"{first:.2f} s of imports")
         print(f"medians of {args.rounds} interleaved rounds")

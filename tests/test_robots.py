@@ -13,6 +13,7 @@ fails here instead of skipping.
 """
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -265,6 +266,23 @@ def test_package_uri_resolving_nowhere_names_package_dirs(tmp_path):
     # file:// and relative paths, as Pinocchio resolves them
     assert robots.resolve_mesh(f"file://{tmp_path}/pkg/meshes/a.stl") == tmp_path / "pkg" / "meshes" / "a.stl"
     assert robots.resolve_mesh("meshes/a.stl", base_dir=tmp_path / "pkg") == tmp_path / "pkg" / "meshes" / "a.stl"
+
+
+def test_a_robot_found_before_is_found_again_only_while_its_files_are_there(tmp_path):
+    """find() remembers where a robot was found on this sys.path, and looks again when its URDF
+    is no longer there."""
+    import sys
+
+    spec = robots.find("ur5")
+    assert robots.find("ur5") is spec
+    stale = dataclasses.replace(spec, urdf=tmp_path / "gone.urdf")
+    robots._FOUND[("ur5", tuple(sys.path))] = stale
+    again = robots.find("ur5")
+    assert again is not stale and again == spec and again.urdf.is_file()
+    with pytest.raises(InputError, match="^robot: expected a robot of example-robot-data"):
+        robots.find("ur55")  # a refused name is refused every time
+    with pytest.raises(InputError, match="^robot: expected a robot of example-robot-data"):
+        robots.find("ur55")
 
 
 def test_meshes_found_before_are_checked_again_on_disk(tmp_path, monkeypatch):

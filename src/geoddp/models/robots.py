@@ -112,6 +112,14 @@ def find(name: Any, parameter: str = "robot") -> RobotSpec:
             and the full list), a robot described only by an SDF file, or example-robot-data
             not installed (with the pip command).
     """
+    import sys
+
+    # found before on this search path and its files still there: the same (a sweep looks up one
+    # robot per case; the lookup resolves paths through example-robot-data, about 1 ms)
+    key = (name, tuple(sys.path)) if isinstance(name, str) else None
+    spec = _FOUND.get(key)
+    if spec is not None and spec.urdf.is_file() and (spec.srdf is None or spec.srdf.is_file()):
+        return spec
     erd = _erd()
     known = names()
     if not isinstance(name, str) or name not in known:
@@ -134,8 +142,15 @@ def find(name: Any, parameter: str = "robot") -> RobotSpec:
         srdf = p.resolve() if p.is_file() else None
     posture = getattr(cls, "ref_posture", None) if srdf is not None else None
     # URIs read package://example-robot-data/robots/...: the package directory is robots/../..
-    return RobotSpec(name, urdf, srdf, "free_flyer" if getattr(cls, "free_flyer", False) else "fixed",
+    spec = RobotSpec(name, urdf, srdf, "free_flyer" if getattr(cls, "free_flyer", False) else "fixed",
                      (str(robots.parent.parent.resolve()),), posture)
+    if len(_FOUND) >= 64:
+        _FOUND.clear()
+    _FOUND[key] = spec
+    return spec
+
+
+_FOUND: dict[tuple[str, tuple[str, ...]] | None, RobotSpec] = {}  # (name, sys.path) -> where it was found
 
 
 def example_robot_data_dir() -> str | None:
@@ -156,9 +171,10 @@ def example_robot_data_dir() -> str | None:
     for entry in path:
         share = Path(entry or ".") / ".." / ".." / ".." / "share"
         if (share / "example-robot-data" / "robots").is_dir():
+            found = str(share.resolve())
             _ERD_DIR.clear()
-            _ERD_DIR[path] = str(share.resolve())
-            return _ERD_DIR[path]
+            _ERD_DIR[path] = found
+            return found
     return None
 
 
