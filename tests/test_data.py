@@ -116,7 +116,7 @@ def test_the_build_ships_every_data_file():
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     backend = cfg["build-system"]["build-backend"]
     files = _data_files()
-    assert len(files) == 4 + 21 + 3 + 2  # 4 URDFs; 21 scenes (2 with control limits, issue 15); 3 robot scenes; 2 sweeps
+    assert len(files) == 4 + 21 + 3 + 3  # 4 URDFs; 21 scenes (2 with control limits, issue 15); 3 robot scenes; 3 sweeps
     if backend.startswith("setuptools"):
         globs = cfg["tool"]["setuptools"]["package-data"]["geoddp"]
         missing = [f for f in files if not any(f.match(g) and len(f.parts) == len(PurePosixPath(g).parts)
@@ -150,7 +150,7 @@ def test_the_sweep_files_are_examples_but_not_scenes():
     from geoddp.sweep.spec import sweep_names
 
     assert (ROOT / "examples" / "sweeps").samefile(data.sweep_dir())  # examples/sweeps is the package's folder
-    assert set(sweep_names()) == {"satellite_slew", "satellite_noise_mc"}
+    assert set(sweep_names()) == {"satellite_slew", "satellite_noise_mc", "ur5_reach_grid"}
     assert not set(sweep_names()) & set(data.scene_names())  # a sweep file is not a scene
 
 

@@ -327,7 +327,7 @@ def sweep_names() -> tuple[str, ...]:
 
 def load_sweep(path: str | Path) -> Sweep:
     """Read a sweep file (see the module docstring), or a built-in sweep by name
-    (:func:`sweep_names`: ``"satellite_slew"``, ``"satellite_noise_mc"``), without validating
+    (:func:`sweep_names`: ``"satellite_slew"``, ``"satellite_noise_mc"``, ``"ur5_reach_grid"``), without validating
     the cases.
 
     Raises:
