@@ -105,7 +105,8 @@ def names() -> tuple[str, ...]:
 
 
 def find(name: Any, parameter: str = "robot") -> RobotSpec:
-    """The robot called ``name`` in ``example-robot-data``.
+    """The robot called ``name`` in ``example-robot-data`` (remembered per ``sys.path`` while its
+    URDF and SRDF files are there).
 
     Raises:
         InputError: naming ``parameter``: not a string, an unknown name (with the closest names
@@ -244,7 +245,9 @@ def mesh_uris(urdf: str | Path) -> list[str]:
 def check_meshes(urdf: str | Path, package_dirs: tuple[str, ...] | list[str] = (),
                  parameter: str = "package_dirs") -> list[str]:
     """Resolve every mesh of a URDF (:func:`resolve_mesh`) as the replay will: in
-    ``package_dirs``, then :func:`default_package_dirs`; the URIs of the missing ones.
+    ``package_dirs``, then :func:`default_package_dirs`; the URIs of the missing ones. When this
+    process found every one of the same URIs, from the same folder and search path, before, the
+    files found then are checked again on disk instead (a missing one resolves everything anew).
 
     Raises:
         InputError: naming ``parameter`` for a ``package://`` URI whose package is found nowhere.
