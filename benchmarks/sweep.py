@@ -39,7 +39,7 @@ from pathlib import Path
 from geoddp.api import solve_scene
 from geoddp.scene import parse_scene
 from geoddp.sweep import expand, load_sweep, read_table, run_sweep
-from geoddp.sweep.run import local_cluster
+from geoddp.sweep.run import local_cluster, quiet_teardown
 
 SWEEP = """
 [sweep]
@@ -147,6 +147,8 @@ def main() -> None:
                         t0 = time.perf_counter()
                         run_sweep(path, out, scheduler=cluster.scheduler_address)
                         walls[f"dask{n}"].append(time.perf_counter() - t0)
+                        with Client(cluster) as c:  # as run_sweep does with its own cluster
+                            quiet_teardown(c)
                     own[n].append(read_table(out)["case_time_s"].sum())
                     walls[f"pool{n}"].append(pool_wall(pools[n], jobs, n))
             with local_cluster(2) as c2, Client(c2) as client:

@@ -130,6 +130,33 @@ def test_local_cluster_of_two_workers_equals_serial(small, tmp_path):
     pd.testing.assert_frame_equal(comparable(read_table(tmp_path / "local")), serial, check_exact=True)
 
 
+def _worker_log_level() -> int:
+    import logging
+
+    return logging.getLogger("distributed.worker").getEffectiveLevel()
+
+
+def test_our_cluster_workers_go_quiet_before_it_closes():
+    """quiet_teardown, which run_sweep calls on its own LocalCluster once every case is in: each
+    worker's Dask loggers drop to CRITICAL, so a heartbeat caught by the closing scheduler does
+    not print a traceback after a sweep that succeeded (dask/distributed#7192: 1 CLI sweep in 12
+    on 2 workers did before); on a client whose workers are gone it does nothing and raises
+    nothing."""
+    import logging
+
+    from geoddp.sweep.run import local_cluster, quiet_teardown
+
+    with local_cluster(2) as c, distributed.Client(c) as client:
+        client.wait_for_workers(2, timeout=60)
+        before = client.run(_worker_log_level)
+        assert len(before) == 2 and all(level < logging.CRITICAL for level in before.values())
+        quiet_teardown(client)
+        after = client.run(_worker_log_level)
+        assert set(after) == set(before) and all(level == logging.CRITICAL for level in after.values())
+        assert logging.getLogger("distributed.worker").getEffectiveLevel() < logging.CRITICAL  # not this process's
+    quiet_teardown(client)  # closed: nothing to reach
+
+
 def test_scheduler_address_gives_the_same_table(small, cluster, tmp_path):
     path, serial = small
     out = tmp_path / "remote"
