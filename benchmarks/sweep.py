@@ -104,7 +104,10 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="geoddp-sweep-bench-"))
     try:
         path = tmp / "bench.toml"
-        text = ROBOT_SWEEP.format(cases=args.cases) if args.robot else SWEEP.format(cases=args.cases, tf=args.steps * 0.002)
+        if args.robot:
+            text = ROBOT_SWEEP.format(cases=args.cases)
+        else:
+            text = SWEEP.format(cases=args.cases, tf=args.steps * 0.002)
         path.write_text(textwrap.dedent(text))
         cases = expand(load_sweep(path))
         specs = [parse_scene(c.scene, c.source) for c in cases]

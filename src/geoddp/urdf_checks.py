@@ -200,8 +200,8 @@ def build_checked_model(path: str | Path, root_joint: object | None = None, name
     process (with the same root joint) is copied from the one built then, not built again.
     """
     text = read_urdf_text(path, name)
-    kind = "" if root_joint is None else root_joint.shortname()
-    if kind not in _UNPARAMETRISED:  # a root joint with parameters (an axis, a pitch): built each time
+    kind = "" if root_joint is None else getattr(root_joint, "shortname", lambda: "?")()
+    if kind not in _UNPARAMETRISED:  # a root joint with parameters (an axis, a pitch), or not a joint: built each time
         return _build_checked(text, path, root_joint, name)
     key = (kind, text)
     with _BUILT_LOCK:

@@ -357,9 +357,9 @@ def quiet_teardown(client: Any) -> None:
     CRITICAL. Closing the cluster removes each worker from the scheduler while the worker may have
     a heartbeat in flight; the worker then logs "Failed to communicate with scheduler during
     heartbeat" with a 30-line traceback on stderr (a race: 1 CLI sweep in 12 on 2 workers here,
-    then none in 30 more; Dask's open issue dask/distributed#7192), after a sweep that succeeded. Nothing is left for the
-    workers to report then (every outcome was recorded), and a failure to reach them here is
-    not one of the sweep's."""
+    then none in 30 more; Dask's open issue dask/distributed#7192), after a sweep that
+    succeeded. Nothing is left for the workers to report then (every outcome was recorded), and
+    a failure to reach them here is not one of the sweep's."""
     import logging
 
     try:
