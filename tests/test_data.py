@@ -34,8 +34,17 @@ def test_the_builtin_data_is_the_package_folder():
     assert data.urdf_names() == ("quadrotor.urdf", "satellite.urdf", "space_manipulator.urdf", "spacecraft.urdf")
     assert len(HARD) == 13
     assert data.scene_names() == tuple(sorted(SATELLITE + MULTIBODY + HARD + ROBOTS))
-    # The repository's examples/ is the package's scene folder, not a copy.
-    assert (ROOT / "examples").resolve() == data.scene_dir()
+    # The repository's examples/ holds the gallery's scripts beside links to the package's scenes,
+    # not copies: each top-level scene file and each scene folder is the package's own.
+    examples = ROOT / "examples"
+    top = sorted(p.name for p in data.scene_dir().glob("*.toml"))
+    assert top == sorted(p.name for p in examples.glob("*.toml")) and len(top) == len(SATELLITE)
+    for name in top:
+        assert (examples / name).samefile(data.scene_dir() / name)
+    folders = sorted(p.name for p in data.scene_dir().iterdir() if p.is_dir())
+    assert folders == ["hard", "multibody", "robots", "sweeps"]
+    for folder in folders:
+        assert (examples / folder).samefile(data.scene_dir() / folder)
 
 
 @pytest.mark.parametrize("name", SATELLITE + MULTIBODY + HARD + ROBOTS)

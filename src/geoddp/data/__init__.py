@@ -14,7 +14,7 @@ same lookups work from a source checkout, an editable install and a plain ``pip 
 
 A built-in scene is named by its file stem (``quadrotor``, ``satellite_paper``,
 ``tumbling_5rads``); stems are unique across the scene folders. The repository's ``examples/``
-is a symlink to the scene folder, so ``examples/satellite_paper.toml`` is the same file.
+holds links to these files and folders, so ``examples/satellite_paper.toml`` is the same file.
 
 The data lives here rather than under ``scene/`` because the models below the scene layer use it
 too (``models/satellite.py`` builds the satellite from ``satellite.urdf``, the viewer replays it):
