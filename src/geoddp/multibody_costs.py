@@ -2,13 +2,13 @@
 
 A multibody state is x = (q, v) with q in the configuration manifold of a ``pin.Model``
 (shape (nq,)) and v in R^nv. Its tangent perturbation is zeta = (dq, dv) in R^(2 nv), and the
-retraction is
+retraction is::
 
     retract(x, zeta) = (pin.integrate(model, q, dq), v + dv),
 
 the product of the joints' group exponentials (SE(3) for a free flyer, SO(3) for a spherical
 joint, U(1) for an unbounded revolute joint, vector spaces otherwise). Every term supplies, on
-N nodes at once (Q (N, nq), V (N, nv), U (N, m) or None for a terminal cost),
+N nodes at once (Q (N, nq), V (N, nv), U (N, m) or None for a terminal cost)::
 
     l    (N,)                 cost value (units of the cost: weight units x residual units^2)
     l_x  (N, 2 nv)            d/ds l(retract(x, s zeta)) = l_x . zeta

@@ -4,10 +4,12 @@ State x = (q, v): q in R^nq (Pinocchio's configuration coordinates), v in R^nv. 
 zeta = (dq, dv) in R^(2 nv) with q = integrate(q_bar, dq), v = v_bar + dv (:meth:`Multibody.retract`
 and :meth:`Multibody.local` are the one place this is defined), so nx = 2 nv.
 
-Dynamics (Pinocchio is the source of truth):
+Dynamics (Pinocchio is the source of truth)::
+
     v+ = v + dt aba(q, v, H u)                      (H: nv x m actuation, generalised forces)
     q+ = integrate(q, dt w),  w = v  (explicit Euler, paper eq. disceq)
                               w = v+ (semi-implicit Euler, Crocoddyl's).
+
 or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step (cpp/rkmk4.hpp, where the
 scheme is written out; second-order terms by central differences of its analytic step Jacobian,
 symmetrised), or the forward variational Euler step ("variational", :mod:`geoddp.variational`).

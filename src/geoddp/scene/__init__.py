@@ -1,5 +1,7 @@
 """Scene files: a TOML description of one optimal control problem, read once, built once.
 
+::
+
     scene file | built-in name | dict
       -> reader.py     TOML -> plain table; Reader: key paths and did-you-mean in every error
       -> satellite.py  the satellite schema (paper Section VI) -> SceneSpec

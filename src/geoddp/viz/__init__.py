@@ -12,6 +12,7 @@ through ``package_dirs``; or with ``geometry="collision"`` its collision geometr
 forward kinematics (:func:`visual_placements` gives the per-frame world placements), with the
 target pose as a translucent ghost, frame targets as triads, an optional ``trail`` and a camera
 framing the whole trajectory.
+
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures;
   :func:`plot_simulation`: the Monte Carlo bundles and error histograms (issue 16).
 """
