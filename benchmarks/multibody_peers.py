@@ -28,8 +28,9 @@ which checks dynamics, integrator, costs and the dt scaling at once):
   evaluated by ``calc(data, x)`` and not scaled.
 
 Needs crocoddyl 3.2.1 with pin 4.0.0 (``pip install -e ".[bench]"``; the 3.2.1 wheels are
-ABI-broken against pin 4.1.0). Run ``python benchmarks/multibody_peers.py`` for the table of
-README_peers.md ("Multibody scenes").
+ABI-broken against pin 4.1.0). Run ``python benchmarks/multibody_peers.py`` for its table of the
+built-in scenes beside Crocoddyl FDDP and DDP; ``benchmarks/robots.py`` builds its Crocoddyl
+problems with this module and gives the current comparison (docs/benchmarks.md).
 """
 from __future__ import annotations
 
@@ -143,7 +144,7 @@ def solve_crocoddyl(mb_problem: Any, solver: str = "fddp", th_stop: float = 1e-9
     controls by default) and their rollout.
 
     ``th_stop``: Crocoddyl's stopping threshold; in crocoddyl 3.2.1 ``stop`` is the expected
-    cost decrease of the full step (README_peers.md), so this stops after a step predicted to
+    cost decrease of the full step (docs/benchmarks.md), so this stops after a step predicted to
     lower J by less than th_stop. ``nthreads``: ``ShootingProblem.nthreads`` (None: Crocoddyl's
     default). Returns ``cost`` (geoddp's cost of a geoddp rollout of the returned controls),
     ``cost_solver`` (Crocoddyl's own), ``iterations`` (backward/forward passes), ``time_s``

@@ -294,7 +294,7 @@ def _make_matrix_actuation(crocoddyl: Any, state: Any, H: np.ndarray) -> Any:
 # Default crocoddyl stopping threshold.  In crocoddyl 3.2.1 SolverDDP/FDDP's
 # stoppingCriteria() is sum_k ||Q_u,k||^2 (squared norm of the control gradient
 # of the Q-function over the horizon), checked after computeDirection.  The
-# value below was chosen empirically (see README_peers.md) so that the final
+# value below was chosen empirically (see docs/benchmarks.md) so that the final
 # cost is within 1e-8 (absolute) of the optimum for N = 300 and N = 3000.
 CROCODDYL_TH_STOP = 1e-8
 

@@ -4,7 +4,7 @@
 One warm-up solve per example, then ``--runs`` rounds interleaved over the examples; reported per
 example: J*, iterations, status, and the median / min of ``Result.solve_time_s`` (wall time of
 the solve, including the final optimality check), with the machine's load average. These are
-the numbers of the README's real-robot table:
+the numbers of the robots guide's table (docs/guide/robots.md):
 ``python benchmarks/robot_examples.py [--runs 5]`` (needs example-robot-data: the ``robots`` extra).
 """
 from __future__ import annotations

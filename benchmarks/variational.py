@@ -1,7 +1,7 @@
 """The forward variational Euler integrator on the compiled core, against semi-implicit Euler.
 
 Per built-in multibody scene (its own horizon and weights; stopping tests tightened to tol = 0,
-grad_tol = 1e-9 as in the README's variational table): geoddp first, second and switch with the
+grad_tol = 1e-9 as in the benchmarks page's variational table): geoddp first, second and switch with the
 variational integrator, and second with semi-implicit Euler, all on the compiled core. Runs are
 interleaved (one of each in turn) after one warm-up round; the table gives medians of
 ``Result.solve_time_s``. The ratio is variational second-order time over semi-implicit
@@ -42,7 +42,7 @@ def _oracle():
 
 
 def _solve(scene: str, integrator: str, expansion: str, api=None):
-    """One solve of a built-in scene with the README table's stopping tests, through ``api``
+    """One solve of a built-in scene with the benchmarks table's stopping tests, through ``api``
     (geoddp.api by default; side_by_side passes the reference checkout's)."""
     if api is None:
         import geoddp.api as api
