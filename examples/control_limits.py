@@ -2,9 +2,9 @@
 Control limits
 ==============
 
-Reaction wheels saturate. The paper's manoeuvre with every wheel limited to |u_i| <= 5 N m (the
+Reaction wheels saturate. The paper's manoeuvre with every wheel limited to ``|u_i| <= 5`` N m (the
 built-in scene ``satellite_wheel_limits``: Table I plus a ``[limits]`` table), then the same
-problem built in Python with tighter limits, |u_i| <= 3 N m.
+problem built in Python with tighter limits, ``|u_i| <= 3`` N m.
 
 Each backward pass solves a box-constrained QP per node (projected Newton), the forward pass
 clamps after the feedback law, so every iterate stays inside the box, and the result reports

@@ -5,7 +5,7 @@ The paper's satellite
 The numerical example of Boutselis and Theodorou (Section VI, Table I): a rigid satellite on
 TSO(3) turned from rest at the identity to R_d = Rot_x(30 deg) Rot_z(70 deg) in 3 s (300 steps
 of explicit Euler, chordal attitude cost), from zero controls, stopped when
-|J_i - J_(i-1)| <= 1e-8 as in the paper.
+``|J_i - J_(i-1)| <= 1e-8`` as in the paper.
 
 We solve it with each expansion: ``first`` (the first-order expansion of the dynamics), ``second``
 (the exact second-order expansion) and ``switch`` (first order until J_i / J_0 < 0.1, then
@@ -64,7 +64,7 @@ assert abs(r.attitude_error_deg - 2.2409) < 1e-4
 # %%
 # Convergence
 # -----------
-# ||U_i - U*|| against the iteration: first order converges linearly; second order needs
+# ``||U_i - U*||`` against the iteration: first order converges linearly; second order needs
 # regularisation in its first iteration, then converges superlinearly; switch takes the first
 # order's cheap early progress and the second order's fast finish.
 fig, ax = plt.subplots(figsize=(6, 3.8))

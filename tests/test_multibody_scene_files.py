@@ -23,6 +23,7 @@ from geoddp.validate import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "multibody"
+SCENES_GUIDE = ROOT / "docs" / "guide" / "scenes.md"
 NAMES = ("spacecraft_docking", "space_manipulator", "quadrotor")
 
 
@@ -68,7 +69,7 @@ def test_scene_file_builds_the_reference_problem(name):
 
 def test_quadrotor_file_solves_to_the_reference_optimum_and_the_readme_numbers():
     """Full scene (H = 150): same J* (1e-10 relative) and iterations as the Python builder; the
-    README's measured row (switch: 9 iterations, J* = 1.5520335279)."""
+    benchmarks page's measured row (switch: 9 iterations, J* = 1.5520335279)."""
     a = ref.quadrotor()
     ra = solve(a, SolverOptions(verbose=False), initial_controls=ref.hover_controls(a))
     rb = solve_scene(EXAMPLES / "quadrotor.toml", verbose=False)
@@ -473,11 +474,11 @@ def test_run_multibody_refuses_plots_before_solving(tmp_path, capsys, flag):
     assert err.startswith(f"geoddp: error: {flag[0]}: not supported for multibody scenes") and len(err.splitlines()) == 1
 
 
-def test_readme_example_is_the_docking_scene(tmp_path):
-    """The full example in the README parses and states the same problem as the example file."""
-    text = (ROOT / "README.md").read_text()
-    block = text.split("### Multibody scene files", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]
-    p = tmp_path / "readme_example.toml"  # anywhere: the bare URDF name resolves to the built-in one
+def test_the_guides_example_is_the_docking_scene(tmp_path):
+    """The full example in the scenes guide parses and states the same problem as the example file."""
+    text = SCENES_GUIDE.read_text()
+    block = text.split("## The general schema: any Pinocchio model", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]
+    p = tmp_path / "guide_example.toml"  # anywhere: the bare URDF name resolves to the built-in one
     p.write_text(block)
     a = load_scene(p)
     b = load_scene(EXAMPLES / "spacecraft_docking.toml")
@@ -497,10 +498,10 @@ def test_readme_example_is_the_docking_scene(tmp_path):
                                   "got norm 1.00498756211"),
     ("dt_zero", "[horizon].dt: expected a number > 0, got 0.0"),
 ])
-def test_readme_error_messages_are_verbatim(tmp_path, case, message):
+def test_the_guides_error_messages_are_verbatim(tmp_path, case, message):
     p = tmp_path / "s.toml"
     p.write_text(BAD[case][0])
     with pytest.raises(InputError) as info:
         load_scene(p)
     assert str(info.value) == f"{message} (in {p})"
-    assert message in (ROOT / "README.md").read_text().replace("\n  ", " ")
+    assert message in SCENES_GUIDE.read_text().replace("\n  ", " ")

@@ -1,6 +1,7 @@
-"""The README's Python example of a multibody problem with a cost term of the user's own ("From
-Python: a problem from cost terms"): the block runs as printed, and its custom term is checked
-against the built-in kernels in a whole solve and against finite differences."""
+"""The robots guide's Python example of a multibody problem with a cost term of the user's own
+(docs/guide/robots.md, "From Python: a problem from cost terms"): the block runs as printed, and
+its custom term is checked against the built-in kernels in a whole solve and against finite
+differences."""
 from __future__ import annotations
 
 import re
@@ -14,12 +15,12 @@ from geoddp.multibody_costs import MultibodyCostSum, StateRegularisation
 from geoddp.problem import Problem
 from geoddp.solver import SolverOptions, solve
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "robots.md"
 
 
 def _example() -> str:
-    """The README's python block that defines JointSpeed."""
-    blocks = re.findall(r"```python\n(.*?)```", README.read_text(encoding="utf-8"), flags=re.S)
+    """The guide's python block that defines JointSpeed."""
+    blocks = re.findall(r"```python\n(.*?)```", GUIDE.read_text(encoding="utf-8"), flags=re.S)
     (block,) = [b for b in blocks if "class JointSpeed(MultibodyCostTerm)" in b]
     return block
 
@@ -27,15 +28,15 @@ def _example() -> str:
 @pytest.fixture(scope="module")
 def example():
     ns: dict = {"__name__": "readme_example"}
-    exec(compile(_example(), "README.md (JointSpeed example)", "exec"), ns)
+    exec(compile(_example(), "docs/guide/robots.md (JointSpeed example)", "exec"), ns)
     return ns
 
 
-def test_the_example_runs_and_prints_what_the_readme_says(example):
+def test_the_example_runs_and_prints_what_the_guide_says(example):
     result = example["result"]
     assert result.converged and result.iterations == 5
     printed = f"{result.status} J* = {result.cost:.9f} {result.iterations} iterations"
-    assert f"This prints `{printed}`." in README.read_text(encoding="utf-8")
+    assert f"This prints `{printed}`." in GUIDE.read_text(encoding="utf-8")
 
 
 def test_the_custom_term_solves_as_the_kernels_do(example):
