@@ -164,10 +164,13 @@ def test_the_sweep_files_are_examples_but_not_scenes():
 
 
 def test_readme_test_command_is_exactly_what_ci_runs():
-    """The README's second set-up command and the last line of .ci/run are one command (they had
-    drifted apart: the README left out the Crocoddyl limits cross-check)."""
+    """The README's second set-up command, the one on the documentation's getting-started page and
+    the last line of .ci/run are one command (they had drifted apart: the README left out the
+    Crocoddyl limits cross-check). It builds the documentation, whose gallery runs the examples."""
     root = Path(__file__).resolve().parents[1]
     ci = (root / ".ci" / "run").read_text().strip().splitlines()[-1]
-    readme = (root / "README.md").read_text().splitlines()
-    commands = [line for line in readme if line.startswith("python3 -m venv .venv && ") and "pytest" in line]
-    assert commands == [ci]
+    for page in ("README.md", "docs/getting_started.md"):
+        lines = (root / page).read_text().splitlines()
+        commands = [line for line in lines if line.startswith("python3 -m venv .venv && ") and "pytest" in line]
+        assert commands == [ci], page
+    assert '".[test,docs]"' in ci and "sphinx-build -W " in ci
