@@ -11,7 +11,8 @@ the root package ``geoddp`` is a key for its ``__init__`` only). A module that n
 the test, so a new module must be given a floor here. Same-floor imports are allowed; the circle
 check keeps them one-way.
 
-The floors follow DESIGN.md, mapped onto today's module names. Where the code taught otherwise:
+The floors follow docs/design.md ("Floors"), mapped onto today's module names. Where the code
+taught otherwise:
 
 * ``integrators`` and ``variational`` are on floor 1, not 2: the models' expansion layout and the
   implicit step's error (``models/multibody.py`` and ``models/satellite.py`` import them).
