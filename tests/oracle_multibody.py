@@ -24,7 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from geoddp import integrators as integ
-from geoddp.linalg import symmetric_from_upper
+from oracle_linalg import symmetric_from_upper
 from geoddp.models.multibody import Multibody
 from geoddp.variational import StepDidNotConverge
 

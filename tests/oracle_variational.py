@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 
 from geoddp import lie
-from geoddp.linalg import symmetric_from_upper
+from oracle_linalg import symmetric_from_upper
 from geoddp.variational import NEWTON_MAX_ITER, NEWTON_TOL, StepDidNotConverge, not_converged_message
 
 # Central-difference step for the kinetic-energy Hessian (error ~1e-10 relative, as for the ABA

@@ -40,7 +40,6 @@ FLOORS: dict[str, int] = {
     "geoddp.kernels": 0,
     "geoddp._core": 0,
     "geoddp.data": 0,
-    "geoddp.linalg": 0,
     "geoddp.limits": 0,  # control limits: validation and the box arithmetic (issue 15); imports only validate
     # 1: Lie groups, configuration spaces, models and their time steppers
     "geoddp.lie": 1,
