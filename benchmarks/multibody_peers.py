@@ -1,7 +1,7 @@
 """Crocoddyl peer for geoddp's multibody problems (issue 6).
 
 ``crocoddyl_problem(mb_problem)`` builds the Crocoddyl equivalent of a geoddp
-:class:`geoddp.multibody_problem.MultibodyProblem` integrated with semi-implicit Euler
+:class:`geoddp.problem.Problem` integrated with semi-implicit Euler
 (``integrator="semi_implicit"``), and ``solve_crocoddyl`` solves it with FDDP or DDP.
 
 Mapping (checked by ``check_cost_equivalence``: Crocoddyl's total cost of a random control
@@ -90,7 +90,7 @@ def _cost_model(crocoddyl: Any, pin: Any, state: Any, nu: int, cost_sum: Any, sc
 
 
 def crocoddyl_problem(mb_problem: Any) -> Any:
-    """The ``crocoddyl.ShootingProblem`` equivalent to a semi-implicit geoddp MultibodyProblem."""
+    """The ``crocoddyl.ShootingProblem`` equivalent to a semi-implicit geoddp Problem."""
     import crocoddyl
     import pinocchio as pin
 
@@ -211,7 +211,7 @@ def compare(mb_problem: Any, runs: int = 1, seed: int = 0) -> list[dict[str, Any
 
 
 def main(argv: list[str] | None = None) -> int:
-    from geoddp import multibody_scenes as scenes
+    from geoddp.scene import builtin as scenes
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=3)

@@ -162,10 +162,9 @@ def test_the_solver_needs_only_the_contract(name):
 def test_satellite_and_multibody_describe_their_model_alike():
     """One Problem class: both kinds describe kind, dt, integrator, the URDF, root, nq, nv and the
     terminal targets, so the Result and the viewer read the same keys."""
-    from geoddp.problem import MultibodyProblem, Problem, paper_problem
-    from geoddp.multibody_scenes import quadrotor
+    from geoddp.problem import paper_problem
+    from geoddp.scene.builtin import quadrotor
 
-    assert MultibodyProblem is Problem
     sat, mb = paper_problem().describe(), quadrotor(horizon=5).describe()
     common = {"kind", "dt", "integrator", "urdf", "root", "nq", "nv", "target_rotation", "target_angular_velocity"}
     assert common <= set(sat) and common <= set(mb)

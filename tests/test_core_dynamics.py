@@ -88,10 +88,10 @@ def test_rollout_equals_python(case, integrator):
 
 def _problem(model, q0, v0, H):
     from geoddp.multibody_costs import ControlRegularisation, MultibodyCostSum
-    from geoddp.multibody_problem import MultibodyProblem
+    from geoddp.problem import Problem
 
     cost = MultibodyCostSum([ControlRegularisation(np.zeros(model.nu))], model=model.pin_model)
-    return MultibodyProblem(model, q0, v0, H, cost, MultibodyCostSum([], model=model.pin_model, terminal=True))
+    return Problem(model, q0, v0, H, cost, MultibodyCostSum([], model=model.pin_model, terminal=True))
 
 
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit", "rk4", "variational"])

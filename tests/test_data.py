@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 import pytest
 
 from geoddp import data
-from geoddp.multibody_scene import MultibodySceneSpec
+from geoddp.scene import MultibodySceneSpec
 from geoddp.scene import SceneSpec, load_scene
 from geoddp.validate import InputError
 

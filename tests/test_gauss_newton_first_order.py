@@ -21,7 +21,7 @@ import pytest
 
 from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,
                                     StateRegularisation)
-from geoddp.multibody_scenes import hover_controls, quadrotor, space_manipulator, spacecraft_docking
+from geoddp.scene.builtin import hover_controls, quadrotor, space_manipulator, spacecraft_docking
 from geoddp.problem import Problem, paper_problem
 from geoddp.result import STATUS_CONVERGED_COST
 from geoddp.scene import build_problem, load_scene

@@ -18,8 +18,6 @@ The floors follow DESIGN.md, mapped onto today's module names. Where the code ta
 * ``data`` (the built-in URDFs and scenes) is on floor 0, not under ``scene/``: the models read
   ``satellite.urdf`` from it.
 * ``reference`` (scipy's L-BFGS on the same problem) is a second solver: floor 3.
-* ``multibody_scene`` and ``multibody_scenes`` are the old names of ``scene.multibody`` and
-  ``scene.builtin`` (re-exports): floor 4, with the ``scene`` package.
 * The root package's ``__init__`` is the public facade, floor 6: nothing inside imports it.
 """
 from __future__ import annotations
@@ -51,15 +49,12 @@ FLOORS: dict[str, int] = {
     "geoddp.costs": 2,
     "geoddp.multibody_costs": 2,
     "geoddp.problem": 2,
-    "geoddp.multibody_problem": 2,
     # 3: solvers and their result
     "geoddp.solver": 3,
     "geoddp.result": 3,
     "geoddp.reference": 3,
     # 4: scenes (readers, builders, built-in scene builders) and the API
     "geoddp.scene": 4,
-    "geoddp.multibody_scene": 4,
-    "geoddp.multibody_scenes": 4,
     "geoddp.api": 4,
     "geoddp.simulation_spec": 4,  # the [simulation] table's values (issue 16), read with the scenes
     # 5: viewers and figures (read Results)
@@ -242,7 +237,7 @@ def problems(graph: dict[str, set[str]], floors: dict[str, int]) -> list[str]:
 def test_every_module_is_read():
     """The scan sees the package (so an empty graph cannot pass) and the imports it should."""
     graph = import_graph()
-    assert {"geoddp.cli", "geoddp.scene", "geoddp.scene.reader", "geoddp.multibody_scene", "geoddp.viz.scene",
+    assert {"geoddp.cli", "geoddp.scene", "geoddp.scene.reader", "geoddp.scene.builtin", "geoddp.viz.scene",
             "geoddp.validate", "geoddp.data"} <= set(graph)
     assert "geoddp.models.multibody" in graph["geoddp.scene.multibody"]  # lazy, inside functions
     assert "geoddp.scene.reader" in graph["geoddp.scene.multibody"]
@@ -312,9 +307,9 @@ def test_a_synthetic_source_tree_with_a_lazy_circle_fails(tmp_path):
     pkg = tmp_path / "geoddp"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
-    (pkg / "scene.py").write_text("def build():\n    from .multibody_scene import parse\n")
-    (pkg / "multibody_scene.py").write_text("from .scene import build\n")
-    (pkg / "validate.py").write_text("def f():\n    from . import scene\n")
+    (pkg / "viz.py").write_text("def build():\n    from .sweep import parse\n")
+    (pkg / "sweep.py").write_text("from .viz import build\n")
+    (pkg / "validate.py").write_text("def f():\n    from . import viz\n")
     found = problems(import_graph(tmp_path), FLOORS)
-    assert found == ["upward import: geoddp.validate (floor 0) imports geoddp.scene (floor 4)",
-                     "import circle: geoddp.multibody_scene -> geoddp.scene -> geoddp.multibody_scene"], found
+    assert found == ["upward import: geoddp.validate (floor 0) imports geoddp.viz (floor 5)",
+                     "import circle: geoddp.sweep -> geoddp.viz -> geoddp.sweep"], found

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from geoddp import multibody_scenes as scenes
+from geoddp.scene import builtin as scenes
 from geoddp.limits import ControlLimits, active_set, projected_gradient
 from geoddp.problem import Problem, paper_problem
 from geoddp.result import Result

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from geoddp.multibody_scenes import hover_controls, quadrotor, space_manipulator, spacecraft_docking
+from geoddp.scene.builtin import hover_controls, quadrotor, space_manipulator, spacecraft_docking
 from geoddp.reference import lbfgs
 from geoddp.solver import SolverOptions, solve
 

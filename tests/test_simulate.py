@@ -9,7 +9,7 @@ import copy
 import numpy as np
 import pytest
 
-from geoddp.multibody_scenes import scene_spec
+from geoddp.scene.builtin import scene_spec
 from geoddp.problem import paper_problem
 from geoddp.scene import build_problem
 from geoddp.simulate import (MPC, Disturbances, Plant, SimulationSpec, monte_carlo, plant_from, simulate,

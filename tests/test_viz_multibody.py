@@ -14,7 +14,7 @@ import pytest
 
 from geoddp import viz  # first: silences meshcat's import warning
 from geoddp.data import urdf_dir
-from geoddp.multibody_scenes import space_manipulator
+from geoddp.scene.builtin import space_manipulator
 from geoddp.result import Result
 from geoddp.validate import InputError
 from geoddp.viz import meshcat_replay

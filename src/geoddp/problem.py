@@ -261,9 +261,6 @@ def _offers_gauss_newton(cost: Any) -> bool:
     return bool(getattr(cost, "first_order_gauss_newton", False))
 
 
-MultibodyProblem = Problem  # the multibody problem is the same class (issue 11)
-
-
 def satellite_problem(
     *,
     inertia,
