@@ -66,7 +66,7 @@ def _single(ref: np.ndarray, what: str) -> np.ndarray:
 
 def _cost_model(crocoddyl: Any, pin: Any, state: Any, nu: int, cost_sum: Any, scale: float) -> Any:
     """A crocoddyl.CostModelSum with the terms of a geoddp MultibodyCostSum, weights x scale."""
-    from geoddp.multibody_costs import ControlRegularisation, FramePlacement, StateRegularisation
+    from geoddp.costs.multibody import ControlRegularisation, FramePlacement, StateRegularisation
 
     costs = crocoddyl.CostModelSum(state, nu)
     for i, t in enumerate(cost_sum.terms):

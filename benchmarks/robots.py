@@ -63,7 +63,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from geoddp.models.actuation import quadrotor_actuation  # noqa: E402
 from geoddp.models.multibody import Multibody  # noqa: E402
-from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,  # noqa: E402
+from geoddp.costs.multibody import (ControlRegularisation, FramePlacement, MultibodyCostSum,  # noqa: E402
                                     StateRegularisation)
 from geoddp.problem import Problem  # noqa: E402
 from geoddp.solver import SolverOptions, cost_gradient, solve  # noqa: E402

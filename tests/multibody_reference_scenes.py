@@ -14,7 +14,7 @@ import pinocchio as pin
 from geoddp.data import urdf_dir
 from geoddp.models.actuation import quadrotor_actuation, thruster_actuation
 from geoddp.models.multibody import Multibody
-from geoddp.multibody_costs import (
+from geoddp.costs.multibody import (
     ControlRegularisation,
     FramePlacement,
     MultibodyCostSum,

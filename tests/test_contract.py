@@ -1,4 +1,4 @@
-"""The problem/solver contract (geoddp.contract): every built-in scene's problem satisfies it, with
+"""The problem/solver contract (geoddp.problem.contract): every built-in scene's problem satisfies it, with
 the documented shapes, and the solver needs nothing else (a proxy exposing only the contract
 solves to the same iterates, bit for bit)."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from geoddp.contract import Linearisation, OptimalControlProblem, Trajectory
+from geoddp.problem.contract import Linearisation, OptimalControlProblem, Trajectory
 from geoddp.scene import SceneSpec, build_problem, load_scene
 from geoddp.solver import SolverOptions, cost_gradient, solve
 from geoddp.validate import InputError

@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.contract import Linearisation
+from geoddp.problem.contract import Linearisation
 from geoddp.models import compiled
 from geoddp.models.multibody import Multibody
 from geoddp.solver import SolverOptions, solve

@@ -23,7 +23,7 @@ else:
         "to compare geoddp with Crocoddyl on the multibody scenes")
 
 from geoddp.scene import builtin as scenes  # noqa: E402
-from geoddp.multibody_costs import ControlRegularisation, MultibodyCostSum  # noqa: E402
+from geoddp.costs.multibody import ControlRegularisation, MultibodyCostSum  # noqa: E402
 from geoddp.solver import SolverOptions, solve  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))

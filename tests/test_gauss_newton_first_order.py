@@ -19,7 +19,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,
+from geoddp.costs.multibody import (ControlRegularisation, FramePlacement, MultibodyCostSum,
                                     StateRegularisation)
 from geoddp.scene.builtin import hover_controls, quadrotor, space_manipulator, spacecraft_docking
 from geoddp.problem import Problem, paper_problem

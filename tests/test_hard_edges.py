@@ -20,7 +20,7 @@ from geoddp.api import solve_scene
 from geoddp.cli import main
 from geoddp.outputs import check_outputs, strict_json, write_atomic
 from geoddp.data import urdf_path
-from geoddp.limits import ControlLimits
+from geoddp.problem.limits import ControlLimits
 from geoddp.models.multibody import Multibody
 from geoddp.problem import Problem, paper_problem
 from geoddp.result import Result

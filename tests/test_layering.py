@@ -34,20 +34,20 @@ FLOORS: dict[str, int] = {
     "geoddp.validate": 0,
     "geoddp.interrupts": 0,  # signals the CLI received, for loops to raise again; imports nothing
     "geoddp.outputs": 0,  # strict JSON and atomic writes (issue 13); imports only validate
-    "geoddp.urdf_checks": 0,  # URDF encoding, axes, masses, inertias (issue 13); imports only validate
+    "geoddp.models.urdf": 0,  # URDF encoding, axes, masses, inertias (issue 13); imports only validate
     "geoddp.kernels": 0,
     "geoddp._core": 0,
     "geoddp.data": 0,
-    "geoddp.limits": 0,  # control limits: validation and the box arithmetic (issue 15); imports only validate
+    "geoddp.problem.limits": 0,  # control limits: validation and the box arithmetic (issue 15); imports only validate
     # 1: Lie groups, configuration spaces, models and their time steppers
     "geoddp.lie": 1,
-    "geoddp.integrators": 1,
-    "geoddp.variational": 1,
+    "geoddp.models.integrators": 1,
+    "geoddp.models.variational": 1,
     "geoddp.models": 1,
     # 2: costs and problems, and the contract between a problem and the solver
-    "geoddp.contract": 2,
+    "geoddp.problem.contract": 2,
     "geoddp.costs": 2,
-    "geoddp.multibody_costs": 2,
+    "geoddp.costs.multibody": 2,
     "geoddp.problem": 2,
     # 3: solvers and their result
     "geoddp.solver": 3,

@@ -396,10 +396,10 @@ def test_builtin_ur5_reach_grid_sweep_builds_the_robot_once(tmp_path, monkeypatc
     cases, all converged, each row the J* of its own case solved directly, the tool within 3 cm of
     its target (0.7-26 mm over the grid: nearest the base is hardest); and the sweep builds the
     UR5's model at most once in this process (a case is read, then built: two builds a case
-    before the memo of geoddp.urdf_checks)."""
+    before the memo of geoddp.models.urdf)."""
     import pinocchio as pin
 
-    import geoddp.urdf_checks as uc
+    import geoddp.models.urdf as uc
 
     import example_robot_data  # noqa: F401  (the test extra: a missing install fails here, not skips)
     builds = []

@@ -3,9 +3,9 @@
 A :class:`Result` is what the solver hands downstream: the viewer, the figures and the JSON
 writer read it and never call back into the solver. Everything is numpy arrays or builtins.
 
-It is generic: the state trajectory (q, v) as the problem's :class:`~geoddp.contract.Trajectory`
+It is generic: the state trajectory (q, v) as the problem's :class:`~geoddp.problem.contract.Trajectory`
 holds it, the controls and gains, the histories, the status, and the problem's model description
-(:meth:`~geoddp.contract.OptimalControlProblem.describe`). The satellite's views (rotations,
+(:meth:`~geoddp.problem.contract.OptimalControlProblem.describe`). The satellite's views (rotations,
 quaternions, angular velocities, the target and the attitude error) are properties derived from
 the state and the description, for a multibody from its root joint. The JSON keeps every field it
 has had (files written before the generic Result still load) and adds ``model``.

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .. import validate as v
-from ..limits import ControlLimits, check_inside
+from ..problem.limits import ControlLimits, check_inside
 from ..simulation_spec import SimulationSpec
 from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
                               EXPANSIONS)

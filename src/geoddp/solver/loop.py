@@ -48,7 +48,7 @@ Decisions the paper leaves open, and why:
   bound do not count). The final check reports the KKT residual and the active set. Indefinite
   Q_uu: the same lambda rule, applied to the whole Q_uu + lambda I before each box QP.
 
-The solver talks to the problem only through :class:`geoddp.contract.OptimalControlProblem`.
+The solver talks to the problem only through :class:`geoddp.problem.contract.OptimalControlProblem`.
 """
 from __future__ import annotations
 
@@ -58,10 +58,10 @@ from typing import TextIO
 
 import numpy as np
 
-from ..contract import Linearisation, OptimalControlProblem, Trajectory
+from ..problem.contract import Linearisation, OptimalControlProblem, Trajectory
 from ..result import Result
 from ..validate import InputError
-from ..limits import active_set, projected_gradient
+from ..problem.limits import active_set, projected_gradient
 from .backward import Workspace, backward, factorisable_gains, gradient, regularised_backward
 from .forward import line_search
 from .history import History
@@ -541,7 +541,7 @@ def _check_problem(problem: object, options: object) -> None:
     else:
         missing = [a for a in ("nx", "nu", "horizon", "dt", "check_controls", "trajectory", "trajectory_cost",
                                "linearise", "rollout_policy", "describe") if not hasattr(problem, a)]
-        raise InputError("problem", f"expected an optimal control problem (geoddp.contract.OptimalControlProblem: "
+        raise InputError("problem", f"expected an optimal control problem (geoddp.problem.contract.OptimalControlProblem: "
                          f"e.g. geoddp.scene.build_problem(spec)), got {type(problem).__name__}"
                          + (f" (missing {', '.join(missing)})" if missing else ""))
     if options is not None and not isinstance(options, SolverOptions):
@@ -559,7 +559,7 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
     """Solve ``problem`` with geometric DDP (Algorithm 1) and return a :class:`Result`.
 
     Args:
-        problem: anything satisfying :class:`geoddp.contract.OptimalControlProblem`
+        problem: anything satisfying :class:`geoddp.problem.contract.OptimalControlProblem`
             (:class:`geoddp.problem.Problem`, satellite or multibody).
         options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
         initial_controls: (H, m) initial guess; zeros by default (as in the paper), clipped into

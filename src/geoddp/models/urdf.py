@@ -27,7 +27,7 @@ from typing import Iterator
 import numpy as np
 import pinocchio as pin
 
-from .validate import InputError
+from ..validate import InputError
 
 __all__ = ["read_urdf_text", "check_urdf_text", "check_model", "build_checked_model", "captured_stderr"]
 

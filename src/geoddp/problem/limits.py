@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .validate import InputError, keywords_checked
+from ..validate import InputError, keywords_checked
 
 __all__ = ["ControlLimits", "as_limits", "check_inside", "active_set", "projected_gradient", "effort_limits"]
 

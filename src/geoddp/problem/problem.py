@@ -22,7 +22,7 @@ import numpy as np
 
 from .contract import Linearisation, Trajectory
 from .limits import as_limits, check_inside
-from .costs import (
+from ..costs.tso3 import (
     AngularVelocityQuadratic,
     AttitudeChordal,
     AttitudeGeodesic,
@@ -30,11 +30,11 @@ from .costs import (
     CostDerivatives,
     CostSum,
 )
-from .models.multibody import Multibody
-from .models.satellite import Satellite, satellite_model
-from .multibody_costs import (ControlRegularisation, FramePlacement, FrameRotation, FrameTranslation, MultibodyCostSum,
+from ..models.multibody import Multibody
+from ..models.satellite import Satellite, satellite_model
+from ..costs.multibody import (ControlRegularisation, FramePlacement, FrameRotation, FrameTranslation, MultibodyCostSum,
                               StateRegularisation)
-from .validate import InputError, choice, finite_array, keywords_checked, positive_int
+from ..validate import InputError, choice, finite_array, keywords_checked, positive_int
 
 ATTITUDE_KINDS = ("chordal", "geodesic")
 
@@ -51,7 +51,7 @@ class Problem:
         horizon: number of control steps H.
         running: running cost (applied at k = 0 .. H-1); terminal: terminal cost (at k = H).
         limits: control limits lower <= u_k <= upper (issue 15): None (unconstrained), a
-            :class:`geoddp.limits.ControlLimits`, a (lower, upper) pair or {"lower", "upper"};
+            :class:`geoddp.problem.limits.ControlLimits`, a (lower, upper) pair or {"lower", "upper"};
             each bound a scalar, (m,) or (H, m), -inf / inf for an unbounded side. Stored as a
             ControlLimits; :meth:`control_bounds` gives the (H, m) arrays.
     """
@@ -120,7 +120,7 @@ class Problem:
         return self.v0
 
     # ------------------------------------------------------------ the solver's contract
-    # (geoddp.contract.OptimalControlProblem): thin adapters over the array methods below.
+    # (geoddp.problem.contract.OptimalControlProblem): thin adapters over the array methods below.
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
         """Validated (H, m) float64 copy of a control sequence (inside the limits, if any)."""
         U = finite_array(controls, name, (self.horizon, self.nu))
