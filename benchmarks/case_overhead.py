@@ -31,7 +31,7 @@ from typing import Iterator
 
 from geoddp import data
 from geoddp.models import urdf as urdf_checks
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.models import robots
 from geoddp.scene import parse_scene
 

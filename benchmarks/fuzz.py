@@ -156,7 +156,7 @@ def run_case(case: dict, folder: Path) -> dict:
 
 
 def _api_case(case: dict, json_path: Path) -> int:
-    from geoddp.api import solve_scene
+    from geoddp import solve_scene
     from geoddp.validate import InputError
 
     try:

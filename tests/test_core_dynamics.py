@@ -348,7 +348,7 @@ def test_extension_records_its_pin():
 # ---------------------------------------------------------------------------- whole solves
 @pytest.mark.parametrize("scene", sorted(p.name for p in EXAMPLES.glob("*.toml")))
 def test_scene_solves_equal_python(scene, monkeypatch):
-    from geoddp.api import solve_scene
+    from geoddp import solve_scene
 
     res = {}
     for backend in ("python", "compiled"):

@@ -23,7 +23,7 @@ from geoddp.costs.multibody import (ControlRegularisation, FramePlacement, Multi
                                     StateRegularisation)
 from geoddp.scene.builtin import hover_controls, quadrotor, space_manipulator, spacecraft_docking
 from geoddp.problem import Problem, paper_problem
-from geoddp.result import STATUS_CONVERGED_COST
+from geoddp.solver import STATUS_CONVERGED_COST
 from geoddp.scene import build_problem, load_scene
 from geoddp.solver import SolverOptions, solve
 from geoddp.solver.loop import ANTICIPATE, CERTIFY_EARLY

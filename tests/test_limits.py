@@ -13,7 +13,7 @@ import pytest
 from geoddp.scene import builtin as scenes
 from geoddp.problem.limits import ControlLimits, active_set, projected_gradient
 from geoddp.problem import Problem, paper_problem
-from geoddp.result import Result
+from geoddp import Result
 from geoddp.solver import SolverOptions, cost_gradient, solve
 from geoddp.validate import InputError
 

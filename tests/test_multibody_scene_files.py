@@ -13,7 +13,8 @@ import pytest
 
 import multibody_reference_scenes as ref
 from geoddp.scene import builtin as multibody_scenes
-from geoddp.api import initial_controls, solve_scene
+from geoddp import solve_scene
+from geoddp.scene import initial_controls
 from geoddp.data import urdf_path
 from geoddp.cli import EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, main
 from geoddp.scene import MultibodySceneSpec, terminal_frame_errors

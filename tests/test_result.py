@@ -3,7 +3,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.result import Result, rotations_to_quaternions
+from geoddp import Result
+from geoddp.solver.result import rotations_to_quaternions
 
 
 def test_quaternions_match_pinocchio_and_are_sign_continuous(rng):

@@ -15,7 +15,7 @@ import pytest
 from geoddp import viz  # first: silences meshcat's import warning
 from geoddp.data import urdf_dir
 from geoddp.scene.builtin import space_manipulator
-from geoddp.result import Result
+from geoddp import Result
 from geoddp.validate import InputError
 from geoddp.viz import meshcat_replay
 from geoddp.viz.html import STATUS_ID, decode_commands, record_scene

@@ -18,7 +18,7 @@ import pytest
 import umsgpack
 
 from geoddp import viz  # first: silences meshcat's import warning
-from geoddp.result import Result
+from geoddp import Result
 from geoddp.validate import InputError
 from geoddp.viz import meshcat_replay
 from geoddp.viz.html import STATUS_ID, decode_commands, render_html
@@ -59,7 +59,7 @@ MIN_MOVED = 0.05
 @pytest.fixture(scope="module")
 def paper() -> Result:
     """The paper's satellite scene, solved (H = 300, dt = 0.01 s)."""
-    from geoddp.api import load_scene, solve_scene
+    from geoddp import load_scene, solve_scene
 
     return solve_scene(load_scene(PAPER), verbose=False)
 

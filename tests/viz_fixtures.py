@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from geoddp.result import STATUS_CONVERGED_COST, Result
+from geoddp import Result
+from geoddp.solver import STATUS_CONVERGED_COST
 
 
 def keyframes(clip: dict) -> np.ndarray:

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from geoddp.result import STATUS_CONVERGED_COST, Result
+from geoddp import Result
+from geoddp.solver import STATUS_CONVERGED_COST
 
 # A unit cube [-0.5, 0.5]^3: 8 vertices, 12 triangles (outward normals).
 CUBE_V = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])

@@ -2,7 +2,7 @@
 
 :func:`geoddp.solver.solve` calls the members of :class:`OptimalControlProblem` and nothing else:
 no ``problem.model.*``, no backend option (a backend is chosen when the model is built), and the
-problem never writes the :class:`~geoddp.result.Result`'s schema (it only describes its model).
+problem never writes the :class:`~geoddp.solver.result.Result`'s schema (it only describes its model).
 
 Shapes use H = horizon (number of control steps), m = nu (number of inputs) and nx = the
 dimension of the tangent space of the state group (6 on TSO(3), 2 nv for a multibody). States are

@@ -59,7 +59,7 @@ from typing import TextIO
 import numpy as np
 
 from ..problem.contract import Linearisation, OptimalControlProblem, Trajectory
-from ..result import Result
+from .result import Result
 from ..validate import InputError
 from ..problem.limits import active_set, projected_gradient
 from .backward import Workspace, backward, factorisable_gains, gradient, regularised_backward

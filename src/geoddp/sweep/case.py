@@ -8,7 +8,7 @@ dying process loses a case, and Dask's retries give it to another worker.
 
 Case kinds (:attr:`geoddp.sweep.spec.Case.kind`):
 
-* ``solve``: :func:`geoddp.api.solve_scene` on the case's scene.
+* ``solve``: :func:`geoddp.solve_scene` on the case's scene.
 * ``simulate``: solve, then fly the plan in closed loop with the case's ``[simulation]`` table
   (:func:`geoddp.simulate.simulate_scene`, issue 16); its flat statistics become ``sim.*`` columns.
 """
@@ -59,7 +59,7 @@ def run_case(p: dict[str, Any]) -> dict[str, Any]:
         if spec is None:
             spec = parse_scene(p["scene"], p["source"])
         if p["simulation"] is None:
-            from ..api import solve_scene
+            from ..scene.solve import solve_scene
 
             result = solve_scene(spec, verbose=False)
             stats: dict[str, float] = {}

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from .. import interrupts
-from ..outputs import write_atomic
+from ..output_files import write_atomic
 from ..validate import THREADS_ENV, InputError
 from . import case as case_mod
 from .spec import Case, Sweep, load_sweep, validate_all

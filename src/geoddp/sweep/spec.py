@@ -27,7 +27,7 @@ A sweep file (TOML)::
     crouch = [0.0, 0.3, -0.6]
 
     [simulation]                 # optional: each case is solved, then simulated in closed loop
-    samples = 20                 # (keys: geoddp.simulation_spec.SimulationSpec)
+    samples = 20                 # (keys: geoddp.scene.simulation.SimulationSpec)
 
 A key path is the scene's TOML path: ``table.key`` with ``[i]`` for list entries and arrays of
 tables (``terminal_costs[0].weight``, ``initial.q[7]``); ``simulation.<key>`` varies the
@@ -533,7 +533,7 @@ def check_simulation(table: Mapping[str, Any]) -> None:
     ``simulation.<key>``)."""
     from .case import _closed_loop
 
-    _closed_loop("simulation_spec").SimulationSpec.from_dict(dict(table))
+    _closed_loop("scene.simulation").SimulationSpec.from_dict(dict(table))
 
 
 def _short(x: Any) -> str:

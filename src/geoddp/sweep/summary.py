@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..outputs import write_atomic
+from ..output_files import write_atomic
 
 FIXED_COLUMNS = ("case", "hash", "draw", "kind", "status", "converged", "J", "iterations", "gradient_norm",
                  "solve_time_s", "case_time_s", "error")

@@ -25,7 +25,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from ..outputs import strict_json, write_atomic
+from ..output_files import strict_json, write_atomic
 from ..validate import InputError
 
 PARTS = "parts"

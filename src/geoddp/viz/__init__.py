@@ -1,4 +1,4 @@
-"""Visualisation of a solved :class:`geoddp.result.Result`.
+"""Visualisation of a solved :class:`geoddp.solver.result.Result`.
 
 Reads Results only; never imports the solver.
 

@@ -14,8 +14,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..outputs import output_folder
-from ..result import Result, as_result, rotations_to_quaternions
+from ..output_files import output_folder
+from ..solver.result import Result, as_result, rotations_to_quaternions
 from ..validate import InputError
 
 DPI = 120
@@ -91,7 +91,7 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
 
     Raises:
         InputError: ``result`` not a :class:`Result`, or ``out_dir`` not a folder that can be
-            written (:func:`geoddp.outputs.output_folder`).
+            written (:func:`geoddp.output_files.output_folder`).
     """
     result = as_result(result)
     out = output_folder(out_dir)
@@ -234,7 +234,7 @@ def plot_convergence(
     Raises:
         InputError: ``results`` not a non-empty dict of :class:`Result` (naming ``results`` or
             ``results[label]``), or ``out_dir`` not a folder that can be written
-            (:func:`geoddp.outputs.output_folder`).
+            (:func:`geoddp.output_files.output_folder`).
     """
     if not isinstance(results, dict) or not results:
         raise InputError("results", f"expected a dict label -> Result with at least one entry, got {results!r:.80}")

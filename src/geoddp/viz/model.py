@@ -33,7 +33,7 @@ import pinocchio as pin
 from ..models.multibody import ROOTS, _root_joint
 from ..models.robots import default_package_dirs, example_robot_data_dir  # noqa: F401  (re-exported here)
 from ..models.satellite import DEFAULT_URDF as SATELLITE_URDF
-from ..result import Result, as_result, rotations_to_quaternions
+from ..solver.result import Result, as_result, rotations_to_quaternions
 from ..validate import InputError
 
 # Where the root joint's rotation sits in q (the quaternion (x, y, z, w)), for roots that have one.

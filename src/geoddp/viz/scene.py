@@ -43,7 +43,7 @@ import numpy as np
 import pinocchio as pin
 from meshcat.animation import Animation
 
-from ..result import Result
+from ..solver.result import Result
 from ..validate import InputError, positive_float
 from .model import (VisualModel, check_replayable, frame_positions, frame_targets, ghost_configuration,
                     load_visual_model, mesh_bytes, mesh_file, placements_at, replay_description,

@@ -19,20 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from .validate import InputError
-
-# The status strings live with the solver that sets them; re-exported here, where they were first.
-from .solver.status import (  # noqa: F401
-    STATUS_CONVERGED_COST,
-    STATUS_CONVERGED_GRAD,
-    STATUS_MAX_ITER,
-    STATUS_MAX_REG,
-    STATUS_NO_DESCENT,
-    STATUS_SADDLE,
-    STATUS_STALLED,
-    STATUS_NON_FINITE,
-    STATUS_LINALG,
-)
+from ..validate import InputError
 
 # Keys of the model description that make up ``Result.multibody`` (what the viewer rebuilds from).
 # optional: the viewer's mesh search path, frame-target triads, and for a model handed over as a
@@ -128,7 +115,7 @@ class _WriteThrough(dict):
 
 
 def _nan_for_none(x: Any) -> Any:
-    """Inverse of the strict JSON writer (geoddp.outputs): null -> NaN, at any list depth."""
+    """Inverse of the strict JSON writer (geoddp.output_files): null -> NaN, at any list depth."""
     if x is None:
         return float("nan")
     if isinstance(x, list):
@@ -532,7 +519,7 @@ class Result:
     def write_json(self, path: str | Path) -> Path:
         """Write :meth:`to_dict` to ``path`` (parents created) atomically, as strict JSON (a
         non-finite number is written as null and read back as NaN). Returns the path."""
-        from .outputs import strict_json, write_atomic
+        from ..output_files import strict_json, write_atomic
 
         return write_atomic(path, strict_json(self.to_dict()))
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .validate import InputError, choice, closest, finite_array, keywords_checked, nonnegative_float, nonnegative_int, positive_int
+from ..validate import InputError, choice, closest, finite_array, keywords_checked, nonnegative_float, nonnegative_int, positive_int
 
 POLICIES = ("open", "feedback", "mpc")
 PLANT_KEYS = ("inertia_scale", "mass_scale", "actuator_gain", "integrator", "substeps")
