@@ -9,6 +9,7 @@ import pinocchio as pin
 
 from geoddp import Result
 from geoddp.solver import STATUS_CONVERGED_COST
+from geoddp.solver.result import SatelliteResult
 
 
 def keyframes(clip: dict) -> np.ndarray:
@@ -60,7 +61,7 @@ def synthetic_result(
     cost_history = 1.0 + 10.0 * 0.25 ** np.arange(iterations + 1)
     grad_norm_history = 0.3 ** np.arange(iterations + 1)
 
-    return Result(
+    return SatelliteResult(
         times=times,
         rotations=rotations,
         angular_velocities=omegas,

@@ -63,15 +63,8 @@ class SimulationResult:
         description and solver fields with this run's times, states and applied controls, and
         ``extra["simulation"]`` = policy, errors and plant changes. ``export_html(run.to_result(plan),
         path, plan=plan)`` replays the run beside a ghost of the plan."""
-        import copy
-
-        r = copy.copy(plan)
-        r.model = dict(plan.model)
-        r.extra = {**plan.extra, "simulation": {"policy": self.policy, "errors": dict(self.errors),
-                                                 "plant": dict(self.plant)}}
-        r._view_override = {}
-        r.times, r.q, r.v, r.controls = self.times, self.q, self.v, self.u
-        return r
+        return plan.with_trajectory(self.times, self.q, self.v, self.u, simulation={
+            "policy": self.policy, "errors": dict(self.errors), "plant": dict(self.plant)})
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (arrays as lists)."""
