@@ -1,4 +1,4 @@
-"""Output files: strict JSON and atomic writes (issue 13, items 3 and 4).
+"""Output files: strict JSON and atomic writes.
 
 * :func:`strict_json` never writes NaN or inf (a non-finite number becomes ``null``), so every
   result file parses with a strict JSON parser; :meth:`geoddp.solver.result.Result.from_dict` reads

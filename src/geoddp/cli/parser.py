@@ -48,7 +48,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def _sweep_parser(sub) -> None:
-    """``geoddp sweep SWEEP.toml --out DIR ...`` and ``geoddp sweep --summary DIR [--plots DIR]`` (issue 17)."""
+    """``geoddp sweep SWEEP.toml --out DIR ...`` and ``geoddp sweep --summary DIR [--plots DIR]``."""
     sw = sub.add_parser("sweep", help="solve every case of a sweep file on all cores or a Dask cluster; "
                         "or summarise a sweep's results (--summary DIR)")
     sw.add_argument("sweep_file", nargs="?", type=Path, help="sweep file (TOML; see the README's Sweeps section)")

@@ -9,7 +9,7 @@ same lookups work from a source checkout, an editable install and a plain ``pip 
     geoddp/data/scenes/hard/NAME.toml          the 13 hard cases
     geoddp/data/scenes/robots/NAME.toml        real robots of example-robot-data by name
                                                (ur5_reach, solo12_reorient, hector_fly)
-    geoddp/data/scenes/sweeps/NAME.toml        the built-in sweep files (issue 17; sweeps, not
+    geoddp/data/scenes/sweeps/NAME.toml        the built-in sweep files (sweeps, not
                                                scenes: :func:`sweep_dir`)
 
 A built-in scene is named by its file stem (``quadrotor``, ``satellite_paper``,

@@ -1,4 +1,4 @@
-"""URDF input checks (issue 13, item 6): encodings, joint axes, masses and inertias, by name.
+"""URDF input checks: encodings, joint axes, masses and inertias, by name.
 
 :func:`build_checked_model` is the one entry the model builders call: it reads the file
 (:func:`read_urdf_text`: the encoding its XML declaration names, else UTF-8, refused by name

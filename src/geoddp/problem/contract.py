@@ -157,7 +157,7 @@ class OptimalControlProblem(Protocol):
         state; k (H, m), K (H, m, nx). Returns None when the state becomes non-finite."""
         ...
 
-    # Optional member (control limits, issue 15): ``control_bounds() -> (lower, upper) | None``,
+    # Optional member (control limits): ``control_bounds() -> (lower, upper) | None``,
     # each (H, m), -inf / inf where unbounded. A problem with bounds must keep every control of
     # ``rollout_policy`` inside them (clamping after the feedback law) and reject an initial guess
     # outside them in ``check_controls``; the solver then solves the box-constrained problem.

@@ -1,4 +1,4 @@
-"""Control limits (issue 15): per-input lower and upper bounds on the controls, constant or per node.
+"""Control limits: per-input lower and upper bounds on the controls, constant or per node.
 
     lower_k <= u_k <= upper_k   (elementwise, k = 0 .. H-1)
 

@@ -50,7 +50,7 @@ class Problem:
         v0: initial velocity part: Omega0 (3,) rad/s on TSO(3), (nv,) for a multibody.
         horizon: number of control steps H.
         running: running cost (applied at k = 0 .. H-1); terminal: terminal cost (at k = H).
-        limits: control limits lower <= u_k <= upper (issue 15): None (unconstrained), a
+        limits: control limits lower <= u_k <= upper: None (unconstrained), a
             :class:`geoddp.problem.limits.ControlLimits`, a (lower, upper) pair or {"lower", "upper"};
             each bound a scalar, (m,) or (H, m), -inf / inf for an unbounded side. Stored as a
             ControlLimits; :meth:`control_bounds` gives the (H, m) arrays.
@@ -213,7 +213,7 @@ class Problem:
         (H, m, nx); results into q_out, v_out, u_out. Returns False if the state became non-finite.
 
         With limits, u_k is clamped into [lower_k, upper_k] after the feedback law (the feasible
-        forward pass of issue 15): every control applied and stored lies in the box.
+        forward pass): every control applied and stored lies in the box.
         ``trusted=True``: the arrays are the solver's own (float64, C-contiguous, these shapes;
         :meth:`rollout_policy`), so a Multibody model skips its Python checks (:meth:`_trusted`)."""
         kw = self._trusted() if trusted else {}

@@ -1,5 +1,5 @@
 """The tables every scene kind shares, once: their keys, their fields on the spec and how they are
-read: ``[solver]``, ``[limits]`` (control limits, issue 15) and ``[simulation]`` (issue 16:
+read: ``[solver]``, ``[limits]`` (control limits) and ``[simulation]`` (closed-loop simulation:
 :class:`~geoddp.scene.simulation.SimulationSpec`, flown by :func:`geoddp.simulate.simulate_scene`
 and ``geoddp simulate``).
 

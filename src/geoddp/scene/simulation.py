@@ -1,4 +1,4 @@
-"""The ``[simulation]`` table of a scene as plain values: :class:`SimulationSpec` (issue 16).
+"""The ``[simulation]`` table of a scene as plain values: :class:`SimulationSpec` (closed-loop simulation).
 
 It lives below :mod:`geoddp.simulate` (floor 4, with the scene readers) so that a scene file can
 carry it: the readers validate the table into a SimulationSpec, and :mod:`geoddp.simulate` flies

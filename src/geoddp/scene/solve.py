@@ -16,8 +16,8 @@ from .satellite import SceneSpec
 
 # A spec is frozen, arrays included, and the solver never changes a problem: the problem built
 # from a spec is kept while the spec lives, so solving one spec again (a benchmark, a sweep, an
-# MPC loop) neither re-reads its URDF nor re-validates its weights (issue 11: the public route
-# adds at most 10 % to the solve; benchmarks/api_overhead.py).
+# MPC loop) neither re-reads its URDF nor re-validates its weights (the public route adds at
+# most 10 % to the solve: benchmarks/api_overhead.py).
 _BUILT: dict[int, tuple[weakref.ref, Any]] = {}
 
 

@@ -1,5 +1,5 @@
 """Fly a plan: simulate a Result on a plant, with noise and model error, open loop, with the DDP
-gains or with MPC; Monte Carlo statistics (issue 16).
+gains or with MPC; Monte Carlo statistics (closed-loop simulation).
 
     plant.py        Plant: the plan's model with changed parameters, integrator and substeps
     disturbance.py  Disturbances: process, force and sensor noise, external wrenches (seeded)

@@ -1,5 +1,5 @@
 """Sweep files: a base scene and what varies, expanded into cases that are each a full, validated
-scene table with a content hash (issue 17, items 1 and 4).
+scene table with a content hash.
 
 A sweep file (TOML)::
 
@@ -531,9 +531,9 @@ def validate_case(case: Case, sweep: Sweep) -> Any:
 def check_simulation(table: Mapping[str, Any]) -> None:
     """Validate a [simulation] table with the closed-loop module's own spec (InputError names
     ``simulation.<key>``)."""
-    from .case import _closed_loop
+    from ..scene.simulation import SimulationSpec
 
-    _closed_loop("scene.simulation").SimulationSpec.from_dict(dict(table))
+    SimulationSpec.from_dict(dict(table))
 
 
 def _short(x: Any) -> str:

@@ -1,4 +1,4 @@
-"""What a sweep found (issue 17, item 5): convergence rate, the distributions of iterations and J*,
+"""What a sweep found: convergence rate, the distributions of iterations and J*,
 the slowest and the failed cases, and parameter-vs-outcome figures."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The results table of a sweep, streamed to disk (issue 17, items 3 and 4).
+"""The results table of a sweep, streamed to disk.
 
 Layout of an output folder::
 

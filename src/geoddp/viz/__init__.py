@@ -13,7 +13,7 @@ forward kinematics (:func:`visual_placements` gives the per-frame world placemen
 target pose as a translucent ghost, frame targets as triads, an optional ``trail`` and a camera
 framing the whole trajectory.
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures;
-  :func:`plot_simulation`: the Monte Carlo bundles and error histograms (issue 16).
+  :func:`plot_simulation`: the Monte Carlo bundles and error histograms of a closed-loop simulation.
 """
 import warnings
 

@@ -150,7 +150,7 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
 
 def _draw_limits(ax, t: np.ndarray, u: np.ndarray, limits: tuple[np.ndarray, np.ndarray],
                  active: np.ndarray | None) -> dict:
-    """Control limits on the controls axes (issue 15): each input's finite bounds as dashed
+    """Control limits on the controls axes: each input's finite bounds as dashed
     stairs in its colour, and the intervals [t_k, t_{k+1}) where it sits on a bound shaded in
     its colour. Returns the figure data: ``lower``, ``upper`` (H, m) (NaN where unbounded) and
     ``saturated`` (list of (input, t_start, t_end) intervals)."""
