@@ -85,7 +85,6 @@ class History(Callback):
     """
 
     def __init__(self, record_controls: bool) -> None:
-        self.record_controls = record_controls
         self.cost: list[float] = []
         self.grad: list[float] = []
         self.reg: list[float] = []
@@ -135,8 +134,8 @@ class VerboseTable(Callback):
         self.out.write(f"{'iter':>4} {'cost':>20} {'|grad|':>10} {'dJ':>11} {'lambda':>9} {'gamma':>7} {'exp':>6} "
                        f"{'rungs':>8}\n")
 
-    def on_iteration(self, s: Step) -> None:
-        exp_name = "escape" if s.escape else s.expansion
+    def on_iteration(self, step: Step) -> None:
+        s, exp_name = step, "escape" if step.escape else step.expansion
         self.out.write(f"{s.iteration:4d} {s.cost:20.14e} {s.grad_norm:10.3e} {s.new_cost - s.cost:11.3e} {s.reg:9.2e} "
                        f"{s.step:7.4f} {exp_name:>6} {s.rungs:8d}\n")
         self.out.flush()
