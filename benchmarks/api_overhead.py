@@ -4,9 +4,9 @@ Three ways to solve the same scene, interleaved round by round (the machine is s
 a ratio measured side by side is what counts):
 
 * ``solve``       : ``geoddp.solver.solve(problem, options)`` on a problem built once;
-* ``solve_scene`` : ``geoddp.api.solve_scene(spec)`` on a spec loaded once (validates, builds the
+* ``solve_scene`` : ``geoddp.solve_scene(spec)`` on a spec loaded once (validates, builds the
   problem and assembles the Result on every call);
-* ``from file``   : ``geoddp.api.solve_scene(path)`` (also reads and parses the TOML).
+* ``from file``   : ``geoddp.solve_scene(path)`` (also reads and parses the TOML).
 
 Usage: python benchmarks/api_overhead.py [--rounds 15] [SCENE ...]   (default: the paper's
 satellite in its semi-implicit, geodesic variant and the quadrotor)
@@ -18,7 +18,8 @@ import os
 import statistics
 import time
 
-from geoddp.api import initial_controls, load_scene, solve_scene
+from geoddp import load_scene, solve_scene
+from geoddp.scene import initial_controls
 from geoddp.scene import build_problem, solver_options
 from geoddp.solver import solve
 

@@ -9,7 +9,7 @@ process (the machine is shared and noisy; ratios side by side are what count):
 * ``direct``: ``solve_scene(spec)`` on a spec parsed once (the sweep benchmark's bare loop);
 * ``case``: ``parse_scene(table, source)`` then ``solve_scene`` on the result, as a worker does;
 * ``case, cold``: the same with the per-process memos of built URDF models
-  (``geoddp.urdf_checks``), resolved meshes, robots found by name and the example-robot-data
+  (``geoddp.models.urdf``), resolved meshes, robots found by name and the example-robot-data
   directory (``geoddp.models.robots``) swapped for ones that keep nothing: every model built (twice a
   case) and every mesh resolved, as before those memos.
 
@@ -30,8 +30,8 @@ from contextlib import contextmanager
 from typing import Iterator
 
 from geoddp import data
-from geoddp import urdf_checks
-from geoddp.api import solve_scene
+from geoddp.models import urdf as urdf_checks
+from geoddp import solve_scene
 from geoddp.models import robots
 from geoddp.scene import parse_scene
 

@@ -1,7 +1,7 @@
 """The compiled multibody core against the Python path: time per solve on the built-in scenes and
 the expansion's time with one worker thread and with the default.
 
-* per solve: ``geoddp.api.solve_scene`` on examples/multibody/*.toml (the scenes' own solver
+* per solve: ``geoddp.solve_scene`` on examples/multibody/*.toml (the scenes' own solver
   settings), ``Result.solve_time_s``, on the compiled core and on the tests' Python oracle
   (tests/oracle_multibody.py); interleaved after one warm-up each, medians;
 * per expansion: ``Multibody.expansion`` (first and second order) along the scene's initial
@@ -40,7 +40,7 @@ def _oracle():
 def _spec(scene: Path, integrator: str | None, horizon: int | None):
     """A fresh spec per call (solve_scene builds a problem once per spec object: the oracle's
     models inside ``_oracle()``, the compiled ones outside)."""
-    from geoddp.api import load_scene
+    from geoddp import load_scene
 
     spec = load_scene(scene)
     overrides = {k: v for k, v in (("integrator", integrator), ("horizon", horizon)) if v is not None}
@@ -48,7 +48,7 @@ def _spec(scene: Path, integrator: str | None, horizon: int | None):
 
 
 def solve_times(scene: Path, runs: int, integrator: str | None = None, horizon: int | None = None) -> dict:
-    from geoddp.api import solve_scene
+    from geoddp import solve_scene
 
     out = {"python": [], "compiled": []}
     info = {}
@@ -63,10 +63,10 @@ def solve_times(scene: Path, runs: int, integrator: str | None = None, horizon: 
 
 
 def _problem(scene: Path, integrator: str | None, horizon: int | None):
-    from geoddp import api
+    from geoddp.scene import build_problem, initial_controls
 
     spec = _spec(scene, integrator, horizon)
-    return api.build_problem(spec), api.initial_controls(spec)
+    return build_problem(spec), initial_controls(spec)
 
 
 def threads_times(scene: Path, runs: int, integrator: str | None = None, horizon: int | None = None) -> dict:

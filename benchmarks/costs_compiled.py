@@ -21,7 +21,7 @@ import pinocchio as pin
 
 from geoddp.data import urdf_path
 
-from geoddp.multibody_costs import (
+from geoddp.costs.multibody import (
     ControlRegularisation,
     FramePlacement,
     FrameRotation,

@@ -130,7 +130,7 @@ def _strict_json_ok(path: Path) -> bool:
 
 def run_case(case: dict, folder: Path) -> dict:
     """Run one case in this process; returns {"rc", "stderr", "json_ok", "escaped"}."""
-    from geoddp.urdf_checks import captured_stderr
+    from geoddp.models.urdf import captured_stderr
 
     out, err = io.StringIO(), io.StringIO()
     escaped = None
@@ -156,7 +156,7 @@ def run_case(case: dict, folder: Path) -> dict:
 
 
 def _api_case(case: dict, json_path: Path) -> int:
-    from geoddp.api import solve_scene
+    from geoddp import solve_scene
     from geoddp.validate import InputError
 
     try:

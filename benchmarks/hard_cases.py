@@ -18,8 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-from geoddp.api import solve_scene
-from geoddp.result import STATUS_CONVERGED_COST, STATUS_CONVERGED_GRAD
+from geoddp import solve_scene
+from geoddp.solver import STATUS_CONVERGED_COST, STATUS_CONVERGED_GRAD
 
 ROOT = Path(__file__).resolve().parent.parent
 EXPANSIONS = ("first", "second", "switch")

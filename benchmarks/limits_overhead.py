@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from geoddp import multibody_scenes as scenes
+from geoddp.scene import builtin as scenes
 from geoddp.problem import Problem, paper_problem
 from geoddp.solver import SolverOptions, solve
 

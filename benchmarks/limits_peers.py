@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peers  # noqa: E402
 import robots  # noqa: E402
 
-from geoddp import multibody_scenes as scenes  # noqa: E402
+from geoddp.scene import builtin as scenes  # noqa: E402
 from geoddp.problem import Problem, satellite_problem  # noqa: E402
 from geoddp.solver import SolverOptions, solve  # noqa: E402
 

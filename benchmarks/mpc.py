@@ -38,7 +38,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from geoddp.multibody_scenes import scene_spec  # noqa: E402
+from geoddp.scene.builtin import scene_spec  # noqa: E402
 from geoddp.problem import paper_problem  # noqa: E402
 from geoddp.scene import build_problem  # noqa: E402
 from geoddp.simulate import MPC, Plant, SimulationSpec, simulate, simulate_scene  # noqa: E402

@@ -1,7 +1,7 @@
 """Crocoddyl peer for geoddp's multibody problems (issue 6).
 
 ``crocoddyl_problem(mb_problem)`` builds the Crocoddyl equivalent of a geoddp
-:class:`geoddp.multibody_problem.MultibodyProblem` integrated with semi-implicit Euler
+:class:`geoddp.problem.Problem` integrated with semi-implicit Euler
 (``integrator="semi_implicit"``), and ``solve_crocoddyl`` solves it with FDDP or DDP.
 
 Mapping (checked by ``check_cost_equivalence``: Crocoddyl's total cost of a random control
@@ -67,7 +67,7 @@ def _single(ref: np.ndarray, what: str) -> np.ndarray:
 
 def _cost_model(crocoddyl: Any, pin: Any, state: Any, nu: int, cost_sum: Any, scale: float) -> Any:
     """A crocoddyl.CostModelSum with the terms of a geoddp MultibodyCostSum, weights x scale."""
-    from geoddp.multibody_costs import ControlRegularisation, FramePlacement, StateRegularisation
+    from geoddp.costs.multibody import ControlRegularisation, FramePlacement, StateRegularisation
 
     costs = crocoddyl.CostModelSum(state, nu)
     for i, t in enumerate(cost_sum.terms):
@@ -91,7 +91,7 @@ def _cost_model(crocoddyl: Any, pin: Any, state: Any, nu: int, cost_sum: Any, sc
 
 
 def crocoddyl_problem(mb_problem: Any) -> Any:
-    """The ``crocoddyl.ShootingProblem`` equivalent to a semi-implicit geoddp MultibodyProblem."""
+    """The ``crocoddyl.ShootingProblem`` equivalent to a semi-implicit geoddp Problem."""
     import crocoddyl
     import pinocchio as pin
 
@@ -212,7 +212,7 @@ def compare(mb_problem: Any, runs: int = 1, seed: int = 0) -> list[dict[str, Any
 
 
 def main(argv: list[str] | None = None) -> int:
-    from geoddp import multibody_scenes as scenes
+    from geoddp.scene import builtin as scenes
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=3)

@@ -39,7 +39,7 @@ def _crocoddyl_available() -> bool:
 
 def measure(name: str, runs: int, expansion: str, with_crocoddyl: bool) -> dict:
     """Median times of geoddp (and Crocoddyl FDDP) on one scene; see the module docstring."""
-    from geoddp import multibody_scenes as scenes
+    from geoddp.scene import builtin as scenes
     from geoddp.solver import SolverOptions, solve
 
     p = getattr(scenes, name)(integrator="semi_implicit")

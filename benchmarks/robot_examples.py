@@ -15,7 +15,7 @@ import statistics
 import sys
 import time
 
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.scene import load_scene
 
 EXAMPLES = ("ur5_reach", "solo12_reorient", "hector_fly")

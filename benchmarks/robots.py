@@ -63,9 +63,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from geoddp.models.actuation import quadrotor_actuation  # noqa: E402
 from geoddp.models.multibody import Multibody  # noqa: E402
-from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,  # noqa: E402
+from geoddp.costs.multibody import (ControlRegularisation, FramePlacement, MultibodyCostSum,  # noqa: E402
                                     StateRegularisation)
-from geoddp.multibody_problem import MultibodyProblem  # noqa: E402
+from geoddp.problem import Problem  # noqa: E402
 from geoddp.solver import SolverOptions, cost_gradient, solve  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -89,7 +89,7 @@ def urdf(rel: str) -> Path:
 @dataclass
 class Case:
     name: str
-    problem: MultibodyProblem
+    problem: Problem
     U0: np.ndarray
     note: str
 
@@ -122,7 +122,7 @@ def arm_case(name: str, rel: str, frame: str, q0: np.ndarray, dq_target: np.ndar
         FramePlacement(pm, frame, M_ref, W=np.full(6, 1e3)),
         StateRegularisation(pm, q0, W=np.r_[np.zeros(nv), np.full(nv, 1e1)]),
     ], model=pm, terminal=True)
-    p = MultibodyProblem(mb, q0, np.zeros(nv), H, running, terminal)
+    p = Problem(mb, q0, np.zeros(nv), H, running, terminal)
     U0 = np.tile(_gravity_torque(pm, q0), (H, 1))  # gravity compensation at q0
     return Case(name, p, U0, f"fixed base, nv {nv}, m {nv}, H {H}, dt {dt}, U0 = gravity torque at q0")
 
@@ -163,7 +163,7 @@ def floating_case(name: str, rel: str, frame: str, q0_joints: np.ndarray, dq_tar
         FramePlacement(pm, frame, M_ref, W=np.full(6, 1e3)),
         StateRegularisation(pm, q0, W=np.r_[np.zeros(nv), np.full(nv, 1e1)]),
     ], model=pm, terminal=True)
-    p = MultibodyProblem(mb, q0, np.zeros(nv), H, running, terminal)
+    p = Problem(mb, q0, np.zeros(nv), H, running, terminal)
     return Case(name, p, np.zeros((H, nj)), f"free-flyer, no gravity, nv {nv}, m {nj}, H {H}, dt {dt}, U0 = 0")
 
 
@@ -190,13 +190,13 @@ def hector() -> Case:
         FramePlacement(pm, "base_link", M_ref, W=np.full(6, 1e3)),
         StateRegularisation(pm, q0, W=np.r_[np.zeros(6), np.full(6, 1e2)]),
     ], model=pm, terminal=True)
-    p = MultibodyProblem(mb, q0, np.zeros(6), H, running, terminal)
+    p = Problem(mb, q0, np.zeros(6), H, running, terminal)
     return Case("hector", p, np.tile(u_hover, (H, 1)),
                 f"free-flyer, gravity, 4 rotors, nv 6, m 4, H {H}, dt {dt}, U0 = hover thrust")
 
 
 def builtin(name: str) -> Case:
-    from geoddp import multibody_scenes as scenes
+    from geoddp.scene import builtin as scenes
 
     p = getattr(scenes, name)(integrator="semi_implicit")
     U0 = scenes.hover_controls(p) if name == "quadrotor" else np.zeros((p.horizon, p.nu))
@@ -247,7 +247,7 @@ def actuation_matrix(crocoddyl: Any, act: Any, state: Any, nu: int) -> np.ndarra
     return np.array(data.dtau_du)
 
 
-def crocoddyl_problem(p: MultibodyProblem) -> tuple[Any, str, np.ndarray]:
+def crocoddyl_problem(p: Problem) -> tuple[Any, str, np.ndarray]:
     """(ShootingProblem, actuation class name, its dtau/du) for a semi-implicit geoddp problem."""
     import crocoddyl
     from multibody_peers import _cost_model  # the term-by-term cost mapping (weights x scale)
@@ -268,7 +268,7 @@ def crocoddyl_problem(p: MultibodyProblem) -> tuple[Any, str, np.ndarray]:
     return problem, act_name, actuation_matrix(crocoddyl, act, state, nu)
 
 
-def fddp(p: MultibodyProblem, U0: np.ndarray, nthreads: int | None, max_iter: int = 500,
+def fddp(p: Problem, U0: np.ndarray, nthreads: int | None, max_iter: int = 500,
          th_stop: float = 1e-9) -> dict[str, Any]:
     """Crocoddyl FDDP from U0 and its rollout; the problem is rebuilt (as a user would)."""
     import crocoddyl
@@ -287,7 +287,7 @@ def fddp(p: MultibodyProblem, U0: np.ndarray, nthreads: int | None, max_iter: in
     return dict(U=np.array(s.us), iterations=it, time_s=t, converged=bool(converged), nthreads=problem.nthreads)
 
 
-def geoddp(p: MultibodyProblem, U0: np.ndarray, expansion: str, max_iter: int = 200) -> dict[str, Any]:
+def geoddp(p: Problem, U0: np.ndarray, expansion: str, max_iter: int = 200) -> dict[str, Any]:
     r = solve(p, SolverOptions(expansion=expansion, verbose=False, max_iter=max_iter), initial_controls=U0)
     th = r.time_history
     per_it = (th[-1] - th[0]) / r.iterations if (th is not None and r.iterations) else float("nan")
@@ -426,7 +426,7 @@ def ladder_case(label: str, rel: str, frame: str, H: int = 20, dt: float = 0.02)
         FramePlacement(pm, frame, M_ref, W=np.full(6, 1e2)),
         StateRegularisation(pm, q0, W=np.r_[np.zeros(nv), np.full(nv, 1e1)]),
     ], model=pm, terminal=True)
-    return Case(label, MultibodyProblem(mb, q0, np.zeros(nv), H, running, terminal), np.zeros((H, m)),
+    return Case(label, Problem(mb, q0, np.zeros(nv), H, running, terminal), np.zeros((H, m)),
                 f"nv {nv}, m {m}")
 
 

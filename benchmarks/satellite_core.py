@@ -27,7 +27,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from speed_vs_main import load_package  # noqa: E402
+from speed_vs_main import load_package, public_api  # noqa: E402
 
 EXAMPLES = HERE.parent / "examples"
 EXPANSIONS = ("first", "second", "switch")
@@ -61,12 +61,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-hard", action="store_true", help="skip the 13 hard cases' history check")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
-        load_package(args.ref.resolve(), Path(tmp))
+        ref_api = public_api(load_package(args.ref.resolve(), Path(tmp)))
         import geoddp
-        import geoddp_ref.api as ref_api
+        import geoddp as api  # the facade: load_scene, solve_scene
         import geoddp_ref.scene as ref_scene
         import geoddp_ref.solver as ref_solver
-        from geoddp import api, scene, solver
+        from geoddp import scene, solver
 
         print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; new: {Path(geoddp.__file__).parent}; "
               f"ref: {args.ref} (as geoddp_ref); python benchmarks/satellite_core.py --runs {args.runs}")

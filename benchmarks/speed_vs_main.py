@@ -44,6 +44,12 @@ def load_package(checkout: Path, workdir: Path):
     return importlib.import_module("geoddp_ref")
 
 
+def public_api(package):
+    """The module with ``load_scene`` and ``solve_scene`` of an imported geoddp package: the package
+    itself (its facade), or its ``api`` module in a checkout from before the facade."""
+    return package if hasattr(package, "solve_scene") else importlib.import_module(package.__name__ + ".api")
+
+
 def load_reference(checkout: Path, workdir: Path):
     """The other checkout's robots module, importing its geoddp as ``geoddp_ref``."""
     load_package(checkout, workdir)

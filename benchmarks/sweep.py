@@ -5,7 +5,7 @@ target, H = 1500 steps, ~20-60 ms per solve: the issue's ">= 20 ms" cases):
 
 1. overhead per case: ``geoddp.sweep.run_sweep`` (every case validated, its table row streamed
    to Parquet parts, the final table written) against a direct loop of
-   ``geoddp.api.solve_scene(spec)`` over specs parsed beforehand (nothing written). Both serial
+   ``geoddp.solve_scene(spec)`` over specs parsed beforehand (nothing written). Both serial
    in this process, and the sweep also on a warm 1-worker LocalCluster. Target: <= 10 %.
 2. scaling: the same sweep on a warm LocalCluster of 1 and of 2 worker processes, runs
    interleaved over --rounds rounds (median). Target on a 2-core machine: >= 1.8x. Each round
@@ -36,7 +36,7 @@ import textwrap
 import time
 from pathlib import Path
 
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.scene import parse_scene
 from geoddp.sweep import expand, load_sweep, read_table, run_sweep
 from geoddp.sweep.run import local_cluster, quiet_teardown

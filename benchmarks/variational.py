@@ -43,9 +43,9 @@ def _oracle():
 
 def _solve(scene: str, integrator: str, expansion: str, api=None):
     """One solve of a built-in scene with the benchmarks table's stopping tests, through ``api``
-    (geoddp.api by default; side_by_side passes the reference checkout's)."""
+    (geoddp by default; side_by_side passes the reference checkout's)."""
     if api is None:
-        import geoddp.api as api
+        import geoddp as api
 
     spec = api.load_scene(EXAMPLES / f"{scene}.toml").with_overrides(integrator=integrator)
     return api.solve_scene(spec, verbose=False, expansion=expansion, tol=0.0, grad_tol=1e-9)
@@ -58,13 +58,15 @@ def side_by_side(ref_checkout: Path, runs: int, robots: bool = False) -> None:
     import time
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from speed_vs_main import load_reference
+    from speed_vs_main import load_reference, public_api
 
-    import geoddp.api as new_api
+    import geoddp as new_api
 
     with tempfile.TemporaryDirectory() as tmp:
         load_reference(ref_checkout, Path(tmp))
-        import geoddp_ref.api as ref_api
+        import geoddp_ref
+
+        ref_api = public_api(geoddp_ref)
 
         print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; this checkout against {ref_checkout}, "
               f"medians of {runs} rounds after one warm-up, alternating per solve")

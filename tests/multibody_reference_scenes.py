@@ -2,7 +2,7 @@
 moved to examples/multibody/*.toml (git: main at c83fdeb, src/geoddp/multibody_scenes.py).
 
 An independent statement of the same numbers: tests/test_multibody_scene_files.py checks that the
-scene files (which geoddp.multibody_scenes now loads) build the same problems as this code.
+scene files (which geoddp.scene.builtin now loads) build the same problems as this code.
 Do not edit to make a test pass; it is the reference.
 """
 from __future__ import annotations
@@ -14,13 +14,13 @@ import pinocchio as pin
 from geoddp.data import urdf_dir
 from geoddp.models.actuation import quadrotor_actuation, thruster_actuation
 from geoddp.models.multibody import Multibody
-from geoddp.multibody_costs import (
+from geoddp.costs.multibody import (
     ControlRegularisation,
     FramePlacement,
     MultibodyCostSum,
     StateRegularisation,
 )
-from geoddp.multibody_problem import MultibodyProblem
+from geoddp.problem import Problem
 
 MODELS = urdf_dir()  # the built-in URDFs (package data)
 
@@ -42,7 +42,7 @@ def spacecraft_thrusters(lever: float = 0.8) -> np.ndarray:
     return thruster_actuation(np.array(positions), np.array(directions))
 
 
-def spacecraft_docking(integrator: str = "semi_implicit", dt: float = 0.05, horizon: int = 200) -> MultibodyProblem:
+def spacecraft_docking(integrator: str = "semi_implicit", dt: float = 0.05, horizon: int = 200) -> Problem:
     """Reorient by 90 deg about z and dock at the origin at rest, from 4.3 m away and tilted 50 deg."""
     model = Multibody(MODELS / "spacecraft.urdf", root="free_flyer", actuation=spacecraft_thrusters(), dt=dt,
                       integrator=integrator, gravity=False)
@@ -57,10 +57,10 @@ def spacecraft_docking(integrator: str = "semi_implicit", dt: float = 0.05, hori
         # arrive at rest: a docking contact tolerates a few mm/s
         StateRegularisation(pm, pin.neutral(pm), np.zeros(model.nv), W=_velocity_weight(model.nv, 1e6)),
     ], model=pm, terminal=True)
-    return MultibodyProblem(model, q0, np.zeros(model.nv), horizon, running, terminal)
+    return Problem(model, q0, np.zeros(model.nv), horizon, running, terminal)
 
 
-def space_manipulator(integrator: str = "semi_implicit", dt: float = 0.02, horizon: int = 150) -> MultibodyProblem:
+def space_manipulator(integrator: str = "semi_implicit", dt: float = 0.02, horizon: int = 150) -> Problem:
     """Bring the end effector to the pose it has at arm angles (0.6, -0.5, 0.8) with the base at
     rest at the origin, while the free-floating base (no thrusters) is kept still."""
     m_arm = 3
@@ -85,10 +85,10 @@ def space_manipulator(integrator: str = "semi_implicit", dt: float = 0.02, horiz
         FramePlacement(pm, "ee", M_target, W=1e3),
         StateRegularisation(pm, q0, np.zeros(nv), W=_velocity_weight(nv, 1e2)),
     ], model=pm, terminal=True)
-    return MultibodyProblem(model, q0, np.zeros(nv), horizon, running, terminal)
+    return Problem(model, q0, np.zeros(nv), horizon, running, terminal)
 
 
-def quadrotor(integrator: str = "semi_implicit", dt: float = 0.02, horizon: int = 150) -> MultibodyProblem:
+def quadrotor(integrator: str = "semi_implicit", dt: float = 0.02, horizon: int = 150) -> Problem:
     """Fly from hover at (0, 0, 1) m to hover at (2, 1, 2) m, yawed 45 deg, in 3 s; rotor thrusts
     regularised about the hover thrust m g / 4."""
     actuation = quadrotor_actuation(arm_length=0.25, torque_coefficient=0.02)
@@ -105,10 +105,10 @@ def quadrotor(integrator: str = "semi_implicit", dt: float = 0.02, horizon: int 
         FramePlacement(pm, body, M_goal, W=1e3),
         StateRegularisation(pm, pin.neutral(pm), np.zeros(model.nv), W=_velocity_weight(model.nv, 1e2)),
     ], model=pm, terminal=True)
-    return MultibodyProblem(model, q0, np.zeros(model.nv), horizon, running, terminal)
+    return Problem(model, q0, np.zeros(model.nv), horizon, running, terminal)
 
 
-def hover_controls(problem: MultibodyProblem) -> np.ndarray:
+def hover_controls(problem: Problem) -> np.ndarray:
     """(H, 4) rotor thrusts m g / 4 (N): the quadrotor's natural initial guess (zero thrust would
     start from free fall)."""
     pm = problem.model.pin_model

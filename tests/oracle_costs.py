@@ -1,7 +1,7 @@
 """The tests' oracle of the multibody cost terms: the Python code geoddp ran before its compiled
 kernels (cpp/costs.cpp), kept here to check them against.
 
-It evaluates the package's own term objects (:mod:`geoddp.multibody_costs`: their models, frames,
+It evaluates the package's own term objects (:mod:`geoddp.costs.multibody`: their models, frames,
 references and weights) in numpy over Pinocchio's Python calls, node by node. Residual terms
 l = 1/2 r^T W r have
 
@@ -28,7 +28,7 @@ import pinocchio as pin
 from geoddp.costs import CostDerivatives
 from geoddp.lie import SE3, SO3
 from geoddp.lie import product as cfg
-from geoddp.multibody_costs import (
+from geoddp.costs.multibody import (
     ControlRegularisation,
     FramePlacement,
     FrameRotation,

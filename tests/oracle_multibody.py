@@ -9,7 +9,7 @@ passes and expansions run in numpy over Pinocchio's Python calls, node by node:
   derivatives along q for the rest (:meth:`OracleMultibody.velocity_derivatives`), where the core
   uses Pinocchio's second-order RNEA;
 * reconstruction: the exact second-order formula written once for any product group,
-  :func:`geoddp.integrators.expand`;
+  :func:`geoddp.models.integrators.expand`;
 * rk4: tests/oracle_rkmk4.py's step Jacobian, its second order central differences of it;
 * variational: tests/oracle_variational.py.
 
@@ -23,10 +23,10 @@ import contextlib
 import numpy as np
 import pinocchio as pin
 
-from geoddp import integrators as integ
-from geoddp.linalg import symmetric_from_upper
+from geoddp.models import integrators as integ
+from oracle_linalg import symmetric_from_upper
 from geoddp.models.multibody import Multibody
-from geoddp.variational import StepDidNotConverge
+from geoddp.models.variational import StepDidNotConverge
 
 import oracle_rkmk4 as rkmk4
 from oracle_costs import use_cost_oracle

@@ -26,7 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from geoddp import lie
-from geoddp.linalg import symmetric_from_upper
+from oracle_linalg import symmetric_from_upper
 
 _C = (0.0, 0.5, 0.5, 1.0)
 _W = (1.0, 2.0, 2.0, 1.0)

@@ -1,5 +1,5 @@
 """The satellite's oracles (moved from src): the same TSO(3) model with the expansion computed by
-the numpy closed forms ("analytic", through the generic :func:`geoddp.integrators.expand` on
+the numpy closed forms ("analytic", through the generic :func:`geoddp.models.integrators.expand` on
 SO(3)) or per node by Pinocchio ("pinocchio": ``computeABADerivatives`` for the first order,
 central differences of those analytic first derivatives for the second order, ``dIntegrate`` for
 the reconstruction), and a one-step rollout through ``pin.aba`` + ``pin.integrate``. The library
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from geoddp import integrators as integ
+from geoddp.models import integrators as integ
 from geoddp.lie import SO3_ROOT, hat
 from geoddp.models.satellite import Satellite
 from geoddp.validate import choice
@@ -28,7 +28,7 @@ def reconstruction_velocity(Omega: np.ndarray, Omega_next: np.ndarray, integrato
 
 
 def assemble(dt, w_bar, F1, F2, integrator, second_order="exact") -> integ.Expansion:
-    """The satellite's (TSO(3)) expansion: :func:`geoddp.integrators.expand` on SO(3), with the
+    """The satellite's (TSO(3)) expansion: :func:`geoddp.models.integrators.expand` on SO(3), with the
     paper's eta rows for ``second_order="paper"``."""
     exp = integ.expand(SO3_ROOT, dt, w_bar, F1, F2, integrator == "semi_implicit")
     if F2 is not None and second_order == "paper":
@@ -146,7 +146,7 @@ class OracleSatellite(Satellite):
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory.
 
         R (H+1, 3, 3), Omega (H+1, 3), controls (H, m); ``backend`` defaults to the model's.
-        See :mod:`geoddp.integrators`.
+        See :mod:`geoddp.models.integrators`.
         """
         H = controls.shape[0]
         backend = self.backend if backend is None else choice(backend, "backend", BACKENDS)

@@ -2,7 +2,7 @@
 the step by Newton's method and its derivatives by implicit differentiation, in numpy over
 Pinocchio's Python calls, with the kinetic-energy Hessian and R_ww as central differences (the
 core differences once, from Pinocchio's second-order RNEA). The equations are in
-:mod:`geoddp.variational`'s docstring.
+:mod:`geoddp.models.variational`'s docstring.
 """
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import numpy as np
 import pinocchio as pin
 
 from geoddp import lie
-from geoddp.linalg import symmetric_from_upper
-from geoddp.variational import NEWTON_MAX_ITER, NEWTON_TOL, StepDidNotConverge, not_converged_message
+from oracle_linalg import symmetric_from_upper
+from geoddp.models.variational import NEWTON_MAX_ITER, NEWTON_TOL, StepDidNotConverge, not_converged_message
 
 # Central-difference step for the kinetic-energy Hessian (error ~1e-10 relative, as for the ABA
 # second derivatives) and for R_ww, which differentiates a Jacobian that already holds that

@@ -1,12 +1,12 @@
-"""geoddp.api.solve_scene: the problem built from a spec is reused while the spec lives."""
+"""geoddp.solve_scene (geoddp.scene.solve): the problem built from a spec is reused while the spec lives."""
 from __future__ import annotations
 
 import gc
 
 import numpy as np
 
-from geoddp import api
-from geoddp.api import load_scene, solve_scene
+from geoddp import load_scene, solve_scene
+from geoddp.scene import solve as api
 
 
 def _count_builds(monkeypatch) -> list:

@@ -1,4 +1,4 @@
-"""The problem/solver contract (geoddp.contract): every built-in scene's problem satisfies it, with
+"""The problem/solver contract (geoddp.problem.contract): every built-in scene's problem satisfies it, with
 the documented shapes, and the solver needs nothing else (a proxy exposing only the contract
 solves to the same iterates, bit for bit)."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from geoddp.contract import Linearisation, OptimalControlProblem, Trajectory
+from geoddp.problem.contract import Linearisation, OptimalControlProblem, Trajectory
 from geoddp.scene import SceneSpec, build_problem, load_scene
 from geoddp.solver import SolverOptions, cost_gradient, solve
 from geoddp.validate import InputError
@@ -162,10 +162,9 @@ def test_the_solver_needs_only_the_contract(name):
 def test_satellite_and_multibody_describe_their_model_alike():
     """One Problem class: both kinds describe kind, dt, integrator, the URDF, root, nq, nv and the
     terminal targets, so the Result and the viewer read the same keys."""
-    from geoddp.problem import MultibodyProblem, Problem, paper_problem
-    from geoddp.multibody_scenes import quadrotor
+    from geoddp.problem import paper_problem
+    from geoddp.scene.builtin import quadrotor
 
-    assert MultibodyProblem is Problem
     sat, mb = paper_problem().describe(), quadrotor(horizon=5).describe()
     common = {"kind", "dt", "integrator", "urdf", "root", "nq", "nv", "target_rotation", "target_angular_velocity"}
     assert common <= set(sat) and common <= set(mb)

@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.contract import Linearisation
+from geoddp.problem.contract import Linearisation
 from geoddp.models import compiled
 from geoddp.models.multibody import Multibody
 from geoddp.solver import SolverOptions, solve
@@ -177,7 +177,7 @@ def test_contracted_pass_rejects_wrong_shapes():
 @pytest.mark.parametrize("expansion, integrator", [("second", "semi_implicit"), ("switch", "semi_implicit"),
                                                    ("second", "variational"), ("switch", "variational")])
 def test_solve_history_equals_tensor_form(expansion, integrator):
-    from geoddp import multibody_scenes as scenes
+    from geoddp.scene import builtin as scenes
 
     res = {}
     for contract in (True, False):

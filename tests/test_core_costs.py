@@ -19,7 +19,7 @@ import pytest
 from geoddp.costs import CostDerivatives
 from geoddp.lie import SE3, SO3
 from geoddp.models import compiled
-from geoddp.multibody_costs import (
+from geoddp.costs.multibody import (
     ControlRegularisation,
     FramePlacement,
     FrameRotation,
@@ -457,7 +457,7 @@ class _term_by_term:
         self.sum = sum_
 
     def _add(self, Q, V, U, d, gauss_newton):
-        from geoddp.multibody_costs import _FRAME_KINDS
+        from geoddp.costs.multibody import _FRAME_KINDS
 
         N, Q, V = Q.shape[0], np.ascontiguousarray(Q), np.ascontiguousarray(V)
         e = np.empty((0, 0))

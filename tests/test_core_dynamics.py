@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.contract import Trajectory
+from geoddp.problem.contract import Trajectory
 from geoddp import lie as cfg
 from urdfs import urdf as urdf_file
 from geoddp.lie import SE3
@@ -87,11 +87,11 @@ def test_rollout_equals_python(case, integrator):
 
 
 def _problem(model, q0, v0, H):
-    from geoddp.multibody_costs import ControlRegularisation, MultibodyCostSum
-    from geoddp.multibody_problem import MultibodyProblem
+    from geoddp.costs.multibody import ControlRegularisation, MultibodyCostSum
+    from geoddp.problem import Problem
 
     cost = MultibodyCostSum([ControlRegularisation(np.zeros(model.nu))], model=model.pin_model)
-    return MultibodyProblem(model, q0, v0, H, cost, MultibodyCostSum([], model=model.pin_model, terminal=True))
+    return Problem(model, q0, v0, H, cost, MultibodyCostSum([], model=model.pin_model, terminal=True))
 
 
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit", "rk4", "variational"])
@@ -348,7 +348,7 @@ def test_extension_records_its_pin():
 # ---------------------------------------------------------------------------- whole solves
 @pytest.mark.parametrize("scene", sorted(p.name for p in EXAMPLES.glob("*.toml")))
 def test_scene_solves_equal_python(scene, monkeypatch):
-    from geoddp.api import solve_scene
+    from geoddp import solve_scene
 
     res = {}
     for backend in ("python", "compiled"):
@@ -555,7 +555,7 @@ def test_variational_expansion_equals_python(case, monkeypatch):
 
 
 def test_variational_step_that_cannot_converge_raises_or_rejects_the_trial():
-    from geoddp.variational import StepDidNotConverge
+    from geoddp.models.variational import StepDidNotConverge
 
     urdf = urdf_file("test_all_joints.urdf")
     for cls in (Multibody, OracleMultibody):

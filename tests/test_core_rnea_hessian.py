@@ -160,7 +160,7 @@ def test_terms_keep_their_model_alive():
 def test_solve_history_equals_pinocchio_form(expansion, tensor_form):
     """A whole semi-implicit solve of the space manipulator with the recursion keeps the iterations
     and expansion sequence of the solve on Pinocchio's tensors, and its histories to round-off."""
-    from geoddp import multibody_scenes as scenes
+    from geoddp.scene import builtin as scenes
 
     res = {}
     for recursion in (True, False):

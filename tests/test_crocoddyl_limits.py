@@ -24,7 +24,7 @@ else:
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import limits_peers as lp  # noqa: E402
 
-from geoddp.limits import active_set  # noqa: E402
+from geoddp.problem.limits import active_set  # noqa: E402
 
 
 @pytest.mark.parametrize("case", list(lp.CASES))

@@ -22,8 +22,8 @@ else:
         "crocoddyl", reason="crocoddyl not installed: install the 'bench' extra (crocoddyl 3.2.1 + pin 4.0.0) "
         "to compare geoddp with Crocoddyl on the multibody scenes")
 
-from geoddp import multibody_scenes as scenes  # noqa: E402
-from geoddp.multibody_costs import ControlRegularisation, MultibodyCostSum  # noqa: E402
+from geoddp.scene import builtin as scenes  # noqa: E402
+from geoddp.costs.multibody import ControlRegularisation, MultibodyCostSum  # noqa: E402
 from geoddp.solver import SolverOptions, solve  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))

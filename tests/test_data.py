@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 import pytest
 
 from geoddp import data
-from geoddp.multibody_scene import MultibodySceneSpec
+from geoddp.scene import MultibodySceneSpec
 from geoddp.scene import SceneSpec, load_scene
 from geoddp.validate import InputError
 
@@ -147,7 +147,7 @@ def test_nothing_in_src_finds_data_through_parents():
 
 
 def test_the_api_solves_a_builtin_scene_by_name():
-    from geoddp import api
+    import geoddp as api
 
     assert api.load_scene("satellite_semi_implicit") == load_scene(data.scene_path("satellite_semi_implicit"))
     r = api.solve_scene("satellite_semi_implicit", verbose=False)

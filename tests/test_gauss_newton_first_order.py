@@ -19,14 +19,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,
+from geoddp.costs.multibody import (ControlRegularisation, FramePlacement, MultibodyCostSum,
                                     StateRegularisation)
-from geoddp.multibody_scenes import hover_controls, quadrotor, space_manipulator, spacecraft_docking
+from geoddp.scene.builtin import hover_controls, quadrotor, space_manipulator, spacecraft_docking
 from geoddp.problem import Problem, paper_problem
-from geoddp.result import STATUS_CONVERGED_COST
+from geoddp.solver import STATUS_CONVERGED_COST
 from geoddp.scene import build_problem, load_scene
 from geoddp.solver import SolverOptions, solve
-from geoddp.solver.loop import ANTICIPATE, CERTIFY_EARLY
+from geoddp.solver.policy import ANTICIPATE, CERTIFY_EARLY
 from oracle_costs import OracleCostSum
 
 
@@ -250,11 +250,11 @@ def test_an_anticipated_exact_pass_that_does_not_certify_is_a_second_order_itera
     # superlinear Gauss-Newton step, far from certified: that pass is then the first second-order
     # iteration's direction (no other linearisation at that iterate), and the solve ends at the
     # optimum of the default rules, certified.
-    import geoddp.solver.loop as loop
+    import geoddp.solver.policy as policy
 
     spec = load_scene("ur5_reach")
     reference = solve(build_problem(spec), SolverOptions(verbose=False), initial_controls=_guess(spec))
-    monkeypatch.setattr(loop, "ANTICIPATE", 1e6 * ANTICIPATE)
+    monkeypatch.setattr(policy, "ANTICIPATE", 1e6 * ANTICIPATE)
     p = _CountingProblem(build_problem(spec))
     r = solve(p, SolverOptions(verbose=False), initial_controls=_guess(spec))
     n_first = r.expansion_history.count("first")

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from geoddp.api import solve_scene
-from geoddp.result import (
+from geoddp import solve_scene
+from geoddp.solver import (
     STATUS_CONVERGED_COST,
     STATUS_CONVERGED_GRAD,
     STATUS_MAX_ITER,
@@ -208,7 +208,7 @@ def test_negative_curvature_matches_the_true_cost_at_the_saddle():
 def test_extreme_weights_all_expansions_reach_the_same_optimum():
     """S_u = 1e-8: a regularised step is a tiny gradient step whose small |dJ| must not stop the
     solve (regression: 'second' once stopped 0.7 % above the optimum)."""
-    from geoddp.api import solve_scene
+    from geoddp import solve_scene
 
     costs = [solve_scene(HARD / "extreme_weights.toml", verbose=False, expansion=e, max_iter=300).cost
              for e in ("first", "second", "switch")]

@@ -16,14 +16,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.cli import main
-from geoddp.outputs import check_outputs, strict_json, write_atomic
+from geoddp.output_files import check_outputs, strict_json, write_atomic
 from geoddp.data import urdf_path
-from geoddp.limits import ControlLimits
+from geoddp.problem.limits import ControlLimits
 from geoddp.models.multibody import Multibody
 from geoddp.problem import Problem, paper_problem
-from geoddp.result import Result
+from geoddp import Result
 from geoddp.solver import SolverOptions, solve
 from geoddp.validate import InputError
 
@@ -141,7 +141,7 @@ def test_sigkill_during_a_write_leaves_the_previous_file_intact(tmp_path):
     target.write_text("previous good result")
     code = textwrap.dedent(f"""
         import sys
-        from geoddp.outputs import write_atomic
+        from geoddp.output_files import write_atomic
         print("start", flush=True)
         while True:
             write_atomic({str(target)!r}, b"x" * (300 * 2**20))

@@ -38,7 +38,7 @@ def test_geoddp_refuses_to_import_without_its_core_and_says_why():
     """Under another pin than the core was built against, importing geoddp's modules fails at
     once with one message naming both versions and the rebuild (no Python fallback to run)."""
     code = ("import pinocchio; built = pinocchio.__version__; pinocchio.__version__ = '0.0.0'\n"
-            "try:\n    import geoddp.api\nexcept ImportError as e:\n    print(e)\nelse:\n    print('imported')")
+            "try:\n    import geoddp\nexcept ImportError as e:\n    print(e)\nelse:\n    print('imported')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     msg = out.stdout.strip()
     assert msg.startswith("geoddp needs its compiled core, which does not import: geoddp._core was built against pin ")

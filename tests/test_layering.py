@@ -1,5 +1,5 @@
-"""Layering (issue 11, item 9): every module under src/geoddp imports only from its own floor or
-below, and no set of modules imports itself round in a circle.
+"""Layering: every module under src/geoddp imports only from its own floor or below, and no set of
+modules imports itself round in a circle. The floors are those of the design page, docs/design.md.
 
 The imports are read from the source with :mod:`ast` (nothing is imported), *every* import counts:
 module level, inside functions (lazy), under ``if TYPE_CHECKING:``, and
@@ -14,13 +14,19 @@ check keeps them one-way.
 The floors follow docs/design.md ("Floors"), mapped onto today's module names. Where the code
 taught otherwise:
 
-* ``integrators`` and ``variational`` are on floor 1, not 2: the models' expansion layout and the
-  implicit step's error (``models/multibody.py`` and ``models/satellite.py`` import them).
 * ``data`` (the built-in URDFs and scenes) is on floor 0, not under ``scene/``: the models read
   ``satellite.urdf`` from it.
-* ``reference`` (scipy's L-BFGS on the same problem) is a second solver: floor 3.
-* ``multibody_scene`` and ``multibody_scenes`` are the old names of ``scene.multibody`` and
-  ``scene.builtin`` (re-exports): floor 4, with the ``scene`` package.
+* ``output_files`` (strict JSON, atomic writes) is on floor 0, not in ``cli/``: the Result, the
+  viewers and the sweep runner write files too. ``interrupts`` (the signals the CLI received, for
+  long loops to raise again) is on floor 0 for the same reason: the sweep runner checks it.
+* ``problem.limits`` sits with the problem (floor 2): the problem resolves them, the solver and the
+  scene readers use the box arithmetic.
+* ``models.integrators``, ``models.variational`` and ``models.urdf`` are on floor 1 with the
+  models that use them (the expansion layout, the implicit step's error, the URDF checks).
+* ``solver.result`` is on floor 3, inside the solver that builds it; ``solver.reference`` (scipy's
+  L-BFGS on the same problem) is a second solver, floor 3 too.
+* ``scene.solve`` (solve_scene) and ``scene.simulation`` (the ``[simulation]`` table's values)
+  are on floor 4, with the scene readers: simulate/ and sweep/ (floor 5) call them.
 * The root package's ``__init__`` is the public facade, floor 6: nothing inside imports it.
 """
 from __future__ import annotations
@@ -33,41 +39,28 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 FLOORS: dict[str, int] = {
-    # 0: leaves: input checks, the compiled kernels, package data
+    # 0: leaves: input checks, files, signals, the compiled kernels, package data
     "geoddp.validate": 0,
+    "geoddp.output_files": 0,  # strict JSON, atomic writes, output-path checks; imports only validate
     "geoddp.interrupts": 0,  # signals the CLI received, for loops to raise again; imports nothing
-    "geoddp.outputs": 0,  # strict JSON and atomic writes (issue 13); imports only validate
-    "geoddp.urdf_checks": 0,  # URDF encoding, axes, masses, inertias (issue 13); imports only validate
     "geoddp.kernels": 0,
     "geoddp._core": 0,
     "geoddp.data": 0,
-    "geoddp.linalg": 0,
-    "geoddp.limits": 0,  # control limits: validation and the box arithmetic (issue 15); imports only validate
-    # 1: Lie groups, configuration spaces, models and their time steppers
+    # 1: Lie groups; models (satellite, multibody, compiled backend, actuation, robots, URDF checks,
+    #    integrators, the variational step)
     "geoddp.lie": 1,
-    "geoddp.integrators": 1,
-    "geoddp.variational": 1,
     "geoddp.models": 1,
-    # 2: costs and problems, and the contract between a problem and the solver
-    "geoddp.contract": 2,
+    # 2: costs; the problem, its limits and the contract between a problem and the solver
     "geoddp.costs": 2,
-    "geoddp.multibody_costs": 2,
     "geoddp.problem": 2,
-    "geoddp.multibody_problem": 2,
-    # 3: solvers and their result
+    # 3: the solver (loop, policy, callbacks, passes, options, status), its result, the reference solver
     "geoddp.solver": 3,
-    "geoddp.result": 3,
-    "geoddp.reference": 3,
-    # 4: scenes (readers, builders, built-in scene builders) and the API
+    # 4: scenes: readers, builders, built-in scenes, the [simulation] table, solve_scene
     "geoddp.scene": 4,
-    "geoddp.multibody_scene": 4,
-    "geoddp.multibody_scenes": 4,
-    "geoddp.api": 4,
-    "geoddp.simulation_spec": 4,  # the [simulation] table's values (issue 16), read with the scenes
-    # 5: viewers and figures (read Results)
+    # 5: what reads Results: viewers and figures, closed-loop simulation, sweeps
     "geoddp.viz": 5,
-    "geoddp.simulate": 5,  # plants, policies, disturbances, Monte Carlo (issue 16); reads Results, calls the API
-    "geoddp.sweep": 5,  # sweep files, cases, the Dask runner, the results table (issue 17)
+    "geoddp.simulate": 5,
+    "geoddp.sweep": 5,
     # 6: the command line and the package's public facade
     "geoddp.cli": 6,
     "geoddp": 6,
@@ -244,12 +237,12 @@ def problems(graph: dict[str, set[str]], floors: dict[str, int]) -> list[str]:
 def test_every_module_is_read():
     """The scan sees the package (so an empty graph cannot pass) and the imports it should."""
     graph = import_graph()
-    assert {"geoddp.cli", "geoddp.scene", "geoddp.scene.reader", "geoddp.multibody_scene", "geoddp.viz.scene",
+    assert {"geoddp.cli", "geoddp.scene", "geoddp.scene.reader", "geoddp.scene.builtin", "geoddp.viz.scene",
             "geoddp.validate", "geoddp.data"} <= set(graph)
     assert "geoddp.models.multibody" in graph["geoddp.scene.multibody"]  # lazy, inside functions
     assert "geoddp.scene.reader" in graph["geoddp.scene.multibody"]
     assert "geoddp.validate" in graph["geoddp.data"]
-    assert "geoddp.viz" in graph["geoddp.cli"]                     # `from . import viz`, lazy
+    assert "geoddp.viz" in graph["geoddp.cli.commands"]            # `from .. import viz`, lazy
     assert "geoddp.models.multibody" in graph["geoddp.viz.model"]  # `from ..models.multibody import`
 
 
@@ -295,8 +288,8 @@ def test_a_package_places_its_modules_but_the_root_places_only_itself():
 
 @pytest.mark.parametrize("code,expected", [
     ("def f():\n    from .scene import load_scene\n", {"geoddp.scene"}),                      # lazy
-    ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .api import solve_scene\n", {"geoddp.api"}),
-    ("from . import viz, api\n", {"geoddp.viz", "geoddp.api"}),                                # submodules
+    ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .cli import main\n", {"geoddp.cli"}),
+    ("from . import viz, scene\n", {"geoddp.viz", "geoddp.scene"}),                                # submodules
     ("from . import __version__\n", {"geoddp"}),                                                # the package
     ("import geoddp.viz.scene as s\n", {"geoddp.viz.scene"}),
     ("from ..result import Result\n", set()),                                                   # too far up
@@ -304,8 +297,8 @@ def test_a_package_places_its_modules_but_the_root_places_only_itself():
     ("import numpy as np\nfrom pinocchio import SE3\n", set()),                                 # not ours
 ])
 def test_the_reader_sees_every_kind_of_import(code, expected):
-    known = {"geoddp", "geoddp.scene", "geoddp.api", "geoddp.viz", "geoddp.viz.scene", "geoddp.validate",
-             "geoddp.cli", "geoddp.result"}
+    known = {"geoddp", "geoddp.scene", "geoddp.viz", "geoddp.viz.scene", "geoddp.validate",
+             "geoddp.cli", "geoddp.solver.result"}
     assert imports_of(code, "geoddp.validate", False, known) == expected
 
 
@@ -314,9 +307,9 @@ def test_a_synthetic_source_tree_with_a_lazy_circle_fails(tmp_path):
     pkg = tmp_path / "geoddp"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
-    (pkg / "scene.py").write_text("def build():\n    from .multibody_scene import parse\n")
-    (pkg / "multibody_scene.py").write_text("from .scene import build\n")
-    (pkg / "validate.py").write_text("def f():\n    from . import scene\n")
+    (pkg / "viz.py").write_text("def build():\n    from .sweep import parse\n")
+    (pkg / "sweep.py").write_text("from .viz import build\n")
+    (pkg / "validate.py").write_text("def f():\n    from . import viz\n")
     found = problems(import_graph(tmp_path), FLOORS)
-    assert found == ["upward import: geoddp.validate (floor 0) imports geoddp.scene (floor 4)",
-                     "import circle: geoddp.multibody_scene -> geoddp.scene -> geoddp.multibody_scene"], found
+    assert found == ["upward import: geoddp.validate (floor 0) imports geoddp.viz (floor 5)",
+                     "import circle: geoddp.sweep -> geoddp.viz -> geoddp.sweep"], found

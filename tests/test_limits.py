@@ -10,10 +10,10 @@ import json
 import numpy as np
 import pytest
 
-from geoddp import multibody_scenes as scenes
-from geoddp.limits import ControlLimits, active_set, projected_gradient
+from geoddp.scene import builtin as scenes
+from geoddp.problem.limits import ControlLimits, active_set, projected_gradient
 from geoddp.problem import Problem, paper_problem
-from geoddp.result import Result
+from geoddp import Result
 from geoddp.solver import SolverOptions, cost_gradient, solve
 from geoddp.validate import InputError
 
@@ -365,7 +365,7 @@ def test_controls_figure_draws_bounds_and_shades_saturation(table1, tmp_path):
 
 # ------------------------------------------------------------------ URDF effort limits
 def test_effort_limits_from_the_urdf():
-    from geoddp.limits import effort_limits
+    from geoddp.problem.limits import effort_limits
 
     p = scenes.space_manipulator()  # three arm joints with effort="50" on a free-flying base
     lo, hi = effort_limits(p.model.pin_model.effortLimit, p.model.actuation)

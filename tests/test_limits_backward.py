@@ -231,7 +231,7 @@ def test_contracted_box_pass_equals_the_dense_one():
     """A compiled multibody model keeps its second order factored (contracted with V_x' in the
     pass): the box pass over the factors equals the box pass over the formed tensors
     (Linearisation.tensors()) on the quadrotor with thrust limits, at a point where bounds bind."""
-    from geoddp import multibody_scenes as scenes
+    from geoddp.scene import builtin as scenes
 
     q = scenes.quadrotor(integrator="semi_implicit")
     p = q.with_limits((0.0, 4.0))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from geoddp import cli
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.scene import build_problem, load_scene, parse_scene, scene_file
 from geoddp.validate import InputError
 

@@ -6,7 +6,7 @@ import pinocchio as pin
 import pytest
 
 from geoddp.costs import CostDerivatives
-from geoddp.multibody_costs import (
+from geoddp.costs.multibody import (
     ControlRegularisation,
     FramePlacement,
     FrameRotation,
@@ -435,7 +435,7 @@ def test_one_attitude_term_serves_tso3_and_a_general_model():
     from geoddp import data
     from geoddp.costs import AttitudeGeodesic
     from geoddp.models.multibody import Multibody
-    from geoddp.multibody_costs import ControlRegularisation, MultibodyCostSum, StateRegularisation
+    from geoddp.costs.multibody import ControlRegularisation, MultibodyCostSum, StateRegularisation
     from geoddp.problem import Problem, paper_problem
     from geoddp.solver import SolverOptions, solve
 

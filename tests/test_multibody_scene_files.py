@@ -12,11 +12,12 @@ import pinocchio as pin
 import pytest
 
 import multibody_reference_scenes as ref
-from geoddp import multibody_scenes
-from geoddp.api import initial_controls, solve_scene
+from geoddp.scene import builtin as multibody_scenes
+from geoddp import solve_scene
+from geoddp.scene import initial_controls
 from geoddp.data import urdf_path
 from geoddp.cli import EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, main
-from geoddp.multibody_scene import MultibodySceneSpec, terminal_frame_errors
+from geoddp.scene import MultibodySceneSpec, terminal_frame_errors
 from geoddp.scene import SceneSpec, build_problem, load_scene, parse_scene
 from geoddp.solver import SolverOptions, cost_gradient, solve
 from geoddp.validate import InputError

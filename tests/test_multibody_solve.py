@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from geoddp.multibody_scenes import hover_controls, quadrotor, space_manipulator, spacecraft_docking
-from geoddp.reference import lbfgs
+from geoddp.scene.builtin import hover_controls, quadrotor, space_manipulator, spacecraft_docking
+from geoddp.solver.reference import lbfgs
 from geoddp.solver import SolverOptions, solve
 
 # Same manoeuvres as the scene defaults, on coarser grids to keep CI short.

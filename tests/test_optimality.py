@@ -13,9 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.solver.options import DEFAULT_GRAD_TOL
-from geoddp.result import STATUS_CONVERGED_COST, STATUS_STALLED, Result
+from geoddp import Result
+from geoddp.solver import STATUS_CONVERGED_COST, STATUS_STALLED
 
 
 def _opt(r):

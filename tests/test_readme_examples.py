@@ -11,7 +11,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.multibody_costs import MultibodyCostSum, StateRegularisation
+from geoddp.costs.multibody import MultibodyCostSum, StateRegularisation
 from geoddp.problem import Problem
 from geoddp.solver import SolverOptions, solve
 

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from geoddp import viz
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.scene import load_scene, terminal_frame_errors
 from geoddp.viz.html import STATUS_ID
 from geoddp.viz.scene import BACKGROUND_RGB

@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.models import robots
 from geoddp.scene import build_problem, load_scene
 from geoddp.validate import InputError

@@ -25,9 +25,9 @@ import pytest
 from geoddp import viz
 from geoddp.models import robots
 from geoddp.models.multibody import Multibody, root_of
-from geoddp.multibody_costs import ControlRegularisation, FramePlacement, MultibodyCostSum, StateRegularisation
+from geoddp.costs.multibody import ControlRegularisation, FramePlacement, MultibodyCostSum, StateRegularisation
 from geoddp.problem import Problem
-from geoddp.result import Result
+from geoddp import Result
 from geoddp.solver import SolverOptions, solve
 from geoddp.validate import InputError
 from geoddp.viz.html import decode_commands

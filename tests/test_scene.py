@@ -532,13 +532,13 @@ def test_solver_defaults_have_one_home():
     """The scene readers' [solver] defaults are SolverOptions' defaults (geoddp.solver.options)."""
     import dataclasses
 
-    from geoddp import multibody_scene, scene
+    from geoddp import scene
     from geoddp.solver import options
 
     defaults = {f.name: f.default for f in dataclasses.fields(options.SolverOptions)}
     assert scene.EXPANSIONS is options.EXPANSIONS
     for name in ("expansion", "switch_ratio", "tol", "grad_tol", "max_iter"):
         assert getattr(scene, f"DEFAULT_{name.upper()}") == defaults[name], name
-    mb = {f.name: f.default for f in dataclasses.fields(multibody_scene.MultibodySceneSpec)}
+    mb = {f.name: f.default for f in dataclasses.fields(scene.MultibodySceneSpec)}
     for name in ("expansion", "switch_ratio", "tol", "grad_tol", "max_iter"):
         assert mb[name] == defaults[name], name

@@ -9,7 +9,7 @@ import copy
 import numpy as np
 import pytest
 
-from geoddp.multibody_scenes import scene_spec
+from geoddp.scene.builtin import scene_spec
 from geoddp.problem import paper_problem
 from geoddp.scene import build_problem
 from geoddp.simulate import (MPC, Disturbances, Plant, SimulationSpec, monte_carlo, plant_from, simulate,
@@ -115,7 +115,7 @@ def test_the_gains_are_right_to_second_order(case, request):
 
 
 def test_authors_scene_has_the_stated_optimum():
-    from geoddp.api import solve_scene
+    from geoddp import solve_scene
 
     r = solve_scene("satellite_authors_code", verbose=False)
     assert r.converged

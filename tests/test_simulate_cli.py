@@ -146,7 +146,7 @@ inertia_scale = 1.1
 
 def test_the_simulation_table_of_a_scene_file(tmp_path, capsys):
     from geoddp.scene import load_scene
-    from geoddp.simulation_spec import SimulationSpec as Spec
+    from geoddp.scene.simulation import SimulationSpec as Spec
 
     path = tmp_path / "s.toml"
     path.write_text(SCENE_WITH_TABLE)

@@ -4,7 +4,7 @@ import pytest
 from scipy.optimize import minimize
 
 from geoddp.problem import paper_problem
-from geoddp.result import STATUS_CONVERGED_COST, STATUS_CONVERGED_GRAD
+from geoddp.solver import STATUS_CONVERGED_COST, STATUS_CONVERGED_GRAD
 from geoddp.solver import SolverOptions, cost_gradient, solve
 
 

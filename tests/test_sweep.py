@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from geoddp.api import solve_scene
+from geoddp import solve_scene
 from geoddp.cli import main
 from geoddp.scene import parse_scene
 from geoddp.sweep import TIMING_COLUMNS, expand, load_sweep, read_table, run_sweep
@@ -287,12 +287,13 @@ def test_the_cli_forgets_its_signals_when_it_returns(monkeypatch):
     import signal
 
     from geoddp import cli, interrupts
+    from geoddp.cli import commands
 
     def run_that_swallows_a_sigint(args):
         interrupts.record(signal.SIGINT)
         return cli.EXIT_CONVERGED
 
-    monkeypatch.setattr(cli, "_run", run_that_swallows_a_sigint)
+    monkeypatch.setitem(commands.COMMANDS, "run", run_that_swallows_a_sigint)
     assert cli.main(["run", "satellite_paper", "--quiet"]) == cli.EXIT_CONVERGED
     assert interrupts.received() == []
     interrupts.check()  # nothing to raise
@@ -312,16 +313,16 @@ def test_limit_then_resume_and_csv(tmp_path):
 
 
 def test_a_raising_case_is_recorded_not_fatal(tmp_path, monkeypatch):
-    import geoddp.api
+    import geoddp.scene.solve
 
-    real = geoddp.api.solve_scene
+    real = geoddp.scene.solve.solve_scene
 
     def flaky(spec, **kw):
         if float(spec.S_u[0, 0]) == 1.0:  # the cases with cost.control = 1
             raise RuntimeError("solver blew up")
         return real(spec, **kw)
 
-    monkeypatch.setattr(geoddp.api, "solve_scene", flaky)
+    monkeypatch.setattr(geoddp.scene.solve, "solve_scene", flaky)
     run = run_sweep(write(tmp_path, SMALL), tmp_path / "out", serial=True)
     df = read_table(tmp_path / "out")
     assert run.complete and len(df) == 12 and run.failed == 6
@@ -396,10 +397,10 @@ def test_builtin_ur5_reach_grid_sweep_builds_the_robot_once(tmp_path, monkeypatc
     cases, all converged, each row the J* of its own case solved directly, the tool within 3 cm of
     its target (0.7-26 mm over the grid: nearest the base is hardest); and the sweep builds the
     UR5's model at most once in this process (a case is read, then built: two builds a case
-    before the memo of geoddp.urdf_checks)."""
+    before the memo of geoddp.models.urdf)."""
     import pinocchio as pin
 
-    import geoddp.urdf_checks as uc
+    import geoddp.models.urdf as uc
 
     import example_robot_data  # noqa: F401  (the test extra: a missing install fails here, not skips)
     builds = []
@@ -455,10 +456,10 @@ def test_run_cases_keeps_order_and_records_a_bad_case(tmp_path):
 def test_progress_bar_counts_done_failed_and_running(tmp_path, monkeypatch):
     import io
 
-    import geoddp.api
+    import geoddp.scene.solve
 
-    real = geoddp.api.solve_scene
-    monkeypatch.setattr(geoddp.api, "solve_scene", lambda spec, **kw: (
+    real = geoddp.scene.solve.solve_scene
+    monkeypatch.setattr(geoddp.scene.solve, "solve_scene", lambda spec, **kw: (
         (_ for _ in ()).throw(RuntimeError("boom")) if float(spec.S_u[0, 0]) == 1.0 else real(spec, **kw)))
     stream = io.StringIO()
     run_sweep(write(tmp_path, SMALL), tmp_path / "out", serial=True, progress=stream)

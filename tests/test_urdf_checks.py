@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from geoddp.models.multibody import Multibody
-from geoddp.urdf_checks import build_checked_model, captured_stderr, read_urdf_text
+from geoddp.models.urdf import build_checked_model, captured_stderr, read_urdf_text
 from geoddp.validate import InputError
 
 ARM = """<?xml version="1.0"{decl}?>
@@ -142,7 +142,7 @@ def test_a_urdf_built_before_is_copied_and_an_edited_one_is_built_again(tmp_path
     refused file is refused on every call."""
     import pinocchio as pin
 
-    import geoddp.urdf_checks as uc
+    import geoddp.models.urdf as uc
 
     builds = []
     real = pin.buildModelFromXML

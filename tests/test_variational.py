@@ -9,7 +9,7 @@ import pytest
 
 from geoddp import lie
 from geoddp.models.multibody import Multibody
-from geoddp.variational import StepDidNotConverge
+from geoddp.models.variational import StepDidNotConverge
 from urdfs import urdf as urdf_file
 
 

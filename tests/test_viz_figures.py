@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from geoddp.result import rotations_to_quaternions
+from geoddp.solver.result import rotations_to_quaternions
 from geoddp.viz import plot_convergence, plot_trajectory
 from viz_fixtures import synthetic_result
 

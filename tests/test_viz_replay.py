@@ -18,7 +18,8 @@ import pytest
 import umsgpack
 
 from geoddp import viz  # first: silences meshcat's import warning
-from geoddp.result import Result
+from geoddp import Result
+from geoddp.solver.result import SatelliteResult
 from geoddp.validate import InputError
 from geoddp.viz import meshcat_replay
 from geoddp.viz.html import STATUS_ID, decode_commands, render_html
@@ -59,7 +60,7 @@ MIN_MOVED = 0.05
 @pytest.fixture(scope="module")
 def paper() -> Result:
     """The paper's satellite scene, solved (H = 300, dt = 0.01 s)."""
-    from geoddp.api import load_scene, solve_scene
+    from geoddp import load_scene, solve_scene
 
     return solve_scene(load_scene(PAPER), verbose=False)
 
@@ -265,7 +266,7 @@ def test_cli_run_satellite_html_and_view(monkeypatch, tmp_path, capsys):
     assert cli.main(["run", str(PAPER), "--quiet", "--html", str(out), "--view"]) == 0
     assert f"wrote {out}" in capsys.readouterr().out
     (r,) = seen
-    assert r.multibody is None and r.rotations.shape == (301, 3, 3)
+    assert isinstance(r, SatelliteResult) and r.rotations.shape == (301, 3, 3)
     text = out.read_text()
     assert viz.animation_frame_count(text) == 301
     bus = keyframes(clips_of(decode_commands(text))["bus_0"])

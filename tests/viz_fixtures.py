@@ -7,7 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from geoddp.result import STATUS_CONVERGED_COST, Result
+from geoddp import Result
+from geoddp.solver import STATUS_CONVERGED_COST
+from geoddp.solver.result import SatelliteResult
 
 
 def keyframes(clip: dict) -> np.ndarray:
@@ -59,7 +61,7 @@ def synthetic_result(
     cost_history = 1.0 + 10.0 * 0.25 ** np.arange(iterations + 1)
     grad_norm_history = 0.3 ** np.arange(iterations + 1)
 
-    return Result(
+    return SatelliteResult(
         times=times,
         rotations=rotations,
         angular_velocities=omegas,
@@ -90,7 +92,7 @@ def synthetic_result(
 def multibody_result(scene: str = "space_manipulator", horizon: int = 20, dt: float = 0.05, max_iter: int = 2) -> Result:
     """A real (short, few-iteration) multibody solve of a built-in scene, through the solver:
     model -> problem -> solver -> Result, as the CLI does it. ~0.1 s."""
-    from geoddp import multibody_scenes
+    from geoddp.scene import builtin as multibody_scenes
     from geoddp.solver import SolverOptions, solve
 
     problem = getattr(multibody_scenes, scene)(horizon=horizon, dt=dt)

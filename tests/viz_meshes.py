@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from geoddp.result import STATUS_CONVERGED_COST, Result
+from geoddp import Result
+from geoddp.solver import STATUS_CONVERGED_COST
+from geoddp.solver.result import MultibodyResult
 
 # A unit cube [-0.5, 0.5]^3: 8 vertices, 12 triangles (outward normals).
 CUBE_V = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
@@ -104,7 +106,7 @@ def trajectory_result(urdf: Path, Q: np.ndarray, dt: float = 0.05, root: str = "
     a Result as the viewer reads it, the solver fields zero)."""
     model = pin.buildModelFromUrdf(str(urdf))
     H = Q.shape[0] - 1
-    return Result(
+    return MultibodyResult(
         times=dt * np.arange(H + 1), rotations=np.tile(np.eye(3), (H + 1, 1, 1)),
         angular_velocities=np.zeros((H + 1, 3)), controls=np.zeros((H, model.nv)),
         feedforward=np.zeros((H, model.nv)), feedback=np.zeros((H, model.nv, 2 * model.nv)),

@@ -53,7 +53,7 @@ inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out) -> bool`` (Fals
 ``satellite_rollout_box(R0, Om0, R_bar, Om_bar, u_bar, k_ff, K_fb, gamma, lower, upper, inertia,
 inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out) -> bool``
     the same with feedback and control limits lower, upper (H,m): u_k is clamped into the box
-    after the feedback law (issue 15).
+    after the feedback law (control limits).
 ``satellite_linearise(Om, dt, inertia, inertia_inv, actuation, semi_implicit, second_order, Phi, B,
 Theta, Gamma, Xi) -> None``
     in: Om (H+1,3) nominal rates, dt, inertia (3,3), inertia_inv (3,3), actuation (3,m), flags.

@@ -22,7 +22,7 @@ Modules:
   :func:`difference`), and TSO(3) = SO(3) x R^3 (:class:`TSO3`) as its one-body instance.
 
 The exact second-order reconstruction eta+ = Ad_A eta + Jr rho + 1/2 dJr[rho] rho
-+ 1/2 [Ad_A eta, Jr rho], for any product group, is :func:`geoddp.integrators.expand`.
++ 1/2 [Ad_A eta, Jr rho], for any product group, is :func:`geoddp.models.integrators.expand`.
 """
 from __future__ import annotations
 

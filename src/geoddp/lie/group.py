@@ -24,7 +24,7 @@ import numpy as np
 
 @runtime_checkable
 class Group(Protocol):
-    """What :mod:`geoddp.lie.product` and :mod:`geoddp.integrators` need of a non-commutative group."""
+    """What :mod:`geoddp.lie.product` and :mod:`geoddp.models.integrators` need of a non-commutative group."""
 
     dim: int
     structure_constants: np.ndarray

@@ -3,13 +3,13 @@
 Pinocchio's ``integrate(model, q, v)`` acts joint by joint: q_j+ = q_j exp(v_j) on each joint's
 group, with v_j the joint's slice ``v[idx_v : idx_v + nv]`` of the tangent vector. The
 configuration space is therefore a product group, and every object the exact second-order
-reconstruction of :mod:`geoddp.integrators` needs is block-diagonal over joints:
+reconstruction of :mod:`geoddp.models.integrators` needs is block-diagonal over joints:
 
     eta+ = Ad_A eta + Jr(omega) rho + 1/2 dJr(omega)[rho] rho + 1/2 [Ad_A eta, Jr(omega) rho] + O(3)
 
 with omega = dt w_bar, A = exp(-omega), rho = dt delta w (derived for any Lie group in the
-module docstring of :mod:`geoddp.integrators`, which assembles it once, for any product of the
-groups here: :func:`geoddp.integrators.expand`). A product group is a sequence of
+module docstring of :mod:`geoddp.models.integrators`, which assembles it once, for any product of the
+groups here: :func:`geoddp.models.integrators.expand`). A product group is a sequence of
 :class:`JointGroup` factors in tangent order (:func:`joint_groups` reads it off a ``pin.Model``);
 the functions below are its operations. The joint groups Pinocchio uses are
 

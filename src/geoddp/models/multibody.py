@@ -12,18 +12,18 @@ Dynamics (Pinocchio is the source of truth)::
 
 or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step (cpp/rkmk4.hpp, where the
 scheme is written out; second-order terms by central differences of its analytic step Jacobian,
-symmetrised), or the forward variational Euler step ("variational", :mod:`geoddp.variational`).
+symmetrised), or the forward variational Euler step ("variational", :mod:`geoddp.models.variational`).
 
 Expansion along a trajectory, z = (dq, dv, du), nz = 2 nv + m, in the compiled core
 (:mod:`geoddp.models.compiled`, cpp/): the velocity update's first order from
 ``computeABADerivatives`` and its second order exact from Pinocchio's
 ``ComputeRNEASecondOrderDerivatives`` (no differences); the reconstruction's first order from
 ``dIntegrate``'s ARG0 = Ad_exp(-omega), ARG1 = Jr(omega) and its second order exact per joint group
-(the formula of :func:`geoddp.integrators.expand`, with SE(3)'s Jr and dJr in closed form:
+(the formula of :func:`geoddp.models.integrators.expand`, with SE(3)'s Jr and dJr in closed form:
 Pinocchio's SE(3) Jr is inaccurate at small angles). rk4: its analytic step Jacobian and, for the
 second order, central differences of it. variational: the residual's Jacobian analytic, with the
 kinetic-energy Hessian from the same second-order RNEA, and its second order one central
-difference of that Jacobian. Array layout: :class:`geoddp.integrators.Expansion` with n = 2 nv.
+difference of that Jacobian. Array layout: :class:`geoddp.models.integrators.Expansion` with n = 2 nv.
 
 The Python path geoddp ran before its core is the tests' oracle (tests/oracle_multibody.py).
 """
@@ -37,15 +37,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..urdf_checks import build_checked_model, check_model
-
 from ..lie import product as cfg
-from .. import integrators as integ
-from .. import variational
-from ..urdf_checks import read_urdf_text
 from ..validate import (InputError, choice, finite_array, keywords_checked, nonnegative_int, positive_float, spin_from_environment,
                         threads_from_environment)
 from . import compiled
+from . import integrators as integ
+from . import variational
+from .urdf import build_checked_model, check_model, read_urdf_text
 
 ROOTS = ("free_flyer", "spherical", "fixed")
 INTEGRATORS = integ.INTEGRATORS + ("rk4", "variational")
@@ -130,7 +128,7 @@ class Multibody:
         dt: time step, s.
         integrator: "euler" (paper), "semi_implicit" (Crocoddyl), "rk4" (RKMK4 on the Lie group;
             second order by central differences of its analytic step Jacobian) or "variational"
-            (the paper's forward variational Euler, implicit; :mod:`geoddp.variational`).
+            (the paper's forward variational Euler, implicit; :mod:`geoddp.models.variational`).
         gravity: Pinocchio's default gravity (-9.81 m/s^2 along world z) if True, none if False.
         second_order: "exact" (the only kind for multibody models).
         backend: "auto" (the default) or "compiled": the compiled core, the only backend (the

@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .. import integrators as integ
 from .. import data, kernels
 from ..validate import actuation_matrix, choice, finite_array, inertia_matrix, positive_float, rotation_matrix
+from . import integrators as integ
 
 DEFAULT_URDF = data.urdf_path("satellite.urdf")
 
@@ -157,7 +157,7 @@ class Satellite:
         """Phi, B (and Theta, Gamma, Xi for order 2) at the H nodes of a trajectory, compiled.
 
         R (H+1, 3, 3) (unused: on TSO(3) the expansion depends on the rates only), Omega
-        (H+1, 3), controls (H, m). See :mod:`geoddp.integrators`. With ``second_order="paper"``
+        (H+1, 3), controls (H, m). See :mod:`geoddp.models.integrators`. With ``second_order="paper"``
         the eta rows of the second-order terms are the paper's (eq. etamatrixterms).
         """
         H, m = controls.shape[0], self.nu

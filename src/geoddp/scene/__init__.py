@@ -10,10 +10,11 @@
       -> load.py       load_scene / parse_scene: dispatch on [model].kind
       -> build.py      the one builder: build_problem, solver_options, initial_controls
          builtin.py    the built-in multibody scenes as problem builders
+      -> solve.py      solve_scene: load, build and solve in one call (``geoddp.solve_scene``)
 
 Every error is an :class:`~geoddp.validate.InputError` naming the key path (``[cost].attitude``,
 ``running_costs[1].frame``) and the file. Specs are frozen dataclasses of validated plain values;
-nothing here solves.
+only ``solve.py`` calls the solver.
 
 Adding a table
 --------------
@@ -43,9 +44,10 @@ from .load import SCENE_KINDS, load_scene, parse_scene
 from .multibody import CostTermSpec, MultibodySceneSpec
 from .reader import check_urdf, scene_file
 from .satellite import ATTITUDE_KINDS, INTEGRATORS, SECOND_ORDER, SceneSpec
+from .solve import solve_scene
 
 __all__ = ["SceneSpec", "MultibodySceneSpec", "CostTermSpec", "CommonSpec", "AnySceneSpec", "SCENE_KINDS",
-           "load_scene", "parse_scene", "scene_file", "check_urdf", "build_problem", "solver_options",
+           "load_scene", "parse_scene", "solve_scene", "scene_file", "check_urdf", "build_problem", "solver_options",
            "initial_controls", "terminal_frame_errors", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS",
            "SECOND_ORDER", "DEFAULT_EXPANSION", "DEFAULT_GRAD_TOL", "DEFAULT_MAX_ITER", "DEFAULT_SWITCH_RATIO",
            "DEFAULT_TOL"]

@@ -40,9 +40,9 @@ def control_limits(spec: AnySceneSpec, model: Any = None) -> tuple[np.ndarray, n
     """The scene's ``[limits]`` as (lower, upper), each (m,) (-inf / inf where unbounded), or None.
 
     ``effort_limits = "urdf"`` reads the joint efforts of ``model`` (the built multibody model:
-    :func:`geoddp.limits.effort_limits`) and keeps the tighter of them and control_min /
+    :func:`geoddp.problem.limits.effort_limits`) and keeps the tighter of them and control_min /
     control_max; InputError naming ``[limits].control_min`` if that leaves lower > upper."""
-    from ..limits import effort_limits
+    from ..problem.limits import effort_limits
 
     if not spec.has_limits:
         return None
@@ -67,7 +67,7 @@ def _on_tso3(spec: MultibodySceneSpec):
 
     The same problem either way (the general model with these terms gives the same J* to 6e-16,
     tests/test_scene.py); this one runs the satellite's compiled closed forms, ~10x faster."""
-    from ..costs import CostSum
+    from ..costs.tso3 import CostSum
     from ..models.satellite import Satellite
     from ..problem import Problem
 
@@ -99,7 +99,7 @@ def _tso3_term(c: Any, pm: pin.Model):
     """The closed-form TSO(3) term of a general cost term (:mod:`geoddp.costs`), or None where there
     is none: frame_rotation of a frame rotating with the body (any frame of joint 1 whose placement
     has no rotation), a state_regularisation that weights the velocity only, any control term."""
-    from ..costs import AngularVelocityQuadratic, AttitudeChordal, AttitudeGeodesic, ControlQuadratic
+    from ..costs.tso3 import AngularVelocityQuadratic, AttitudeChordal, AttitudeGeodesic, ControlQuadratic
 
     if c.gauss_newton:
         return None
@@ -120,7 +120,7 @@ def _multibody(spec: MultibodySceneSpec):
     its cost terms."""
     from ..models.multibody import Multibody
     from ..models.satellite import _one_body
-    from ..multibody_costs import MultibodyCostSum
+    from ..costs.multibody import MultibodyCostSum
     from ..problem import Problem
 
     if spec.second_order == "paper":

@@ -1,4 +1,4 @@
-"""The three multibody scenes of issue 6, as problem builders.
+"""The three built-in multibody scenes (spacecraft docking, space manipulator, quadrotor), as problem builders.
 
 Each scene is defined once, in its built-in scene file ``geoddp/data/scenes/multibody/<name>.toml``
 (package data, :mod:`geoddp.data`; ``examples/multibody/`` in the repository): URDF, actuation,

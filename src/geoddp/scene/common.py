@@ -1,6 +1,6 @@
 """The tables every scene kind shares, once: their keys, their fields on the spec and how they are
-read: ``[solver]``, ``[limits]`` (control limits, issue 15) and ``[simulation]`` (issue 16:
-:class:`~geoddp.simulation_spec.SimulationSpec`, flown by :func:`geoddp.simulate.simulate_scene`
+read: ``[solver]``, ``[limits]`` (control limits) and ``[simulation]`` (closed-loop simulation:
+:class:`~geoddp.scene.simulation.SimulationSpec`, flown by :func:`geoddp.simulate.simulate_scene`
 and ``geoddp simulate``).
 
 :class:`CommonSpec` is the base of both specs (:class:`~geoddp.scene.satellite.SceneSpec`,
@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from .. import validate as v
-from ..limits import ControlLimits, check_inside
-from ..simulation_spec import SimulationSpec
+from ..problem.limits import ControlLimits, check_inside
+from .simulation import SimulationSpec
 from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
                               EXPANSIONS)
 from .reader import Reader, Schema
@@ -54,7 +54,7 @@ class CommonSpec:
         grad_tol: stopping tolerance on the gradient norm, >= 0.
         max_iter: maximum number of iterations, >= 1.
         second_order: "exact" | "paper" (the paper's: satellite with explicit Euler only).
-        simulation: the ``[simulation]`` table as a :class:`~geoddp.simulation_spec.SimulationSpec`
+        simulation: the ``[simulation]`` table as a :class:`~geoddp.scene.simulation.SimulationSpec`
             (a dict of its fields is converted), or None when the scene has none.
         control_min, control_max: ``[limits]``: (m,) per-input lower / upper control bounds
             (-inf / inf: unbounded), or None (no bound on that side).

@@ -141,8 +141,8 @@ class CostTermSpec:
     distance: str = "geodesic"
 
     def build(self, model: pin.Model) -> Any:
-        """The :mod:`geoddp.multibody_costs` term on ``model``."""
-        from .. import multibody_costs as mc
+        """The :mod:`geoddp.costs.multibody` term on ``model``."""
+        from ..costs import multibody as mc
 
         W, ref = np.array(self.weight), np.array(self.reference)
         if self.type == "frame_placement":

@@ -1,5 +1,5 @@
 """Fly a plan: simulate a Result on a plant, with noise and model error, open loop, with the DDP
-gains or with MPC; Monte Carlo statistics (issue 16).
+gains or with MPC; Monte Carlo statistics (closed-loop simulation).
 
     plant.py        Plant: the plan's model with changed parameters, integrator and substeps
     disturbance.py  Disturbances: process, force and sensor noise, external wrenches (seeded)
@@ -11,7 +11,7 @@ gains or with MPC; Monte Carlo statistics (issue 16).
     scene.py        simulate_scene(): the entry point of the CLI and sweeps
 
 SimulationSpec (the ``[simulation]`` table's values), POLICIES and PLANT_KEYS live in
-:mod:`geoddp.simulation_spec`, below the scene readers that hold them; re-exported here.
+:mod:`geoddp.scene.simulation`, below the scene readers that hold them; re-exported here.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from .mpc import MPC
 from .plant import PLANT_KEYS, Plant, plant_from
 from .policy import Feedback, OpenLoop
 from .run import POLICIES, SimulationResult, simulate
-from ..simulation_spec import SimulationSpec
+from ..scene.simulation import SimulationSpec
 from .scene import simulate_scene
 
 __all__ = ["Disturbances", "Feedback", "MPC", "MonteCarloResult", "OpenLoop", "PLANT_KEYS", "POLICIES", "Plant",

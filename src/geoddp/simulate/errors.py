@@ -23,7 +23,7 @@ import pinocchio as pin
 
 from .. import kernels
 from ..models.satellite import Satellite
-from ..multibody_costs import FramePlacement, FrameRotation, FrameTranslation
+from ..costs.multibody import FramePlacement, FrameRotation, FrameTranslation
 
 
 def _angle(R: np.ndarray) -> float:

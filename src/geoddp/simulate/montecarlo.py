@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..result import Result
+from ..solver.result import Result
 from ..validate import InputError, nonnegative_int, positive_int
 from .disturbance import Disturbances
 from .errors import Targets

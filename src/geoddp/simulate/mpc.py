@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from ..result import Result
+from ..solver.result import Result
 from ..solver import SolverOptions, solve
 from ..validate import InputError, positive_int
 

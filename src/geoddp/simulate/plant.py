@@ -37,7 +37,7 @@ from ..models.multibody import Multibody
 from ..models.satellite import Satellite, satellite_model
 from ..validate import InputError, choice, finite_array, keywords_checked, positive_float, positive_int
 
-from ..simulation_spec import PLANT_KEYS  # noqa: E402,F401  (their one home; re-exported)
+from ..scene.simulation import PLANT_KEYS  # noqa: E402,F401  (their one home; re-exported)
 
 
 def _scale(x: Any, name: str, n: int | None) -> float | np.ndarray:

@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ..result import Result
+from ..solver.result import Result
 from ..validate import InputError
 
 

@@ -18,14 +18,14 @@ from typing import Any
 
 import numpy as np
 
-from ..result import Result
+from ..solver.result import Result
 from ..validate import InputError, positive_int, unknown_keyword
 from .disturbance import Disturbances, DisturbanceSample
 from .errors import Targets
 from .plant import Plant
 from .policy import Feedback, OpenLoop
 
-from ..simulation_spec import POLICIES  # noqa: E402  (their one home; re-exported)
+from ..scene.simulation import POLICIES  # noqa: E402  (their one home; re-exported)
 
 
 @dataclass
@@ -59,19 +59,12 @@ class SimulationResult:
     target_measure: str = ""
 
     def to_result(self, plan: Result) -> Result:
-        """The run as a :class:`~geoddp.result.Result` for the viewers: ``plan``'s model
+        """The run as a :class:`~geoddp.solver.result.Result` for the viewers: ``plan``'s model
         description and solver fields with this run's times, states and applied controls, and
         ``extra["simulation"]`` = policy, errors and plant changes. ``export_html(run.to_result(plan),
         path, plan=plan)`` replays the run beside a ghost of the plan."""
-        import copy
-
-        r = copy.copy(plan)
-        r.model = dict(plan.model)
-        r.extra = {**plan.extra, "simulation": {"policy": self.policy, "errors": dict(self.errors),
-                                                 "plant": dict(self.plant)}}
-        r._view_override = {}
-        r.times, r.q, r.v, r.controls = self.times, self.q, self.v, self.u
-        return r
+        return plan.with_trajectory(self.times, self.q, self.v, self.u, simulation={
+            "policy": self.policy, "errors": dict(self.errors), "plant": dict(self.plant)})
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (arrays as lists)."""

@@ -1,8 +1,8 @@
-"""The entry point from a scene: :func:`simulate_scene` flies a :class:`~geoddp.simulation_spec.SimulationSpec`
+"""The entry point from a scene: :func:`simulate_scene` flies a :class:`~geoddp.scene.simulation.SimulationSpec`
 (the ``[simulation]`` table's plain values).
 
 ``simulate_scene(scene, spec)`` loads (or takes) a scene, solves its plan once (the problem is
-built once per scene spec: :func:`geoddp.api.solve_scene`), and runs :func:`~.monte_carlo.monte_carlo`
+built once per scene spec: :func:`geoddp.solve_scene`), and runs :func:`~.monte_carlo.monte_carlo`
 with the spec's policies, plant and disturbances. It is pure apart from the clock: the same
 scene and spec give the same statistics (timings aside) on every machine. The CLI's
 ``geoddp simulate`` and sweeps call it.
@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..simulation_spec import SimulationSpec
+from ..scene.simulation import SimulationSpec
 from ..validate import InputError
 from .disturbance import Disturbances
 from .montecarlo import MonteCarloResult, monte_carlo
@@ -46,7 +46,7 @@ def simulate_scene(scene: Any, simulation: SimulationSpec | dict | None = None) 
     """
     import os
 
-    from ..api import _built_problem, solve_scene
+    from ..scene.solve import built_problem, solve_scene
     from ..scene import load_scene
 
     spec = load_scene(scene) if isinstance(scene, (str, os.PathLike, Path)) else scene
@@ -59,6 +59,6 @@ def simulate_scene(scene: Any, simulation: SimulationSpec | dict | None = None) 
     else:
         raise InputError("simulation", f"expected a SimulationSpec, a dict or None, got {type(simulation).__name__}")
     plan = solve_scene(spec, verbose=False)
-    problem = _built_problem(spec)
+    problem = built_problem(spec)
     return monte_carlo(plan, problem, samples=sim.samples, seed=sim.seed, policies=sim.policies, plant=sim.plant,
                        disturbances=disturbances(sim), steps=sim.steps, workers=sim.workers, **mpc_options(sim))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
-from ..contract import Linearisation
+from ..problem.contract import Linearisation
 from ..validate import threads_from_environment
 from .ladder import LadderSearch, ladder
 from .options import SolverOptions

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contract import OptimalControlProblem, Trajectory
+from ..problem.contract import OptimalControlProblem, Trajectory
 from .options import SolverOptions
 
 

@@ -6,7 +6,7 @@ default changes in one place. Options are validated where they enter; the solver
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -57,6 +57,9 @@ class SolverOptions:
         verbose: print the per-iteration table.
         record_controls: keep the controls of every iterate in the result.
         stream: where the table goes (sys.stdout when None).
+        callbacks: objects whose hooks the solve calls as it runs, after the history recorder and
+            the verbose table (:mod:`geoddp.solver.callbacks`: subclass ``Callback``); none by
+            default.
 
     The derivative backend is not an option of the solver: it is chosen when the model is built
     (by structure for the satellite, ``Multibody(..., backend=...)`` for a multibody model).
@@ -77,6 +80,7 @@ class SolverOptions:
     verbose: bool = True
     record_controls: bool = False
     stream: TextIO | None = field(default=None, repr=False)
+    callbacks: tuple[Any, ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         self.expansion = choice(self.expansion, "expansion", EXPANSIONS)
@@ -111,3 +115,12 @@ class SolverOptions:
             setattr(self, name, bool(val))
         if self.stream is not None and not callable(getattr(self.stream, "write", None)):
             raise InputError("stream", f"expected None or a text stream with write(), got {type(self.stream).__name__}")
+        if isinstance(self.callbacks, (str, bytes)) or not hasattr(self.callbacks, "__iter__"):
+            raise InputError("callbacks", f"expected a sequence of callbacks, got {type(self.callbacks).__name__}")
+        self.callbacks = tuple(self.callbacks)
+        for i, cb in enumerate(self.callbacks):
+            missing = [h for h in ("on_start", "on_gradient", "on_iteration", "on_finish")
+                       if not callable(getattr(cb, h, None))]
+            if missing:
+                raise InputError(f"callbacks[{i}]", f"expected a callback (a geoddp.solver.callbacks.Callback), got "
+                                 f"{type(cb).__name__} without {', '.join(missing)}")

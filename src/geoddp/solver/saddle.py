@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contract import Linearisation, OptimalControlProblem, Trajectory
+from ..problem.contract import Linearisation, OptimalControlProblem, Trajectory
 from .backward import Workspace, node_quu
 
 MAX_ESCAPES = 10

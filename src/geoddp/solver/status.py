@@ -1,4 +1,4 @@
-"""The status strings a solve ends with (``Result.status``); also importable from geoddp.result."""
+"""The status strings a solve ends with (``Result.status``); also importable from geoddp.solver."""
 from __future__ import annotations
 
 STATUS_CONVERGED_COST = "converged: |J_i - J_(i-1)| <= tol"

@@ -1,4 +1,4 @@
-"""Sweeps (issue 17): thousands of solves (and closed-loop simulations) from one sweep file, on
+"""Sweeps: thousands of solves (and closed-loop simulations) from one sweep file, on
 all local cores or a Dask cluster, resumable, streamed to a Parquet table.
 
     spec.py     sweep files -> validated cases with content hashes (grids, seeded random draws)

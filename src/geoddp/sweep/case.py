@@ -1,5 +1,5 @@
 """One case of a sweep, run anywhere (in this process or on a Dask worker): a plain payload in,
-a plain row of scalars out (issue 17, items 3 and 4).
+a plain row of scalars out.
 
 The payload and the row are plain data (dicts of str, float, int, bool, lists), so a worker needs
 only ``pip install geoddp`` and nothing is pickled but data. A case that raises is a row with
@@ -8,9 +8,9 @@ dying process loses a case, and Dask's retries give it to another worker.
 
 Case kinds (:attr:`geoddp.sweep.spec.Case.kind`):
 
-* ``solve``: :func:`geoddp.api.solve_scene` on the case's scene.
+* ``solve``: :func:`geoddp.solve_scene` on the case's scene.
 * ``simulate``: solve, then fly the plan in closed loop with the case's ``[simulation]`` table
-  (:func:`geoddp.simulate.simulate_scene`, issue 16); its flat statistics become ``sim.*`` columns.
+  (:func:`geoddp.simulate.simulate_scene`); its flat statistics become ``sim.*`` columns.
 """
 from __future__ import annotations
 
@@ -59,7 +59,7 @@ def run_case(p: dict[str, Any]) -> dict[str, Any]:
         if spec is None:
             spec = parse_scene(p["scene"], p["source"])
         if p["simulation"] is None:
-            from ..api import solve_scene
+            from ..scene.solve import solve_scene
 
             result = solve_scene(spec, verbose=False)
             stats: dict[str, float] = {}
@@ -81,7 +81,7 @@ def run_case(p: dict[str, Any]) -> dict[str, Any]:
 
 def simulate(spec: Any, simulation: dict[str, Any]) -> tuple[Any, dict[str, float]]:
     """The "solve then simulate" case: the plan's Result and the closed-loop statistics."""
-    simulate_scene = _closed_loop("simulate").simulate_scene
+    from ..simulate import simulate_scene
 
     mc = simulate_scene(spec, dict(simulation))
     return mc.plan, dict(mc.statistics())
@@ -102,15 +102,3 @@ def terminal_errors(spec: Any, result: Any) -> dict[str, float]:
                 out[f"terminal.{term['name']}.{k}"] = float(term[k])
     return out
 
-
-def _closed_loop(module: str) -> Any:
-    """``geoddp.<module>`` of the closed-loop issue (16), or an InputError if this geoddp lacks it."""
-    import importlib
-
-    from ..validate import InputError
-
-    try:
-        return importlib.import_module(f"{__package__.rsplit('.', 1)[0]}.{module}")
-    except ModuleNotFoundError:
-        raise InputError("[simulation]", f"closed-loop simulation needs geoddp.{module} (issue 16), "
-                         "which this geoddp does not have") from None

@@ -1,6 +1,6 @@
 """Running a sweep: every case validated first, then solved in this process, on a Dask
 ``LocalCluster`` (all local cores) or on an existing ``dask.distributed`` scheduler; rows streamed
-to disk as cases finish; ``resume`` solves only what the folder lacks (issue 17, items 2-4).
+to disk as cases finish; ``resume`` solves only what the folder lacks.
 
 Nothing in the cases changes between the three executors: each case is the same plain payload
 given to :func:`geoddp.sweep.case.run_case`, so the tables are equal (timing columns aside).
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from .. import interrupts
-from ..outputs import write_atomic
+from ..output_files import write_atomic
 from ..validate import THREADS_ENV, InputError
 from . import case as case_mod
 from .spec import Case, Sweep, load_sweep, validate_all

@@ -1,5 +1,5 @@
 """Sweep files: a base scene and what varies, expanded into cases that are each a full, validated
-scene table with a content hash (issue 17, items 1 and 4).
+scene table with a content hash.
 
 A sweep file (TOML)::
 
@@ -27,7 +27,7 @@ A sweep file (TOML)::
     crouch = [0.0, 0.3, -0.6]
 
     [simulation]                 # optional: each case is solved, then simulated in closed loop
-    samples = 20                 # (keys: geoddp.simulation_spec.SimulationSpec)
+    samples = 20                 # (keys: geoddp.scene.simulation.SimulationSpec)
 
 A key path is the scene's TOML path: ``table.key`` with ``[i]`` for list entries and arrays of
 tables (``terminal_costs[0].weight``, ``initial.q[7]``); ``simulation.<key>`` varies the
@@ -531,9 +531,9 @@ def validate_case(case: Case, sweep: Sweep) -> Any:
 def check_simulation(table: Mapping[str, Any]) -> None:
     """Validate a [simulation] table with the closed-loop module's own spec (InputError names
     ``simulation.<key>``)."""
-    from .case import _closed_loop
+    from ..scene.simulation import SimulationSpec
 
-    _closed_loop("simulation_spec").SimulationSpec.from_dict(dict(table))
+    SimulationSpec.from_dict(dict(table))
 
 
 def _short(x: Any) -> str:

@@ -1,4 +1,4 @@
-"""What a sweep found (issue 17, item 5): convergence rate, the distributions of iterations and J*,
+"""What a sweep found: convergence rate, the distributions of iterations and J*,
 the slowest and the failed cases, and parameter-vs-outcome figures."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..outputs import write_atomic
+from ..output_files import write_atomic
 
 FIXED_COLUMNS = ("case", "hash", "draw", "kind", "status", "converged", "J", "iterations", "gradient_norm",
                  "solve_time_s", "case_time_s", "error")

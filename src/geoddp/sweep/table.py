@@ -1,4 +1,4 @@
-"""The results table of a sweep, streamed to disk (issue 17, items 3 and 4).
+"""The results table of a sweep, streamed to disk.
 
 Layout of an output folder::
 
@@ -25,7 +25,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from ..outputs import strict_json, write_atomic
+from ..output_files import strict_json, write_atomic
 from ..validate import InputError
 
 PARTS = "parts"

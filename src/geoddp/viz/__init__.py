@@ -1,4 +1,4 @@
-"""Visualisation of a solved :class:`geoddp.result.Result`.
+"""Visualisation of a solved :class:`geoddp.solver.result.Result`.
 
 Reads Results only; never imports the solver.
 
@@ -14,7 +14,7 @@ target pose as a translucent ghost, frame targets as triads, an optional ``trail
 framing the whole trajectory.
 
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures;
-  :func:`plot_simulation`: the Monte Carlo bundles and error histograms (issue 16).
+  :func:`plot_simulation`: the Monte Carlo bundles and error histograms of a closed-loop simulation.
 """
 import warnings
 

@@ -34,7 +34,7 @@ class LoopbackBridge(zs.ZMQWebSocketBridge):
 
 def _exit_with_parent(parent: int) -> None:
     """Exit when the process that started this server is gone (killed with SIGKILL, crashed):
-    the server runs in its own session, so no signal reaches it then (issue 13, clean exits)."""
+    the server runs in its own session, so no signal reaches it then (clean exits)."""
     while True:
         time.sleep(0.5)
         if os.getppid() != parent:

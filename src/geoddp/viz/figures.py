@@ -14,8 +14,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..outputs import output_folder
-from ..result import Result, as_result, rotations_to_quaternions
+from ..output_files import output_folder
+from ..solver.result import Result, as_result, rotations_to_quaternions
 from ..validate import InputError
 
 DPI = 120
@@ -91,7 +91,7 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
 
     Raises:
         InputError: ``result`` not a :class:`Result`, or ``out_dir`` not a folder that can be
-            written (:func:`geoddp.outputs.output_folder`).
+            written (:func:`geoddp.output_files.output_folder`).
     """
     result = as_result(result)
     out = output_folder(out_dir)
@@ -150,7 +150,7 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
 
 def _draw_limits(ax, t: np.ndarray, u: np.ndarray, limits: tuple[np.ndarray, np.ndarray],
                  active: np.ndarray | None) -> dict:
-    """Control limits on the controls axes (issue 15): each input's finite bounds as dashed
+    """Control limits on the controls axes: each input's finite bounds as dashed
     stairs in its colour, and the intervals [t_k, t_{k+1}) where it sits on a bound shaded in
     its colour. Returns the figure data: ``lower``, ``upper`` (H, m) (NaN where unbounded) and
     ``saturated`` (list of (input, t_start, t_end) intervals)."""
@@ -234,7 +234,7 @@ def plot_convergence(
     Raises:
         InputError: ``results`` not a non-empty dict of :class:`Result` (naming ``results`` or
             ``results[label]``), or ``out_dir`` not a folder that can be written
-            (:func:`geoddp.outputs.output_folder`).
+            (:func:`geoddp.output_files.output_folder`).
     """
     if not isinstance(results, dict) or not results:
         raise InputError("results", f"expected a dict label -> Result with at least one entry, got {results!r:.80}")

@@ -17,8 +17,8 @@ from pathlib import Path
 import meshcat
 import umsgpack
 
-from ..outputs import write_atomic
-from ..result import Result
+from ..output_files import write_atomic
+from ..solver.result import Result
 from .scene import MAX_MESH_MB, build_scene
 
 _VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"

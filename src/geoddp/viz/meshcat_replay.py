@@ -23,7 +23,7 @@ import meshcat
 import zmq
 from meshcat.visualizer import ViewerWindow
 
-from ..result import Result
+from ..solver.result import Result
 from ..validate import positive_float
 from .scene import MAX_MESH_MB, build_satellite, build_scene, prepare_scene
 

@@ -33,7 +33,7 @@ import pinocchio as pin
 from ..models.multibody import ROOTS, _root_joint
 from ..models.robots import default_package_dirs, example_robot_data_dir  # noqa: F401  (re-exported here)
 from ..models.satellite import DEFAULT_URDF as SATELLITE_URDF
-from ..result import Result, as_result, rotations_to_quaternions
+from ..solver.result import MultibodyResult, Result, as_result, rotations_to_quaternions
 from ..validate import InputError
 
 # Where the root joint's rotation sits in q (the quaternion (x, y, z, w)), for roots that have one.
@@ -81,12 +81,12 @@ def replay_description(result: Result) -> dict:
     A result with ``configurations`` but no ``multibody`` (a multibody JSON written before the
     description existed) replays its root attitude on the satellite model, with a warning.
     """
-    description = getattr(result, "multibody", None)
-    if description is not None:
-        return description
-    if result.configurations is not None:
-        warnings.warn("this multibody result has no model description (Result.multibody): replaying only the "
-                      "root body's attitude, on the satellite model", UserWarning, stacklevel=3)
+    if isinstance(result, MultibodyResult):
+        if result.multibody is not None:
+            return result.multibody
+        if result.configurations is not None:
+            warnings.warn("this multibody result has no model description (Result.multibody): replaying only the "
+                          "root body's attitude, on the satellite model", UserWarning, stacklevel=3)
     return satellite_description()
 
 
@@ -320,7 +320,7 @@ def replay_configurations(result: Result, nq: int | None = None) -> np.ndarray:
     n = int(np.shape(result.times)[0])
     if n < 1:
         raise InputError("result.times", "expected at least one time step, got none")
-    if getattr(result, "multibody", None) is not None:
+    if isinstance(result, MultibodyResult) and result.multibody is not None:
         if result.configurations is None:
             raise InputError("result.configurations", "expected (H+1, nq) Pinocchio configurations, got None")
         Q = np.asarray(result.configurations, dtype=float)
@@ -469,7 +469,8 @@ def frame_targets(result: Result) -> list[tuple[str, np.ndarray]]:
             entry is malformed or not finite.
     """
     out = []
-    sources = (("result.multibody.frame_targets", (getattr(result, "multibody", None) or {}).get("frame_targets")),
+    description = result.multibody if isinstance(result, MultibodyResult) else None
+    sources = (("result.multibody.frame_targets", (description or {}).get("frame_targets")),
                ("result.extra.frame_targets", (getattr(result, "extra", None) or {}).get("frame_targets")))
     for where, entries in sources:
         if entries is None:

@@ -43,7 +43,7 @@ import numpy as np
 import pinocchio as pin
 from meshcat.animation import Animation
 
-from ..result import Result
+from ..solver.result import Result
 from ..validate import InputError, positive_float
 from .model import (VisualModel, check_replayable, frame_positions, frame_targets, ghost_configuration,
                     load_visual_model, mesh_bytes, mesh_file, placements_at, replay_description,
@@ -331,7 +331,7 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
             live viewer checks before starting its server, and the meshes are loaded once).
         plan: another Result of the same model (the plan a simulated run flew): drawn as a
             translucent ghost under ``vis["plan_ghost"]``, animated beside the model (its last
-            configuration held if the run is longer; issue 16).
+            configuration held if the run is longer).
 
     Returns:
         The animation (one clip per drawn visual object, H+1 keyframes each, fps = 1/dt).

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..outputs import output_folder
+from ..output_files import output_folder
 from .figures import FigureData, Figures, _save
 
 POLICY_COLORS = {"open": "tab:red", "feedback": "tab:blue", "mpc": "tab:green"}

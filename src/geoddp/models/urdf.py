@@ -1,4 +1,4 @@
-"""URDF input checks (issue 13, item 6): encodings, joint axes, masses and inertias, by name.
+"""URDF input checks: encodings, joint axes, masses and inertias, by name.
 
 :func:`build_checked_model` is the one entry the model builders call: it reads the file
 (:func:`read_urdf_text`: the encoding its XML declaration names, else UTF-8, refused by name
@@ -27,7 +27,7 @@ from typing import Iterator
 import numpy as np
 import pinocchio as pin
 
-from .validate import InputError
+from ..validate import InputError
 
 __all__ = ["read_urdf_text", "check_urdf_text", "check_model", "build_checked_model", "captured_stderr"]
 

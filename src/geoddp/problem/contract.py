@@ -2,7 +2,7 @@
 
 :func:`geoddp.solver.solve` calls the members of :class:`OptimalControlProblem` and nothing else:
 no ``problem.model.*``, no backend option (a backend is chosen when the model is built), and the
-problem never writes the :class:`~geoddp.result.Result`'s schema (it only describes its model).
+problem never writes the :class:`~geoddp.solver.result.Result`'s schema (it only describes its model).
 
 Shapes use H = horizon (number of control steps), m = nu (number of inputs) and nx = the
 dimension of the tangent space of the state group (6 on TSO(3), 2 nv for a multibody). States are
@@ -157,7 +157,7 @@ class OptimalControlProblem(Protocol):
         state; k (H, m), K (H, m, nx). Returns None when the state becomes non-finite."""
         ...
 
-    # Optional member (control limits, issue 15): ``control_bounds() -> (lower, upper) | None``,
+    # Optional member (control limits): ``control_bounds() -> (lower, upper) | None``,
     # each (H, m), -inf / inf where unbounded. A problem with bounds must keep every control of
     # ``rollout_policy`` inside them (clamping after the feedback law) and reject an initial guess
     # outside them in ``check_controls``; the solver then solves the box-constrained problem.

@@ -1,4 +1,4 @@
-"""Control limits (issue 15): per-input lower and upper bounds on the controls, constant or per node.
+"""Control limits: per-input lower and upper bounds on the controls, constant or per node.
 
     lower_k <= u_k <= upper_k   (elementwise, k = 0 .. H-1)
 
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .validate import InputError, keywords_checked
+from ..validate import InputError, keywords_checked
 
 __all__ = ["ControlLimits", "as_limits", "check_inside", "active_set", "projected_gradient", "effort_limits"]
 

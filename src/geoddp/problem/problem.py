@@ -22,7 +22,7 @@ import numpy as np
 
 from .contract import Linearisation, Trajectory
 from .limits import as_limits, check_inside
-from .costs import (
+from ..costs.tso3 import (
     AngularVelocityQuadratic,
     AttitudeChordal,
     AttitudeGeodesic,
@@ -30,11 +30,11 @@ from .costs import (
     CostDerivatives,
     CostSum,
 )
-from .models.multibody import Multibody
-from .models.satellite import Satellite, satellite_model
-from .multibody_costs import (ControlRegularisation, FramePlacement, FrameRotation, FrameTranslation, MultibodyCostSum,
+from ..models.multibody import Multibody
+from ..models.satellite import Satellite, satellite_model
+from ..costs.multibody import (ControlRegularisation, FramePlacement, FrameRotation, FrameTranslation, MultibodyCostSum,
                               StateRegularisation)
-from .validate import InputError, choice, finite_array, keywords_checked, positive_int
+from ..validate import InputError, choice, finite_array, keywords_checked, positive_int
 
 ATTITUDE_KINDS = ("chordal", "geodesic")
 
@@ -50,8 +50,8 @@ class Problem:
         v0: initial velocity part: Omega0 (3,) rad/s on TSO(3), (nv,) for a multibody.
         horizon: number of control steps H.
         running: running cost (applied at k = 0 .. H-1); terminal: terminal cost (at k = H).
-        limits: control limits lower <= u_k <= upper (issue 15): None (unconstrained), a
-            :class:`geoddp.limits.ControlLimits`, a (lower, upper) pair or {"lower", "upper"};
+        limits: control limits lower <= u_k <= upper: None (unconstrained), a
+            :class:`geoddp.problem.limits.ControlLimits`, a (lower, upper) pair or {"lower", "upper"};
             each bound a scalar, (m,) or (H, m), -inf / inf for an unbounded side. Stored as a
             ControlLimits; :meth:`control_bounds` gives the (H, m) arrays.
     """
@@ -120,7 +120,7 @@ class Problem:
         return self.v0
 
     # ------------------------------------------------------------ the solver's contract
-    # (geoddp.contract.OptimalControlProblem): thin adapters over the array methods below.
+    # (geoddp.problem.contract.OptimalControlProblem): thin adapters over the array methods below.
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
         """Validated (H, m) float64 copy of a control sequence (inside the limits, if any)."""
         U = finite_array(controls, name, (self.horizon, self.nu))
@@ -213,7 +213,7 @@ class Problem:
         (H, m, nx); results into q_out, v_out, u_out. Returns False if the state became non-finite.
 
         With limits, u_k is clamped into [lower_k, upper_k] after the feedback law (the feasible
-        forward pass of issue 15): every control applied and stored lies in the box.
+        forward pass): every control applied and stored lies in the box.
         ``trusted=True``: the arrays are the solver's own (float64, C-contiguous, these shapes;
         :meth:`rollout_policy`), so a Multibody model skips its Python checks (:meth:`_trusted`)."""
         kw = self._trusted() if trusted else {}
@@ -259,9 +259,6 @@ class Problem:
 def _offers_gauss_newton(cost: Any) -> bool:
     """True for a cost sum whose derivatives() takes gauss_newton=True (MultibodyCostSum)."""
     return bool(getattr(cost, "first_order_gauss_newton", False))
-
-
-MultibodyProblem = Problem  # the multibody problem is the same class (issue 11)
 
 
 def satellite_problem(

@@ -34,7 +34,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .lie import NONCOMMUTATIVE, SO3, JointGroup, block_Ad_Jr, group_second_order_tensors, hat
+from ..lie import NONCOMMUTATIVE, SO3, JointGroup, block_Ad_Jr, group_second_order_tensors, hat
 
 INTEGRATORS = ("euler", "semi_implicit")
 SECOND_ORDER_KINDS = ("exact", "paper")

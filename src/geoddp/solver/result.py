@@ -3,36 +3,34 @@
 A :class:`Result` is what the solver hands downstream: the viewer, the figures and the JSON
 writer read it and never call back into the solver. Everything is numpy arrays or builtins.
 
-It is generic: the state trajectory (q, v) as the problem's :class:`~geoddp.contract.Trajectory`
-holds it, the controls and gains, the histories, the status, and the problem's model description
-(:meth:`~geoddp.contract.OptimalControlProblem.describe`). The satellite's views (rotations,
-quaternions, angular velocities, the target and the attitude error) are properties derived from
-the state and the description, for a multibody from its root joint. The JSON keeps every field it
-has had (files written before the generic Result still load) and adds ``model``.
+:class:`Result` holds what every problem has: the state trajectory (q, v) as the problem's
+:class:`~geoddp.problem.contract.Trajectory` holds it, the controls and gains, the histories, the
+status, and the problem's model description
+(:meth:`~geoddp.problem.contract.OptimalControlProblem.describe`), and the views of the root
+body's attitude (rotations, quaternions, angular velocities, the target and the attitude error).
+Its kind is chosen once, from the description's ``kind``, when the solver builds it
+(:func:`result_class`) or :meth:`Result.from_dict` reads it:
+
+* :class:`SatelliteResult`: the state on TSO(3), q the rotations and v the body rates, which the
+  views are;
+* :class:`MultibodyResult`: Pinocchio configurations and velocities (``configurations``,
+  ``velocities``), the viewer's description of the model (``multibody``), and the views derived
+  from the root joint.
+
+The JSON keeps every field it has had (files written before the generic Result still load) and
+adds ``model``.
 """
 from __future__ import annotations
 
+import copy
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from .validate import InputError
-
-# The status strings live with the solver that sets them; re-exported here, where they were first.
-from .solver.status import (  # noqa: F401
-    STATUS_CONVERGED_COST,
-    STATUS_CONVERGED_GRAD,
-    STATUS_MAX_ITER,
-    STATUS_MAX_REG,
-    STATUS_NO_DESCENT,
-    STATUS_SADDLE,
-    STATUS_STALLED,
-    STATUS_NON_FINITE,
-    STATUS_LINALG,
-)
+from ..validate import InputError
 
 # Keys of the model description that make up ``Result.multibody`` (what the viewer rebuilds from).
 # optional: the viewer's mesh search path, frame-target triads, and for a model handed over as a
@@ -128,7 +126,7 @@ class _WriteThrough(dict):
 
 
 def _nan_for_none(x: Any) -> Any:
-    """Inverse of the strict JSON writer (geoddp.outputs): null -> NaN, at any list depth."""
+    """Inverse of the strict JSON writer (geoddp.output_files): null -> NaN, at any list depth."""
     if x is None:
         return float("nan")
     if isinstance(x, list):
@@ -159,7 +157,8 @@ def _limits_from_json(lim: Any) -> tuple[np.ndarray, np.ndarray] | None:
 
 @dataclass(init=False)
 class Result:
-    """Solution of a geometric DDP solve.
+    """Solution of a geometric DDP solve: what every problem has (its kinds add their own views:
+    :class:`SatelliteResult`, :class:`MultibodyResult`).
 
     Shapes use H = horizon (number of control steps), m = number of inputs and nx = the dimension
     of the tangent state (6 on TSO(3), 2 nv for a multibody).
@@ -205,16 +204,16 @@ class Result:
         extra: free-form additions; the solver puts ``"saddle_escapes"`` here (a list of dicts with
             iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle.
 
-    Views (properties): ``rotations`` (H+1, 3, 3) body-to-world attitudes (the root body's for a
-    multibody; identity for a fixed root), ``angular_velocities`` (H+1, 3) body rates (rad/s),
-    ``quaternions`` (H+1, 4), ``target_rotation`` (3, 3), ``target_angular_velocity`` (3,),
-    ``attitude_error_deg``, ``angular_velocity_error``, ``integrator``, and for a multibody
-    ``configurations`` (= q), ``velocities`` (= v) and ``multibody`` (the viewer's description:
-    urdf, urdf_xml, root, nq, nv); these three are None on TSO(3).
+    Views (properties) of the root body's attitude: ``rotations`` (H+1, 3, 3) body-to-world
+    attitudes, ``angular_velocities`` (H+1, 3) body rates (rad/s), ``quaternions`` (H+1, 4),
+    ``target_rotation`` (3, 3), ``target_angular_velocity`` (3,), ``attitude_error_deg``,
+    ``angular_velocity_error``; and ``integrator``. A result of a kind this module does not know
+    (a problem of the user's describing another ``kind``) has no root body it knows of: its
+    rotations are the identity and its rates zero, as for a multibody's fixed root.
 
-    The constructor also accepts the pre-generic keywords (``rotations``, ``angular_velocities``,
-    ``target_rotation``, ``target_angular_velocity``, ``configurations``, ``velocities``,
-    ``multibody``, ``integrator``) and builds q, v and the description from them.
+    The constructor also accepts the pre-generic keywords ``target_rotation``,
+    ``target_angular_velocity`` and ``integrator`` and puts them into the description (each kind
+    takes its own too: :class:`SatelliteResult`, :class:`MultibodyResult`).
     """
 
     times: np.ndarray
@@ -243,6 +242,9 @@ class Result:
     extra: dict[str, Any]
     limits: tuple[np.ndarray, np.ndarray] | None
     active_set: np.ndarray | None
+
+    #: the description's ``kind`` this class is the result of (None: any other)
+    KIND: ClassVar[str | None] = None
 
     def __init__(
         self,
@@ -273,14 +275,9 @@ class Result:
         extra: dict[str, Any] | None = None,
         limits: tuple[np.ndarray, np.ndarray] | None = None,
         active_set: np.ndarray | None = None,
-        # pre-generic keywords
-        rotations: np.ndarray | None = None,
-        angular_velocities: np.ndarray | None = None,
+        # pre-generic keywords of the description
         target_rotation: np.ndarray | None = None,
         target_angular_velocity: np.ndarray | None = None,
-        configurations: np.ndarray | None = None,
-        velocities: np.ndarray | None = None,
-        multibody: dict[str, Any] | None = None,
         integrator: str | None = None,
     ) -> None:
         self.times = times
@@ -307,17 +304,8 @@ class Result:
         self.limits = limits
         self.active_set = active_set
         model = {} if model is None else dict(model)
-        if q is None:
-            if configurations is not None:
-                q, v = configurations, velocities
-                model.setdefault("kind", "multibody")
-            else:
-                q, v = rotations, angular_velocities
-        if multibody is not None:
-            model.setdefault("kind", "multibody")
-            for k, val in multibody.items():
-                model.setdefault(k, val)
-        model.setdefault("kind", "satellite")
+        if self.KIND is not None:
+            model.setdefault("kind", self.KIND)
         model.setdefault("dt", dt)
         if integrator is not None:
             model["integrator"] = integrator
@@ -326,9 +314,7 @@ class Result:
         if target_angular_velocity is not None:
             model["target_angular_velocity"] = target_angular_velocity
         self.q, self.v, self.model = q, v, model
-        # Root views given explicitly for a multibody without a description (nothing to derive from).
-        self._root_views = (rotations, angular_velocities)
-        self._view_override: dict[str, Any] = {}  # multibody root views assigned after construction
+        self._views: dict[str, Any] = {}  # root views assigned after construction
 
     # ------------------------------------------------------------------ generic
     @property
@@ -350,85 +336,36 @@ class Result:
         """Gradient norm at the final iterate."""
         return float(self.grad_norm_history[-1])
 
-    @property
-    def is_multibody(self) -> bool:
-        return self.model.get("kind") == "multibody"
+    def with_trajectory(self, times: np.ndarray, q: np.ndarray, v: np.ndarray, controls: np.ndarray,
+                        **extra: Any) -> "Result":
+        """A result of the same kind with another trajectory: times (N+1,), states q, v and
+        controls (N, m) replaced, ``extra`` added, the description copied and the solver's fields
+        shared; its views derive from the new states (a simulated run replayed beside its plan)."""
+        r = copy.copy(self)
+        r.model = dict(self.model)
+        r.extra = {**self.extra, **extra}
+        r._views = {}
+        r.times, r.q, r.v, r.controls = times, q, v, controls
+        return r
 
-    @property
-    def configurations(self) -> np.ndarray | None:
-        """(H+1, nq) Pinocchio configurations of a multibody solve (None on TSO(3))."""
-        return self.q if self.is_multibody else None
-
-    @configurations.setter
-    def configurations(self, value: np.ndarray | None) -> None:
-        if value is None and not self.is_multibody:
-            return
-        self._pin_root_views()
-        self.model["kind"] = "multibody"
-        self.q = value
-
-    @property
-    def velocities(self) -> np.ndarray | None:
-        """(H+1, nv) generalised velocities of a multibody solve (None on TSO(3))."""
-        return self.v if self.is_multibody else None
-
-    @velocities.setter
-    def velocities(self, value: np.ndarray | None) -> None:
-        if value is None and not self.is_multibody:
-            return
-        self._pin_root_views()
-        self.model["kind"] = "multibody"
-        self.v = value
-
-    @property
-    def multibody(self) -> dict[str, Any] | None:
-        """What the viewer needs to rebuild a multibody model without the solver (None on TSO(3)
-        or without a description): ``{"urdf": absolute path (str), "urdf_xml": the URDF text as
-        solved (str), "root": "free_flyer" | "spherical" | "fixed", "nq": int, "nv": int}``."""
-        if not self.is_multibody or "root" not in self.model:
-            return None
-        return _WriteThrough(self.model, _MULTIBODY_KEYS)
-
-    @multibody.setter
-    def multibody(self, value: dict[str, Any] | None) -> None:
-        for k in _MULTIBODY_KEYS:
-            self.model.pop(k, None)
-        if value is not None:
-            self.model["kind"] = "multibody"
-            self.model.update(value)
-
-    # ------------------------------------------------------------------ satellite views
+    # ------------------------------------------------------------------ the root body's attitude
     def _attitude(self) -> tuple[np.ndarray, np.ndarray]:
-        if not self.is_multibody:
-            return self.q, self.v
-        if "root" in self.model and self.q is not None and self.v is not None:
-            R, w = _root_rotations_and_rates(np.asarray(self.q), np.asarray(self.v), self.model["root"])
-        else:
-            R, w = self._root_views
-            N = np.shape(self.times)[0]
-            R = np.tile(np.eye(3), (N, 1, 1)) if R is None else R
-            w = np.zeros((N, 3)) if w is None else w
-        return self._view_override.get("rotations", R), self._view_override.get("angular_velocities", w)
+        """(rotations (H+1, 3, 3), body rates (H+1, 3)) of the root body."""
+        N = np.shape(self.times)[0]
+        return (self._views.get("rotations", np.tile(np.eye(3), (N, 1, 1))),
+                self._views.get("angular_velocities", np.zeros((N, 3))))
 
-    def _pin_root_views(self) -> None:
-        # Before the state of a multibody changes by assignment, keep the root views it had (an
-        # assigned state may be partial, as the viewer's input checks exercise).
-        if self.is_multibody and self.q is not None and self.v is not None:
-            R, w = self._attitude()
-            self._view_override.setdefault("rotations", R)
-            self._view_override.setdefault("angular_velocities", w)
+    def _set_view(self, name: str, value: np.ndarray) -> None:
+        self._views[name] = value
 
     @property
     def rotations(self) -> np.ndarray:
-        """(H+1, 3, 3) body-to-world attitudes R_k (the root body's for a multibody)."""
+        """(H+1, 3, 3) body-to-world attitudes R_k (the root body's)."""
         return self._attitude()[0]
 
     @rotations.setter
     def rotations(self, value: np.ndarray) -> None:
-        if self.is_multibody:
-            self._view_override["rotations"] = value
-        else:
-            self.q = value
+        self._set_view("rotations", value)
 
     @property
     def angular_velocities(self) -> np.ndarray:
@@ -437,10 +374,7 @@ class Result:
 
     @angular_velocities.setter
     def angular_velocities(self, value: np.ndarray) -> None:
-        if self.is_multibody:
-            self._view_override["angular_velocities"] = value
-        else:
-            self.v = value
+        self._set_view("angular_velocities", value)
 
     @property
     def target_rotation(self) -> np.ndarray:
@@ -478,11 +412,15 @@ class Result:
         return float(np.linalg.norm(self.angular_velocities[-1] - self.target_angular_velocity))
 
     # ------------------------------------------------------------------ JSON
+    def _state_fields(self) -> dict[str, Any]:
+        """The JSON's fields of a multibody state ("configurations", "velocities", "multibody"),
+        null here, and "model", the description."""
+        return {"configurations": None, "velocities": None, "multibody": None, "model": _jsonable(self.model)}
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (arrays as nested lists): every field the JSON has ever had, plus
         ``model`` (the description)."""
         R, w = self._attitude()
-        Q, V, mb = self.configurations, self.velocities, self.multibody
         return {
             "cost": self.cost,
             "iterations": self.iterations,
@@ -514,11 +452,7 @@ class Result:
             "target_angular_velocity": self.target_angular_velocity.tolist(),
             "control_history": None if self.control_history is None else self.control_history.tolist(),
             "time_history": None if self.time_history is None else self.time_history.tolist(),
-            "configurations": None if Q is None else np.asarray(Q).tolist(),
-            "velocities": None if V is None else np.asarray(V).tolist(),
-            "multibody": None if mb is None else dict(mb),
-            # the description, without what the "multibody" field already holds (the URDF text once)
-            "model": _jsonable({k: val for k, val in self.model.items() if mb is None or k not in mb}),
+            **self._state_fields(),
             # the certificate of the final check (solver.loop._Solve.final_check); None if not solved here
             "optimality": _jsonable(self.extra.get("optimality")),
             # control limits: unbounded sides as null (strict JSON has no infinity; a NaN bound is
@@ -532,13 +466,15 @@ class Result:
     def write_json(self, path: str | Path) -> Path:
         """Write :meth:`to_dict` to ``path`` (parents created) atomically, as strict JSON (a
         non-finite number is written as null and read back as NaN). Returns the path."""
-        from .outputs import strict_json, write_atomic
+        from ..output_files import strict_json, write_atomic
 
         return write_atomic(path, strict_json(self.to_dict()))
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Result":
-        """Inverse of :meth:`to_dict`; also reads dictionaries written before ``model`` existed.
+        """Inverse of :meth:`to_dict`, of the kind the dictionary describes (``model.kind``; a file
+        written before ``model`` existed is a multibody result if it has configurations, else a
+        satellite one); also reads dictionaries written before ``model`` existed.
 
         Raises:
             InputError: naming ``result``: not a dict, a field missing, or one that does not
@@ -547,7 +483,7 @@ class Result:
         if not isinstance(d, dict):
             raise InputError("result", f"expected a dict written by Result.to_dict, got {type(d).__name__}")
         try:
-            return cls._from_dict(d)
+            return _from_dict(d)
         except InputError:
             raise
         except KeyError as exc:
@@ -556,54 +492,6 @@ class Result:
         except (TypeError, ValueError, AttributeError) as exc:
             raise InputError("result", f"expected a dict written by Result.to_dict, a field does not convert ({exc})"
                              ) from None
-
-    @classmethod
-    def _from_dict(cls, d: dict[str, Any]) -> "Result":
-        a = lambda x, dtype=float: np.asarray(_nan_for_none(x), dtype=dtype)  # noqa: E731  (strict JSON: null = NaN)
-        opt = lambda key: None if d.get(key) is None else a(d[key], dtype=float)  # noqa: E731
-        model = dict(d["model"]) if d.get("model") is not None else None
-        if model is not None and d.get("multibody") is not None:
-            model.update(d["multibody"])  # to_dict writes the viewer's keys only once, there
-        multibody = (model or {}).get("kind") == "multibody" or d.get("configurations") is not None
-        for key in ("target_rotation", "target_angular_velocity"):
-            if model is not None and key in model:
-                model[key] = a(model[key], dtype=float)
-        return cls(
-            times=a(d["times"], dtype=float),
-            q=a(d["configurations"] if multibody else d["rotations"], dtype=float),
-            v=a(d["velocities"] if multibody else d["angular_velocities"], dtype=float),
-            model=model,
-            controls=a(d["controls"], dtype=float),
-            feedforward=a(d["feedforward"], dtype=float),
-            feedback=a(d["feedback"], dtype=float),
-            cost=float(d["cost"]),
-            iterations=int(d["iterations"]),
-            converged=bool(d["converged"]),
-            status=str(d["status"]),
-            message=str(d["message"]),
-            cost_history=a(d["cost_history"], dtype=float),
-            grad_norm_history=a(d["grad_norm_history"], dtype=float),
-            reg_history=a(d["reg_history"], dtype=float),
-            step_history=a(d["step_history"], dtype=float),
-            expansion_history=list(d["expansion_history"]),
-            solve_time_s=float(d["solve_time_s"]),
-            timings=dict(d["timings"]),
-            expansion=str(d["expansion"]),
-            dt=float(d["dt"]),
-            control_history=opt("control_history"),
-            time_history=opt("time_history"),
-            # pre-generic files: the description is rebuilt from these (ignored when model is set,
-            # except the root views of a multibody without a description)
-            rotations=a(d["rotations"], dtype=float) if multibody else None,
-            angular_velocities=a(d["angular_velocities"], dtype=float) if multibody else None,
-            target_rotation=None if model is not None else a(d["target_rotation"], dtype=float),
-            target_angular_velocity=None if model is not None else a(d["target_angular_velocity"], dtype=float),
-            multibody=None if model is not None or d.get("multibody") is None else dict(d["multibody"]),
-            integrator=None if model is not None else str(d["integrator"]),
-            extra={"optimality": dict(d["optimality"])} if d.get("optimality") is not None else None,
-            limits=_limits_from_json(d.get("limits")),
-            active_set=None if d.get("active_set") is None else np.asarray(d["active_set"], dtype=np.int8),
-        )
 
     @classmethod
     def read_json(cls, path: str | Path) -> "Result":
@@ -626,3 +514,179 @@ class Result:
             return cls.from_dict(d)
         except InputError as exc:
             raise InputError(str(path), exc.detail) from None
+
+
+class SatelliteResult(Result):
+    """A rigid body on TSO(3) (the satellite's closed forms): q (H+1, 3, 3) the rotations R_k
+    and v (H+1, 3) the body rates Omega_k (rad/s), which are the attitude views themselves.
+
+    The constructor also takes the pre-generic keywords ``rotations`` and ``angular_velocities``
+    for q and v.
+    """
+
+    KIND = "satellite"
+
+    def __init__(self, *, rotations: np.ndarray | None = None, angular_velocities: np.ndarray | None = None,
+                 **fields: Any) -> None:
+        if fields.get("q") is None:
+            fields["q"], fields["v"] = rotations, angular_velocities
+        super().__init__(**fields)
+
+    def _attitude(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.q, self.v
+
+    def _set_view(self, name: str, value: np.ndarray) -> None:
+        # the views are the state
+        if name == "rotations":
+            self.q = value
+        else:
+            self.v = value
+
+
+class MultibodyResult(Result):
+    """A Pinocchio multibody: q (H+1, nq) configurations and v (H+1, nv) velocities
+    (``configurations`` and ``velocities``), ``multibody`` the viewer's description of the model,
+    and the attitude views those of the root joint (free flyer or spherical; identity and zero
+    rates for a fixed root).
+
+    The constructor also takes the pre-generic keywords ``configurations``, ``velocities``,
+    ``multibody`` (merged into the description) and ``rotations``, ``angular_velocities`` (the
+    root views of a result without a description, which has nothing to derive them from).
+    """
+
+    KIND = "multibody"
+
+    def __init__(self, *, configurations: np.ndarray | None = None, velocities: np.ndarray | None = None,
+                 multibody: dict[str, Any] | None = None, rotations: np.ndarray | None = None,
+                 angular_velocities: np.ndarray | None = None, **fields: Any) -> None:
+        if fields.get("q") is None:
+            fields["q"], fields["v"] = configurations, velocities
+        model = fields["model"] = dict(fields.get("model") or {})
+        model.setdefault("kind", self.KIND)  # first, as a solve's description has it
+        for k, val in (multibody or {}).items():
+            model.setdefault(k, val)
+        super().__init__(**fields)
+        self._root_views = (rotations, angular_velocities)
+
+    @property
+    def configurations(self) -> np.ndarray | None:
+        """(H+1, nq) Pinocchio configurations (= q)."""
+        return self.q
+
+    @configurations.setter
+    def configurations(self, value: np.ndarray | None) -> None:
+        self._pin_root_views()
+        self.q = value
+
+    @property
+    def velocities(self) -> np.ndarray | None:
+        """(H+1, nv) generalised velocities (= v)."""
+        return self.v
+
+    @velocities.setter
+    def velocities(self, value: np.ndarray | None) -> None:
+        self._pin_root_views()
+        self.v = value
+
+    @property
+    def multibody(self) -> dict[str, Any] | None:
+        """What the viewer needs to rebuild the model without the solver (None without a
+        description): ``{"urdf": absolute path (str), "urdf_xml": the URDF text as solved (str),
+        "root": "free_flyer" | "spherical" | "fixed", "nq": int, "nv": int}``."""
+        if "root" not in self.model:
+            return None
+        return _WriteThrough(self.model, _MULTIBODY_KEYS)
+
+    @multibody.setter
+    def multibody(self, value: dict[str, Any] | None) -> None:
+        for k in _MULTIBODY_KEYS:
+            self.model.pop(k, None)
+        if value is not None:
+            self.model.update(value)
+
+    def _attitude(self) -> tuple[np.ndarray, np.ndarray]:
+        if "root" in self.model and self.q is not None and self.v is not None:
+            R, w = _root_rotations_and_rates(np.asarray(self.q), np.asarray(self.v), self.model["root"])
+        else:
+            R, w = self._root_views
+            N = np.shape(self.times)[0]
+            R = np.tile(np.eye(3), (N, 1, 1)) if R is None else R
+            w = np.zeros((N, 3)) if w is None else w
+        return self._views.get("rotations", R), self._views.get("angular_velocities", w)
+
+    def _pin_root_views(self) -> None:
+        # Before the state changes by assignment, keep the root views it had (an assigned state
+        # may be partial, as the viewer's input checks exercise).
+        if self.q is not None and self.v is not None:
+            R, w = self._attitude()
+            self._views.setdefault("rotations", R)
+            self._views.setdefault("angular_velocities", w)
+
+    def _state_fields(self) -> dict[str, Any]:
+        Q, V, mb = self.configurations, self.velocities, self.multibody
+        return {
+            "configurations": None if Q is None else np.asarray(Q).tolist(),
+            "velocities": None if V is None else np.asarray(V).tolist(),
+            "multibody": None if mb is None else dict(mb),
+            # the description, without what the "multibody" field already holds (the URDF text once)
+            "model": _jsonable({k: val for k, val in self.model.items() if mb is None or k not in mb}),
+        }
+
+
+#: The result class of each ``kind`` of model description.
+KINDS: dict[str, type[Result]] = {"satellite": SatelliteResult, "multibody": MultibodyResult}
+
+
+def result_class(model: dict[str, Any]) -> type[Result]:
+    """The Result kind of a problem's model description (its ``kind``; :class:`Result` itself for
+    a kind of the user's)."""
+    return KINDS.get(model.get("kind"), Result)
+
+
+def _from_dict(d: dict[str, Any]) -> Result:
+    a = lambda x, dtype=float: np.asarray(_nan_for_none(x), dtype=dtype)  # noqa: E731  (strict JSON: null = NaN)
+    opt = lambda key: None if d.get(key) is None else a(d[key], dtype=float)  # noqa: E731
+    model = dict(d["model"]) if d.get("model") is not None else None
+    if model is not None and d.get("multibody") is not None:
+        model.update(d["multibody"])  # to_dict writes the viewer's keys only once, there
+    multibody = (model or {}).get("kind") == "multibody" or d.get("configurations") is not None
+    for key in ("target_rotation", "target_angular_velocity"):
+        if model is not None and key in model:
+            model[key] = a(model[key], dtype=float)
+    fields = dict(
+        times=a(d["times"], dtype=float),
+        model=model,
+        controls=a(d["controls"], dtype=float),
+        feedforward=a(d["feedforward"], dtype=float),
+        feedback=a(d["feedback"], dtype=float),
+        cost=float(d["cost"]),
+        iterations=int(d["iterations"]),
+        converged=bool(d["converged"]),
+        status=str(d["status"]),
+        message=str(d["message"]),
+        cost_history=a(d["cost_history"], dtype=float),
+        grad_norm_history=a(d["grad_norm_history"], dtype=float),
+        reg_history=a(d["reg_history"], dtype=float),
+        step_history=a(d["step_history"], dtype=float),
+        expansion_history=list(d["expansion_history"]),
+        solve_time_s=float(d["solve_time_s"]),
+        timings=dict(d["timings"]),
+        expansion=str(d["expansion"]),
+        dt=float(d["dt"]),
+        control_history=opt("control_history"),
+        time_history=opt("time_history"),
+        # pre-generic files: the description is rebuilt from these (ignored when model is set)
+        target_rotation=None if model is not None else a(d["target_rotation"], dtype=float),
+        target_angular_velocity=None if model is not None else a(d["target_angular_velocity"], dtype=float),
+        integrator=None if model is not None else str(d["integrator"]),
+        extra={"optimality": dict(d["optimality"])} if d.get("optimality") is not None else None,
+        limits=_limits_from_json(d.get("limits")),
+        active_set=None if d.get("active_set") is None else np.asarray(d["active_set"], dtype=np.int8),
+    )
+    if multibody:
+        # the root views are kept for a multibody without a description (nothing to derive them from)
+        return MultibodyResult(
+            q=a(d["configurations"], dtype=float), v=a(d["velocities"], dtype=float),
+            rotations=a(d["rotations"], dtype=float), angular_velocities=a(d["angular_velocities"], dtype=float),
+            multibody=None if model is not None or d.get("multibody") is None else dict(d["multibody"]), **fields)
+    return SatelliteResult(q=a(d["rotations"], dtype=float), v=a(d["angular_velocities"], dtype=float), **fields)

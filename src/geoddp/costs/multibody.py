@@ -57,10 +57,10 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from .lie import product as cfg
-from . import kernels
-from .costs import AttitudeChordal, AttitudeGeodesic, CostDerivatives
-from .validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix, threads_from_environment
+from .. import kernels
+from ..lie import product as cfg
+from .tso3 import AttitudeChordal, AttitudeGeodesic, CostDerivatives
+from ..validate import InputError, choice, closest, finite_array, rotation_matrix, spd_matrix, threads_from_environment
 
 __all__ = [
     "ControlRegularisation",

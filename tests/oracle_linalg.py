@@ -1,4 +1,4 @@
-"""Small dense linear-algebra helpers shared by the models."""
+"""Small dense linear-algebra helpers of the test oracles (only they need them)."""
 from __future__ import annotations
 
 import numpy as np

@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels
-from .lie import SO3, vee
-from .validate import InputError, finite_array, rotation_matrix, spd_matrix
+from .. import kernels
+from ..lie import SO3, vee
+from ..validate import InputError, finite_array, rotation_matrix, spd_matrix
 
 
 @dataclass
@@ -84,9 +84,9 @@ class AttitudeChordal(CostTerm):
     """1/2 ||I - R_d^T R||^2_{m, S_R} = 1/2 tr[(I - E)^T S_R (I - E)], E = R_d^T R (eq. costR).
 
     Gradient 2 vee(skew(S_R E)) (eq. gradF), (0)-Hessian sym(tr[S_R E] I - S_R E) (eq. hessF).
-    On TSO(3) R is the state's rotation; in a :class:`geoddp.multibody_costs.MultibodyCostSum` the
+    On TSO(3) R is the state's rotation; in a :class:`geoddp.costs.multibody.MultibodyCostSum` the
     same term penalises the world rotation of ``frame`` (it becomes a
-    :class:`geoddp.multibody_costs.FrameRotationChordal` with the same S_R and R_d).
+    :class:`geoddp.costs.multibody.FrameRotationChordal` with the same S_R and R_d).
     """
 
     def __init__(self, S_R, R_d, frame: str | None = None) -> None:
@@ -120,9 +120,9 @@ class AttitudeGeodesic(CostTerm):
     log is two-valued and the gradient jumps: a geodesic cost has a cut locus there.
 
     One term for every model backend: on TSO(3) (the closed forms below, compiled) R is the
-    state's rotation; in a :class:`geoddp.multibody_costs.MultibodyCostSum` the same term penalises
+    state's rotation; in a :class:`geoddp.costs.multibody.MultibodyCostSum` the same term penalises
     the world rotation of ``frame`` through the model's frame kinematics (it becomes a
-    :class:`geoddp.multibody_costs.FrameRotation` with the same W and R_d, compiled or python).
+    :class:`geoddp.costs.multibody.FrameRotation` with the same W and R_d, compiled or python).
     """
 
     def __init__(self, W, R_d, frame: str | None = None) -> None:

@@ -1,7 +1,7 @@
-"""Output files: strict JSON and atomic writes (issue 13, items 3 and 4).
+"""Output files: strict JSON and atomic writes.
 
 * :func:`strict_json` never writes NaN or inf (a non-finite number becomes ``null``), so every
-  result file parses with a strict JSON parser; :meth:`geoddp.result.Result.from_dict` reads
+  result file parses with a strict JSON parser; :meth:`geoddp.solver.result.Result.from_dict` reads
   ``null`` back as NaN.
 * :func:`write_atomic` writes to a temporary file in the target's folder, flushes it to disk and
   renames it into place (``os.replace`` is atomic on POSIX): a kill at any moment leaves either

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .problem import Problem
-from .solver import cost_gradient
+from ..problem import Problem
+from .loop import cost_gradient
 
 
 @dataclass

@@ -1,24 +1,29 @@
-"""The few-lines entry point: scene file, built-in scene name (or spec) in, :class:`Result` out."""
+"""The few-lines entry point: scene file, built-in scene name (or spec) in, :class:`~geoddp.solver.result.Result`
+out (:func:`solve_scene`; the public facade ``geoddp.solve_scene``)."""
 from __future__ import annotations
 
 import weakref
 from pathlib import Path
 from typing import Any
 
-from .result import Result
-from .scene import AnySceneSpec, MultibodySceneSpec, SceneSpec, build_problem, initial_controls, load_scene, solver_options
-from .solver import solve
+from ..solver import solve
+from ..solver.result import Result
+from .build import AnySceneSpec, build_problem, initial_controls, solver_options
+from .load import load_scene
+from .multibody import MultibodySceneSpec
+from .satellite import SceneSpec
 
 
 # A spec is frozen, arrays included, and the solver never changes a problem: the problem built
 # from a spec is kept while the spec lives, so solving one spec again (a benchmark, a sweep, an
-# MPC loop) neither re-reads its URDF nor re-validates its weights (issue 11: the public route
-# adds at most 10 % to the solve; benchmarks/api_overhead.py).
+# MPC loop) neither re-reads its URDF nor re-validates its weights (the public route adds at
+# most 10 % to the solve: benchmarks/api_overhead.py).
 _BUILT: dict[int, tuple[weakref.ref, Any]] = {}
 
 
-def _built_problem(spec: AnySceneSpec) -> Any:
-    """The problem of ``spec`` (:func:`geoddp.scene.build_problem`), built once per spec object."""
+def built_problem(spec: AnySceneSpec) -> Any:
+    """The problem of ``spec`` (:func:`geoddp.scene.build_problem`), built once per spec object (and
+    shared by every solve of it: :func:`solve_scene`, :func:`geoddp.simulate.simulate_scene`)."""
     key = id(spec)
     hit = _BUILT.get(key)
     if hit is not None and hit[0]() is spec:
@@ -38,8 +43,8 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
     import dataclasses
     import os
 
-    from .solver.options import SolverOptions
-    from .validate import InputError, closest
+    from ..solver.options import SolverOptions
+    from ..validate import InputError, closest
 
     if not isinstance(scene, (SceneSpec, MultibodySceneSpec, str, os.PathLike)):
         raise InputError("scene", f"expected a scene file path, a built-in scene's name or a spec from "
@@ -57,7 +62,7 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
     if overrides:  # with_overrides re-validates the whole spec: only when something changes
         spec = spec.with_overrides(**overrides)
     rest = {k: v for k, v in options.items() if k not in scene_keys}
-    problem = _built_problem(spec)
+    problem = built_problem(spec)
     result = solve(problem, solver_options(spec, verbose=verbose, **rest), initial_controls=initial_controls(spec))
     result.extra["scene"] = spec.name
     return result

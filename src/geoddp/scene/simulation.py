@@ -1,4 +1,4 @@
-"""The ``[simulation]`` table of a scene as plain values: :class:`SimulationSpec` (issue 16).
+"""The ``[simulation]`` table of a scene as plain values: :class:`SimulationSpec` (closed-loop simulation).
 
 It lives below :mod:`geoddp.simulate` (floor 4, with the scene readers) so that a scene file can
 carry it: the readers validate the table into a SimulationSpec, and :mod:`geoddp.simulate` flies
@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .validate import InputError, choice, closest, finite_array, keywords_checked, nonnegative_float, nonnegative_int, positive_int
+from ..validate import InputError, choice, closest, finite_array, keywords_checked, nonnegative_float, nonnegative_int, positive_int
 
 POLICIES = ("open", "feedback", "mpc")
 PLANT_KEYS = ("inertia_scale", "mass_scale", "actuator_gain", "integrator", "substeps")
