@@ -60,7 +60,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--expansion", choices=list(EXPANSIONS), help="override [solver].expansion")
     run.add_argument("--json", type=Path, help="write the result as JSON here")
     run.add_argument("--html", type=Path, help="write a self-contained animated HTML replay here")
-    run.add_argument("--plots", type=Path, help="write PNG figures into this directory")
+    run.add_argument("--plots", type=Path, help="write PNG figures into this directory (satellite: attitude, "
+                     "angular velocity, controls; multibody: joint positions and velocities, controls, frame "
+                     "errors; both: solver history)")
     run.add_argument("--view", action="store_true", help="replay in a live meshcat viewer (loopback)")
     run.add_argument("--quiet", action="store_true", help="no iteration table")
     mb = sub.add_parser("multibody", help="alias of `run NAME` for a built-in multibody scene, with --integrator")
@@ -72,6 +74,8 @@ def _parser() -> argparse.ArgumentParser:
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
     mb.add_argument("--html", type=Path, help="write a self-contained animated HTML replay of the whole model "
                     "(root position and orientation and every joint)")
+    mb.add_argument("--plots", type=Path, help="write PNG figures (joints, controls, frame errors, solver history) "
+                    "into this directory")
     mb.add_argument("--view", action="store_true", help="replay the whole model in a live meshcat viewer (loopback)")
     mb.add_argument("--quiet", action="store_true")
     cmp_ = sub.add_parser("compare", help="solve a scene with each expansion and compare convergence")
@@ -141,12 +145,6 @@ def _solve_and_report(spec, args) -> int:
     from .scene import MultibodySceneSpec, terminal_frame_errors
 
     multibody = isinstance(spec, MultibodySceneSpec)
-    if multibody:
-        # Refused before solving, as bad input: the figures plot a single rigid body's attitude.
-        # --html and --view replay the whole model (as `geoddp multibody NAME` does).
-        if getattr(args, "plots", None):
-            raise InputError("--plots", "not supported for multibody scenes (the figures plot a single rigid "
-                             "body's attitude); use --json OUT.json, --html OUT.html or --view for a replay")
     _check_outputs(args, [getattr(spec, "source", None), getattr(spec, "urdf", None)])
     overrides = {"expansion": args.expansion} if args.expansion else {}
     result = solve_scene(spec, verbose=not args.quiet, **overrides)
@@ -165,18 +163,25 @@ def _solve_and_report(spec, args) -> int:
     print(f"status: {result.status} ({result.message})")
     if args.json:
         _wrote(result.write_json(args.json))
-    _visualise(result, args)
+    _visualise(result, args, spec if multibody else None)
     return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
 
 
-def _visualise(result, args) -> None:
+def _visualise(result, args, multibody_spec=None) -> None:
+    """--plots, --html and --view of a solved scene; ``multibody_spec``: the multibody scene solved
+    (its terminal frame terms are the targets of frame_errors.png), None for a satellite."""
     if not (getattr(args, "html", None) or getattr(args, "plots", None) or getattr(args, "view", False)):
         return
     from . import viz
 
     if getattr(args, "plots", None):
-        for path in viz.plot_trajectory(result, args.plots).values():
-            _wrote(getattr(path, 'path', path))
+        if multibody_spec is not None:
+            paths = list(viz.plot_multibody(result, args.plots, scene=multibody_spec).values())
+        else:
+            paths = [*viz.plot_trajectory(result, args.plots).values(),
+                     *viz.plot_solver_history(result, args.plots).values()]
+        for path in paths:
+            _wrote(path)
     if getattr(args, "html", None):
         _wrote(viz.export_html(result, args.html))
     if getattr(args, "view", False):
@@ -224,7 +229,7 @@ def _compare(args) -> int:
         figs = viz.plot_convergence(results, args.plots, reference_cost=ref.cost, reference_label="L-BFGS (scipy)",
                                     reference_history=ref.cost_history)
         for path in figs.values():
-            _wrote(getattr(path, 'path', path))
+            _wrote(path)
     return EXIT_CONVERGED if all(r.converged for r in results.values()) else EXIT_NOT_CONVERGED
 
 
