@@ -465,14 +465,15 @@ def test_run_multibody_max_iter_1_exits_1(tmp_path, capsys):
     assert code == EXIT_NOT_CONVERGED and err == "" and "max_iter" in out
 
 
-@pytest.mark.parametrize("flag", [["--plots", "figs"]])
-def test_run_multibody_refuses_plots_before_solving(tmp_path, capsys, flag):
+def test_run_multibody_refuses_a_plots_path_that_is_a_file_before_solving(tmp_path, capsys):
+    """--plots of a multibody scene writes its figures (tests/test_viz_multibody_figures.py); a
+    --plots path that cannot be a folder is bad input, refused before the solve (nothing printed)."""
     p = tmp_path / "good.toml"
     p.write_text(GOOD)
-    argv = ["run", str(p), "--quiet"] + [str(tmp_path / f) if f == "figs" else f for f in flag]
-    code, out, err = _run(capsys, argv)
+    (tmp_path / "figs").write_text("a file, not a folder")
+    code, out, err = _run(capsys, ["run", str(p), "--quiet", "--plots", str(tmp_path / "figs")])
     assert code == EXIT_BAD_INPUT and out == ""
-    assert err.startswith(f"geoddp: error: {flag[0]}: not supported for multibody scenes") and len(err.splitlines()) == 1
+    assert err.startswith("geoddp: error: --plots: ") and len(err.splitlines()) == 1
 
 
 def test_the_guides_example_is_the_docking_scene(tmp_path):

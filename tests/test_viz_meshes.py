@@ -19,7 +19,7 @@ from geoddp.viz.html import STATUS_ID, decode_commands, render_html
 from geoddp.viz.model import load_visual_model, package_dirs, placements_at, trajectory_box
 from geoddp.viz.scene import BACKGROUND_RGB, ROBOT, SHAPE, TARGETS, TRAIL, TRIAD_COLORS, camera_view
 from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, run_chromium, screenshot
-from viz_meshes import mesh_arm, smooth_path, trajectory_result
+from viz_meshes import CUBE_F, CUBE_V, drawn_triangles, mesh_arm, smooth_path, trajectory_result
 
 H, DT = 20, 0.05
 BACKGROUND_U8 = np.round(255 * np.asarray(BACKGROUND_RGB)).astype(int)
@@ -66,9 +66,11 @@ def reference_geometry(urdf: Path, kind=pin.GeometryType.VISUAL) -> tuple[pin.Mo
 
 
 def test_meshes_are_drawn_with_type_file_scale_colour_and_placement(arm):
-    """Each mesh object is one meshcat mesh geometry of its file's format carrying the file's
-    bytes, its URDF scale sits on robot/<name>/shape, its colour is the URDF material's, and its
-    keyframes are oMg from Pinocchio's own GeometryModel (buildGeomFromUrdf) to 1e-12."""
+    """Each mesh object is drawn from its file: the binary STL as compact geometry whose triangles,
+    decoded from the command, are the file's (the unit cube's corners sit exactly on the uint16
+    grid), the OBJ as meshcat's mesh geometry carrying the file's text; its URDF scale sits on
+    robot/<name>/shape, its colour is the URDF material's, and its keyframes are oMg from
+    Pinocchio's own GeometryModel (buildGeomFromUrdf) to 1e-12."""
     urdf, result = arm
     cmds = decode_commands(render_html(result))
     objects, transforms = objects_of(cmds), transforms_of(cmds)
@@ -79,11 +81,12 @@ def test_meshes_are_drawn_with_type_file_scale_colour_and_placement(arm):
     for obj in gmodel.geometryObjects:
         fmt, color = expected[obj.name]
         node = f"/meshcat/{ROBOT}/{obj.name}/{SHAPE}"
-        (geom,) = objects[node]["geometries"]
-        assert geom["type"] == "_meshfile" and geom["format"] == fmt
-        raw = Path(obj.meshPath).read_bytes()
-        payload = geom["data"].data if fmt == "stl" else geom["data"].encode()  # STL: msgpack ext of the bytes
-        assert payload == raw
+        if fmt == "stl":
+            np.testing.assert_array_equal(drawn_triangles(objects[node]), CUBE_V[CUBE_F])
+        else:
+            (geom,) = objects[node]["geometries"]
+            assert geom["type"] == "_meshfile" and geom["format"] == fmt
+            assert geom["data"].encode() == Path(obj.meshPath).read_bytes()
         assert objects[node]["materials"][0]["color"] == color
         np.testing.assert_array_equal(transforms[node], np.diag([*obj.meshScale, 1.0]))
         T = clip_transforms(cmds, obj.name)
@@ -370,9 +373,9 @@ def test_bad_options_fail_before_any_server(arm, monkeypatch):
 
 
 def test_one_body_mesh_model_has_a_mesh_ghost(tmp_path):
-    """A free-flying body whose only visual is an STL mesh: its ghost is the same mesh (file
-    bytes), uniformly ghost-coloured and translucent, 3 % larger, at the final position with the
-    target rotation."""
+    """A free-flying body whose only visual is an STL mesh: its ghost is the same mesh (the file's
+    triangles), uniformly ghost-coloured and translucent, 3 % larger, at the final position with
+    the target rotation."""
     from geoddp.viz.scene import GHOST, GHOST_COLOR, GHOST_INFLATE
     from viz_meshes import write_stl
 
@@ -389,8 +392,8 @@ def test_one_body_mesh_model_has_a_mesh_ghost(tmp_path):
     cmds = decode_commands(render_html(result))
     objects, transforms = objects_of(cmds), transforms_of(cmds)
     node = f"/meshcat/{GHOST}/body_0/{SHAPE}"
-    (geom,) = objects[node]["geometries"]
-    assert geom["type"] == "_meshfile" and geom["format"] == "stl" and geom["data"].data == (tmp_path / "hull.stl").read_bytes()
+    np.testing.assert_array_equal(drawn_triangles(objects[node]), CUBE_V[CUBE_F])
+    np.testing.assert_array_equal(drawn_triangles(objects[f"/meshcat/{ROBOT}/body_0/{SHAPE}"]), CUBE_V[CUBE_F])
     mat = objects[node]["materials"][0]
     assert mat["color"] == GHOST_COLOR and mat["transparent"] is True and mat["opacity"] < 1
     np.testing.assert_allclose(transforms[node], np.diag([GHOST_INFLATE, 0.5 * GHOST_INFLATE, 0.25 * GHOST_INFLATE, 1.0]), atol=1e-15)

@@ -25,7 +25,7 @@ from geoddp.viz.html import STATUS_ID, decode_commands
 from geoddp.viz.model import example_robot_data_dir, load_visual_model
 from geoddp.viz.scene import BACKGROUND_RGB, ROBOT, SHAPE, TARGETS
 from viz_fixtures import OFFLINE_FLAG, changed_fraction, chromium_or_skip, run_chromium, screenshot
-from viz_meshes import smooth_path, trajectory_result
+from viz_meshes import drawn_triangles, quantisation_step, smooth_path, trajectory_result
 
 BACKGROUND_U8 = np.round(255 * np.asarray(BACKGROUND_RGB)).astype(int)
 FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
@@ -41,16 +41,18 @@ ROBOTS = {
 }
 
 # Measured (800 x 600, headless Chromium as in viz_fixtures), first / middle / last frame (#t=):
-# share of the central half differing from the background: UR5 10.6 % / 9.2 % / 11.1 %,
-# Panda 32.0 % / 25.1 % / 16.5 %; strongly red pixels (the target triad's x axis, drawn over the
-# robot): UR5 591 at each frame, Panda 154 / 157 / 160; pixels changed first -> middle and
-# middle -> last: UR5 3.3 % and 3.2 %, Panda 9.3 % and 6.3 %. Thresholds sit at about half the
-# smallest measured value.
+# share of the central half differing from the background: UR5 11.0 % / 9.3 % / 11.5 % (10.6 /
+# 9.2 / 11.1 % before compact meshes: meshcat's merge of a DAE node with several materials drew
+# nothing of it, the UR5's dark joint housings), Panda 32.0 % / 25.1 % / 16.5 %; strongly red
+# pixels (the target triad's x axis, drawn over the robot): UR5 591 at each frame, Panda 154 / 157
+# / 160; pixels changed first -> middle and middle -> last: UR5 3.4 % and 3.3 %, Panda 9.3 % and
+# 6.3 %. Thresholds sit at about half the smallest measured value.
 MIN_DRAWN = {"ur5": 0.045, "panda": 0.08}
 MIN_RED = 70
 MIN_MOVED = 0.015
-# The pages' sizes (MB) as measured: UR5 9.8, Panda 15.1; all below the 20 MB default limit.
-MAX_PAGE_MB = 20.0
+# The pages' sizes (MB) as measured: UR5 2.5, Panda 4.2 (9.8 and 15.1 with the DAE files' text
+# embedded, before compact meshes).
+MAX_PAGE_MB = 5.0
 
 
 def robot_result(name: str):
@@ -78,9 +80,14 @@ def test_package_dir_is_example_robot_datas():
 
 
 def test_dae_meshes_drawn_as_pinocchio_builds_them(robot):
-    """Every visual of the robot as loaded by example_robot_data.load is drawn: a DAE mesh
-    (no URDF material: the file's own materials, a _meshfile_object carrying the file's text), its
-    scale on the shape node, its keyframes oMg from the loader's own GeometryModel to 1e-12."""
+    """Every visual of the robot as loaded by example_robot_data.load is drawn from its DAE file as
+    compact geometry: its triangles, decoded from the command, are those Pinocchio (coal) loads
+    from the same file (every vertex within one quantisation step of one of coal's and back; as
+    many triangles, up to the few degenerate ones coal drops), in the file's own materials (no URDF
+    material); its scale sits on the shape node, its keyframes are oMg from the loader's own
+    GeometryModel to 1e-12."""
+    from scipy.spatial import cKDTree
+
     name, result, frame = robot
     wrapper = example_robot_data.load(name)
     gmodel, model = wrapper.visual_model, wrapper.model
@@ -92,11 +99,19 @@ def test_dae_meshes_drawn_as_pinocchio_builds_them(robot):
     assert set(clips) == {o.name for o in gmodel.geometryObjects}
     data, gdata = model.createData(), pin.GeometryData(gmodel)
     worst = 0.0
+    colours = set()
     for obj in gmodel.geometryObjects:
         node = f"/meshcat/{ROBOT}/{obj.name}/{SHAPE}"
-        inner = objects[node]["object"]
-        assert inner["type"] == "_meshfile_object" and inner["format"] == "dae"
-        assert inner["data"] == Path(obj.meshPath).read_text()
+        drawn = drawn_triangles(objects[node])
+        coal_mesh = obj.geometry
+        V = np.asarray(coal_mesh.vertices()) / np.asarray(obj.meshScale)  # (n, 3), scale applied by coal
+        P = drawn.reshape(-1, 3)
+        step = quantisation_step(objects[node])
+        assert cKDTree(V).query(P)[0].max() <= step and cKDTree(P).query(V)[0].max() <= step, obj.name
+        assert coal_mesh.num_tris <= len(drawn) <= coal_mesh.num_tris * 1.001 + 1, (obj.name, len(drawn), coal_mesh.num_tris)
+        mats = objects[node]["materials"]
+        assert mats and all(m["type"] == "MeshPhongMaterial" for m in mats)
+        colours |= {m["color"] for m in mats}
         np.testing.assert_array_equal(transforms[node], np.diag([*obj.meshScale, 1.0]))
         tracks = {t["name"]: t["keys"] for t in clips[obj.name]["tracks"]}
         for k in (0, H // 2, H):
@@ -107,6 +122,7 @@ def test_dae_meshes_drawn_as_pinocchio_builds_them(robot):
             R = pin.Quaternion(w, x, y, z).toRotationMatrix()
             worst = max(worst, np.abs(R - M.rotation).max(), np.abs(np.array(tracks[".position"][k]["value"]) - M.translation).max())
     assert worst < 1e-12, worst
+    assert len(colours) >= 3  # the files' own colours (the UR5's blue caps and dark housings, the Panda's white and grey)
 
 
 def test_collision_geometry_is_far_smaller(robot):
@@ -119,9 +135,9 @@ def test_collision_geometry_is_far_smaller(robot):
     collision = mesh_bytes(load_visual_model(result.multibody, "collision"))
     assert 5e6 < visual < 20e6 and collision < visual / 10, (visual, collision)
     cmds = decode_commands(viz.html.render_html(result, geometry="collision"))
-    fmts = {c["object"]["geometries"][0].get("format") for c in cmds
-            if c["type"] == "set_object" and c["path"].startswith(f"/meshcat/{ROBOT}/") and c["object"]["geometries"]}
-    assert "stl" in fmts
+    kinds = {c["object"]["geometries"][0]["type"] for c in cmds
+             if c["type"] == "set_object" and c["path"].startswith(f"/meshcat/{ROBOT}/") and c["object"]["geometries"]}
+    assert "BufferGeometry" in kinds  # the STL collision meshes, as compact geometry
 
 
 def test_page_shows_the_robot_moving_and_its_target(robot, tmp_path):
@@ -164,8 +180,9 @@ def test_page_shows_the_robot_moving_and_its_target(robot, tmp_path):
 
 
 def test_live_replay_sends_the_meshes():
-    """The live loopback viewer gets the same scene: the server holds every UR5 DAE mesh (with
-    the file's text), the target triad and the trail, and the keyframes of the last link."""
+    """The live loopback viewer gets the same scene: the server holds every UR5 mesh (the DAE
+    file's triangles, as compact geometry), the target triad and the trail, and the keyframes of
+    the last link."""
     import base64
 
     import umsgpack
@@ -182,8 +199,8 @@ def test_live_replay_sends_the_meshes():
     objects = {c["path"]: c["object"] for c in cmds if c["type"] == "set_object"}
     gmodel = example_robot_data.load("ur5").visual_model
     for obj in gmodel.geometryObjects:
-        inner = objects[f"/meshcat/{ROBOT}/{obj.name}/{SHAPE}"]["object"]
-        assert inner["format"] == "dae" and inner["data"] == Path(obj.meshPath).read_text()
+        drawn = drawn_triangles(objects[f"/meshcat/{ROBOT}/{obj.name}/{SHAPE}"])
+        assert obj.geometry.num_tris <= len(drawn) <= obj.geometry.num_tris * 1.001 + 1
     assert f"/meshcat/{TARGETS}/0_{frame}/x" in objects and "/meshcat/trail/line" in objects
     (anim,) = [c for c in cmds if c["type"] == "set_animation"]
     assert {len(t["keys"]) for a in anim["animations"] for t in a["clip"]["tracks"]} == {H + 1}

@@ -125,3 +125,28 @@ def smooth_path(model: pin.Model, q0: np.ndarray, q1: np.ndarray, horizon: int) 
     s = np.linspace(0.0, 1.0, horizon + 1)
     s = 3 * s**2 - 2 * s**3
     return np.array([pin.interpolate(model, q0, q1, si) for si in s])
+
+
+def drawn_triangles(obj: dict) -> np.ndarray:
+    """(t, 3, 3) triangles a compact mesh ``set_object`` draws, in the mesh file's coordinates
+    (before the URDF scale), decoded here from the command alone: the uint16 positions normalised
+    to [0, 1] (three.js ``normalized``), mapped by the object's own matrix (column-major), through
+    the index when there is one."""
+    (geom,) = obj["geometries"]
+    assert geom["type"] == "BufferGeometry", geom["type"]
+    data = geom["data"]
+    pos = data["attributes"]["position"]
+    assert pos["type"] == "Uint16Array" and pos["normalized"] is True and pos["itemSize"] == 3
+    P = np.frombuffer(pos["array"].data, dtype="<u2").reshape(-1, 3) / 65535.0
+    M = np.asarray(obj["object"]["matrix"], dtype=float).reshape(4, 4).T
+    P = P @ M[:3, :3].T + M[:3, 3]
+    if "index" in data:
+        dtype = {"Uint16Array": "<u2", "Uint32Array": "<u4"}[data["index"]["type"]]
+        P = P[np.frombuffer(data["index"]["array"].data, dtype=dtype)]
+    return P.reshape(-1, 3, 3)
+
+
+def quantisation_step(obj: dict) -> float:
+    """The position step (file units) of a compact mesh: its uniform scale / 65535."""
+    M = np.asarray(obj["object"]["matrix"], dtype=float).reshape(4, 4).T
+    return float(M[0, 0]) / 65535.0

@@ -63,12 +63,6 @@ def _solve_and_report(spec, args) -> int:
     from ..scene.solve import solve_scene
 
     multibody = isinstance(spec, MultibodySceneSpec)
-    if multibody:
-        # Refused before solving, as bad input: the figures plot a single rigid body's attitude.
-        # --html and --view replay the whole model (as `geoddp multibody NAME` does).
-        if getattr(args, "plots", None):
-            raise InputError("--plots", "not supported for multibody scenes (the figures plot a single rigid "
-                             "body's attitude); use --json OUT.json, --html OUT.html or --view for a replay")
     check_output_args(args, [getattr(spec, "source", None), getattr(spec, "urdf", None)])
     overrides = {"expansion": args.expansion} if args.expansion else {}
     result = solve_scene(spec, verbose=not args.quiet, **overrides)
@@ -87,18 +81,25 @@ def _solve_and_report(spec, args) -> int:
     print(f"status: {result.status} ({result.message})")
     if args.json:
         wrote(result.write_json(args.json))
-    _visualise(result, args)
+    _visualise(result, args, spec if multibody else None)
     return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
 
 
-def _visualise(result, args) -> None:
+def _visualise(result, args, multibody_spec=None) -> None:
+    """--plots, --html and --view of a solved scene; ``multibody_spec``: the multibody scene solved
+    (its terminal frame terms are the targets of frame_errors.png), None for a satellite."""
     if not (getattr(args, "html", None) or getattr(args, "plots", None) or getattr(args, "view", False)):
         return
     from .. import viz
 
     if getattr(args, "plots", None):
-        for path in viz.plot_trajectory(result, args.plots).values():
-            wrote(getattr(path, 'path', path))
+        if multibody_spec is not None:
+            paths = list(viz.plot_multibody(result, args.plots, scene=multibody_spec).values())
+        else:
+            paths = [*viz.plot_trajectory(result, args.plots).values(),
+                     *viz.plot_solver_history(result, args.plots).values()]
+        for path in paths:
+            wrote(path)
     if getattr(args, "html", None):
         wrote(viz.export_html(result, args.html))
     if getattr(args, "view", False):
@@ -143,7 +144,7 @@ def _compare(args) -> int:
         figs = viz.plot_convergence(results, args.plots, reference_cost=ref.cost, reference_label="L-BFGS (scipy)",
                                     reference_history=ref.cost_history)
         for path in figs.values():
-            wrote(getattr(path, 'path', path))
+            wrote(path)
     return EXIT_CONVERGED if all(r.converged for r in results.values()) else EXIT_NOT_CONVERGED
 
 

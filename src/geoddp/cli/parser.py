@@ -23,7 +23,9 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--expansion", choices=list(EXPANSIONS), help="override [solver].expansion")
     run.add_argument("--json", type=Path, help="write the result as JSON here")
     run.add_argument("--html", type=Path, help="write a self-contained animated HTML replay here")
-    run.add_argument("--plots", type=Path, help="write PNG figures into this directory")
+    run.add_argument("--plots", type=Path, help="write PNG figures into this directory (satellite: attitude, "
+                     "angular velocity, controls; multibody: joint positions and velocities, controls, frame "
+                     "errors; both: solver history)")
     run.add_argument("--view", action="store_true", help="replay in a live meshcat viewer (loopback)")
     run.add_argument("--quiet", action="store_true", help="no iteration table")
     mb = sub.add_parser("multibody", help="alias of `run NAME` for a built-in multibody scene, with --integrator")
@@ -35,6 +37,8 @@ def parser() -> argparse.ArgumentParser:
     mb.add_argument("--json", type=Path, help="write the result (with configurations and velocities) as JSON here")
     mb.add_argument("--html", type=Path, help="write a self-contained animated HTML replay of the whole model "
                     "(root position and orientation and every joint)")
+    mb.add_argument("--plots", type=Path, help="write PNG figures (joints, controls, frame errors, solver history) "
+                    "into this directory")
     mb.add_argument("--view", action="store_true", help="replay the whole model in a live meshcat viewer (loopback)")
     mb.add_argument("--quiet", action="store_true")
     cmp_ = sub.add_parser("compare", help="solve a scene with each expansion and compare convergence")

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO,
                               DEFAULT_TOL, EXPANSIONS)
-from .build import AnySceneSpec, build_problem, initial_controls, solver_options, terminal_frame_errors
+from .build import AnySceneSpec, build_problem, frame_errors, initial_controls, solver_options, terminal_frame_errors
 from .common import CommonSpec
 from .load import SCENE_KINDS, load_scene, parse_scene
 from .multibody import CostTermSpec, MultibodySceneSpec
@@ -48,6 +48,6 @@ from .solve import solve_scene
 
 __all__ = ["SceneSpec", "MultibodySceneSpec", "CostTermSpec", "CommonSpec", "AnySceneSpec", "SCENE_KINDS",
            "load_scene", "parse_scene", "solve_scene", "scene_file", "check_urdf", "build_problem", "solver_options",
-           "initial_controls", "terminal_frame_errors", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS",
+           "initial_controls", "frame_errors", "terminal_frame_errors", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS",
            "SECOND_ORDER", "DEFAULT_EXPANSION", "DEFAULT_GRAD_TOL", "DEFAULT_MAX_ITER", "DEFAULT_SWITCH_RATIO",
            "DEFAULT_TOL"]

@@ -163,28 +163,67 @@ def terminal_frame_errors(spec: MultibodySceneSpec, q: np.ndarray) -> list[dict[
     Returns:
         One dict per terminal frame term, in order: ``name``, ``frame``, ``type`` and, as the term
         constrains them, ``position_error_m`` (|p - p_ref|) and ``rotation_error_deg`` (the angle of
-        R_ref^T R).
+        R_ref^T R): :func:`frame_errors` at the one configuration, as floats.
+    """
+    rows = frame_errors(spec, np.asarray(q, dtype=float)[None])
+    return [{k: float(v[0]) if isinstance(v, np.ndarray) else v for k, v in row.items()} for row in rows]
+
+
+def frame_errors(spec: MultibodySceneSpec, Q: np.ndarray) -> list[dict[str, Any]]:
+    """Distances of the frames of the scene's terminal frame terms from their references along a
+    configuration sequence Q (N, nq), e.g. a solution's ``configurations``.
+
+    Returns:
+        One dict per terminal frame term (frame_placement, frame_translation, frame_rotation), in
+        order: ``name``, ``frame``, ``type`` and, as the term constrains them, ``position_error_m``
+        (N,) |p_k - p_ref| in metres and ``rotation_error_deg`` (N,) the angle of R_ref^T R_k in
+        degrees (:func:`frame_target_errors`).
     """
     from ..models.multibody import Multibody
 
     pm = Multibody(spec.urdf, root=spec.root, dt=spec.dt, gravity=spec.gravity).pin_model
-    data = pm.createData()
-    pin.framesForwardKinematics(pm, data, np.asarray(q, dtype=float))
+    targets = [(c.name, c.frame, c.type, c.reference) for c in spec.terminal_costs if c.frame is not None]
+    return frame_target_errors(pm, Q, targets)
+
+
+def frame_target_errors(model: pin.Model, Q: np.ndarray, targets: list[tuple[str, str, str, np.ndarray]]
+                        ) -> list[dict[str, Any]]:
+    """Distances of frames from target poses along configurations Q (N, nq) of ``model``.
+
+    Args:
+        model: the kinematic model (root joint as solved).
+        Q: (N, nq) configurations.
+        targets: (name, frame, type, reference) per target; type "frame_placement" (reference
+            (4, 4) world placement), "frame_translation" ((3,) world position, m) or
+            "frame_rotation" ((3, 3) world rotation).
+
+    Returns:
+        One dict per target: ``name``, ``frame``, ``type`` and, as the type constrains them,
+        ``position_error_m`` (N,) |p_k - p_ref| and ``rotation_error_deg`` (N,) the geodesic
+        angle |log3(R_ref^T R_k)| in degrees, with p_k, R_k the frame's world placement oMf(q_k).
+    """
+    Q = np.asarray(Q, dtype=float)
+    data = model.createData()
     out = []
-    for c in spec.terminal_costs:
-        if c.frame is None:
-            continue
-        M = data.oMf[pm.getFrameId(c.frame)]
-        row: dict[str, Any] = {"name": c.name, "frame": c.frame, "type": c.type}
-        ref = np.asarray(c.reference)
-        p_ref = ref[:3, 3] if c.type == "frame_placement" else ref if c.type == "frame_translation" else None
-        R_ref = ref[:3, :3] if c.type == "frame_placement" else ref if c.type == "frame_rotation" else None
+    for name, frame, kind, reference in targets:
+        ref = np.asarray(reference)
+        p_ref = ref[:3, 3] if kind == "frame_placement" else ref if kind == "frame_translation" else None
+        R_ref = ref[:3, :3] if kind == "frame_placement" else ref if kind == "frame_rotation" else None
+        row: dict[str, Any] = {"name": name, "frame": frame, "type": kind}
         if p_ref is not None:
-            row["position_error_m"] = float(np.linalg.norm(M.translation - p_ref))
+            row["position_error_m"] = np.empty(len(Q))
         if R_ref is not None:
-            row["rotation_error_deg"] = float(np.degrees(np.linalg.norm(pin.log3(R_ref.T @ M.rotation))))
-        out.append(row)
-    return out
+            row["rotation_error_deg"] = np.empty(len(Q))
+        out.append((model.getFrameId(frame), p_ref, R_ref, row))
+    for k, q in enumerate(Q):
+        pin.framesForwardKinematics(model, data, q)
+        for fid, p_ref, R_ref, row in out:
+            M = data.oMf[fid]
+            if p_ref is not None:
+                row["position_error_m"][k] = np.linalg.norm(M.translation - p_ref)
+            if R_ref is not None:
+                row["rotation_error_deg"][k] = np.degrees(np.linalg.norm(pin.log3(R_ref.T @ M.rotation)))
+    return [row for *_, row in out]
 
 
 def build_multibody_problem(spec: MultibodySceneSpec):

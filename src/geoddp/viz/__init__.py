@@ -13,8 +13,11 @@ forward kinematics (:func:`visual_placements` gives the per-frame world placemen
 target pose as a translucent ghost, frame targets as triads, an optional ``trail`` and a camera
 framing the whole trajectory.
 
-- :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures;
-  :func:`plot_simulation`: the Monte Carlo bundles and error histograms of a closed-loop simulation.
+- :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures of a satellite result and
+  of several solves' convergence; :func:`plot_multibody`: a multibody result's joints, controls,
+  frame-target errors and solver history; :func:`plot_solver_history`: any result's cost and
+  gradient norm per iteration; :func:`plot_simulation`: the Monte Carlo bundles and error
+  histograms.
 """
 import warnings
 
@@ -27,19 +30,24 @@ with warnings.catch_warnings():
 from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
-from .model import load_visual_model, visual_placements
+from .model import load_model, load_visual_model, visual_placements
+from .multibody_figures import MULTIBODY_FIGURES, plot_multibody, plot_solver_history
 from .simulation import plot_simulation
 
 __all__ = [
     "FigureData",
     "Figures",
+    "MULTIBODY_FIGURES",
     "ViewerUnavailable",
     "animation_frame_count",
     "build_satellite",
     "export_html",
+    "load_model",
     "load_visual_model",
     "plot_convergence",
+    "plot_multibody",
     "plot_simulation",
+    "plot_solver_history",
     "plot_trajectory",
     "replay",
     "visual_placements",

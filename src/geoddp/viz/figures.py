@@ -7,14 +7,16 @@ figures against the Result.
 """
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..output_files import output_folder
+from ..output_files import output_folder, write_atomic
 from ..solver.result import Result, as_result, rotations_to_quaternions
 from ..validate import InputError
 
@@ -31,10 +33,12 @@ class FigureData:
     Attributes:
         path: the PNG file.
         arrays: name -> the array plotted (units in the docstring of the plotting function).
+        figure: the matplotlib Figure that was saved (its axes' lines hold the data as drawn).
     """
 
     path: Path
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    figure: Figure | None = None
 
 
 class Figures(dict):
@@ -53,10 +57,18 @@ class Figures(dict):
 
 
 def _save(fig: Figure, path: Path) -> Path:
+    """Write ``fig`` as a PNG at ``path`` atomically (rendered in memory, then
+    :func:`geoddp.output_files.write_atomic`: a kill never leaves a truncated image)."""
     FigureCanvasAgg(fig)  # attach an Agg canvas: savefig then needs no GUI backend
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    return path
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    return write_atomic(path, buf.getvalue())
+
+
+def _figure(fig: Figure, path: Path, arrays: dict) -> FigureData:
+    """Save ``fig`` at ``path`` and return its :class:`FigureData` (arrays and the figure)."""
+    return FigureData(_save(fig, path), arrays, fig)
 
 
 def _target_quaternion(result: Result) -> np.ndarray:
@@ -110,10 +122,8 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
     ax.set(xlabel="time [s]", ylabel="quaternion component", title="Attitude")
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize="small")
-    figs.add("quaternion", FigureData(
-        _save(fig, out / "quaternion.png"),
-        {"t": t, "quaternions": q, "target_time": np.asarray(tf), "target_quaternion": qd},
-    ))
+    figs.add("quaternion", _figure(fig, out / "quaternion.png",
+                                   {"t": t, "quaternions": q, "target_time": np.asarray(tf), "target_quaternion": qd}))
 
     w = np.asarray(result.angular_velocities, dtype=float)
     wd = np.asarray(result.target_angular_velocity, dtype=float)
@@ -126,26 +136,44 @@ def plot_trajectory(result: Result, out_dir: str | Path) -> Figures:
     ax.set(xlabel="time [s]", ylabel="angular velocity [rad/s]", title="Body angular velocity")
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize="small")
-    figs.add("angular_velocity", FigureData(
-        _save(fig, out / "angular_velocity.png"),
-        {"t": t, "angular_velocities": w, "target_time": np.asarray(tf), "target_angular_velocity": wd},
-    ))
+    figs.add("angular_velocity", _figure(fig, out / "angular_velocity.png", {
+        "t": t, "angular_velocities": w, "target_time": np.asarray(tf), "target_angular_velocity": wd}))
 
+    figs.add("controls", controls_figure(result, out))
+    return figs
+
+
+def controls_figure(result: Result, out: Path, legend_columns: int = 1) -> FigureData:
+    """``controls.png`` in the folder ``out``: u_k (actuation units) held constant over
+    [t_k, t_{k+1}) against time (s), one line per input u_1 .. u_m; with control limits
+    (``result.limits``) each finite bound dashed and the saturated intervals shaded
+    (:func:`_draw_limits`).
+
+    Returns:
+        Its :class:`FigureData`: ``edges (H+1,)``, ``controls (H, m)``, and with limits ``lower``,
+        ``upper`` (H, m) (NaN: unbounded) and ``saturated`` (list of (input, t_start, t_end)).
+    """
+    t = np.asarray(result.times, dtype=float)
     u = np.asarray(result.controls, dtype=float)
     fig = Figure(figsize=(6.4, 4.0))
     ax = fig.add_subplot()
     for j in range(u.shape[1]):
         # Zero-order hold: u_k acts on [t_k, t_{k+1}), which stairs() draws exactly.
-        ax.stairs(u[:, j], t, color=COLORS[j % len(COLORS)], label=f"$u_{j + 1}$", baseline=None)
+        ax.stairs(u[:, j], t, color=_color(j, u.shape[1]), label=f"$u_{{{j + 1}}}$", baseline=None)
     arrays = {"edges": t, "controls": u}
     limits = getattr(result, "limits", None)
     if limits is not None:
         arrays.update(_draw_limits(ax, t, u, limits, getattr(result, "active_set", None)))
     ax.set(xlabel="time [s]", ylabel="control", title="Controls")
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
-    figs.add("controls", FigureData(_save(fig, out / "controls.png"), arrays))
-    return figs
+    ax.legend(loc="best", fontsize="small", ncol=legend_columns)
+    return _figure(fig, out / "controls.png", arrays)
+
+
+def _color(j: int, count: int):
+    """Colour of curve j of ``count`` in one axes: COLORS for up to six curves, else matplotlib's
+    tab20 (twenty distinct colours: a robot's joints or inputs)."""
+    return COLORS[j] if count <= len(COLORS) else colormaps["tab20"](j % 20)
 
 
 def _draw_limits(ax, t: np.ndarray, u: np.ndarray, limits: tuple[np.ndarray, np.ndarray],
@@ -161,7 +189,7 @@ def _draw_limits(ax, t: np.ndarray, u: np.ndarray, limits: tuple[np.ndarray, np.
     intervals = []
     drawn: list[np.ndarray] = []
     for j in range(u.shape[1]):
-        c = COLORS[j % len(COLORS)]
+        c = _color(j, u.shape[1])
         for bound in (lo[:, j], hi[:, j]):
             if not np.isfinite(bound).any() or any(np.array_equal(bound, b) for b in drawn):
                 continue

@@ -6,6 +6,13 @@ window, msgpack them exactly as the server would forward them to a browser, and 
 together with meshcat's own bundled viewer script (``viewer/dist/main.min.js``, inlined)
 into one HTML file. The browser then feeds each command to
 ``viewer.handle_command_bytearray`` in order, which is what the websocket path does.
+
+Each mesh is embedded once: a byte string of at least CHUNK_MIN_BYTES that several commands carry
+(a mesh file drawn by several objects, as a legged robot's four feet, or again for the target ghost
+or a plan's ghost) is stored once in a table of chunks, and those commands as their other bytes
+around references into it; the page joins them back before handing each command to the viewer,
+which receives exactly the bytes it would have received. A page with no repeated mesh has no
+table and is the page this module always wrote.
 """
 from __future__ import annotations
 
@@ -23,26 +30,88 @@ from .scene import MAX_MESH_MB, build_scene
 
 _VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
 
-# Ids of the two non-visual script blocks; the tests and animation_frame_count read them.
+# Ids of the non-visual script blocks; the tests and animation_frame_count read them.
 COMMANDS_ID = "geoddp-commands"
 STATUS_ID = "geoddp-status"
+CHUNKS_ID = "geoddp-chunks"
+#: Smallest payload (bytes) stored once in the chunk table when several commands carry it.
+CHUNK_MIN_BYTES = 1024
 
 
 class _RecordingWindow:
-    """Stand-in for ``meshcat.visualizer.ViewerWindow`` that keeps the commands."""
+    """Stand-in for ``meshcat.visualizer.ViewerWindow`` that keeps the commands, and the large
+    byte strings (mesh data) each one carries."""
 
     web_url = None
     server_proc = None
 
     def __init__(self) -> None:
         self.commands: list[bytes] = []
+        self.payloads: list[list[bytes]] = []
 
     def send(self, command) -> None:
         # Same encoding as ViewerWindow.send's third frame, which the server forwards verbatim.
-        self.commands.append(umsgpack.packb(command.lower()))
+        lowered = command.lower()
+        self.commands.append(umsgpack.packb(lowered))
+        self.payloads.append(_large_payloads(lowered))
 
     def close(self) -> None:
         pass
+
+
+def _large_payloads(x) -> list[bytes]:
+    """The byte strings of at least CHUNK_MIN_BYTES inside a lowered command, as they appear in its
+    msgpack bytes (an extension's data, a binary, a text's UTF-8), in document order."""
+    if isinstance(x, umsgpack.Ext):
+        return [x.data] if len(x.data) >= CHUNK_MIN_BYTES else []
+    if isinstance(x, (bytes, bytearray)):
+        return [bytes(x)] if len(x) >= CHUNK_MIN_BYTES else []
+    if isinstance(x, str):
+        return [x.encode("utf-8")] if len(x) >= CHUNK_MIN_BYTES else []
+    if isinstance(x, dict):
+        return [p for v in x.values() for p in _large_payloads(v)]
+    if isinstance(x, (list, tuple)):
+        return [p for v in x for p in _large_payloads(v)]
+    return []
+
+
+def chunked(commands: list[bytes], payloads: list[list[bytes]]) -> tuple[list[bytes], list[bytes | list]]:
+    """Store each payload several commands carry once: (chunks, entries), an entry being the
+    command's bytes when it carries no shared payload, else the list of its pieces in order: bytes
+    around int indices into ``chunks``. Joining an entry's pieces gives the command back."""
+    count: dict[bytes, int] = {}
+    for ps in payloads:
+        for p in ps:
+            count[p] = count.get(p, 0) + 1
+    index: dict[bytes, int] = {}
+    chunks: list[bytes] = []
+    entries: list[bytes | list] = []
+    for cmd, ps in zip(commands, payloads):
+        shared = [p for p in ps if count[p] > 1]
+        if not shared:
+            entries.append(cmd)
+            continue
+        pieces: list = []
+        at = 0
+        for p in shared:
+            k = cmd.find(p, at)
+            if k < 0:  # not where msgpack should have put it: keep the command whole
+                pieces = []
+                break
+            if p not in index:
+                index[p] = len(chunks)
+                chunks.append(p)
+            pieces += [cmd[at:k], index[p]]
+            at = k + len(p)
+        entries.append(pieces + [cmd[at:]] if pieces else cmd)
+    return chunks, entries
+
+
+def _joined(entry: bytes | list, chunks: list[bytes]) -> bytes:
+    """A command's bytes from its entry (see :func:`chunked`)."""
+    if isinstance(entry, (bytes, bytearray)):
+        return bytes(entry)
+    return b"".join(chunks[p] if isinstance(p, int) else p for p in entry)
 
 
 def record_scene(result: Result, scale: float = 1.0, **options) -> list[bytes]:
@@ -56,10 +125,14 @@ def record_scene(result: Result, scale: float = 1.0, **options) -> list[bytes]:
     Returns:
         One bytes object per command, in the order they must be applied.
     """
+    return _record(result, scale, **options).commands
+
+
+def _record(result: Result, scale: float = 1.0, **options) -> _RecordingWindow:
     window = _RecordingWindow()
     vis = meshcat.Visualizer(window=window)
     build_scene(vis, result, scale=scale, play=True, **options)
-    return window.commands
+    return window
 
 
 def _script_safe(text: str) -> str:
@@ -82,7 +155,7 @@ body {{ margin: 0; }}
 <div id="meshcat-pane"></div>
 <pre id="{status_id}" style="display:none">{{"loaded": false}}</pre>
 <script type="application/json" id="{commands_id}">{commands_json}</script>
-<script>
+{chunks_block}<script>
 {viewer_js}
 </script>
 <script>
@@ -95,8 +168,8 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
   }}
   // Synchronous and in order (meshcat's own static page uses fetch(), whose callbacks
   // are not guaranteed to run in order).
-  var cmds = JSON.parse(document.getElementById("{commands_id}").textContent);
-  for (var i = 0; i < cmds.length; i++) viewer.handle_command_bytearray(bytes(cmds[i]));
+{chunks_loader}  var cmds = JSON.parse(document.getElementById("{commands_id}").textContent);
+  for (var i = 0; i < cmds.length; i++) viewer.handle_command_bytearray({decode}(cmds[i]));
   // Report what the viewer actually loaded, for headless tests (--dump-dom).
   var frames = viewer.animator.actions.map(function (a) {{
     return a.getClip().tracks.map(function (t) {{ return t.times.length; }});
@@ -122,15 +195,40 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
 """
 
 
+# With a chunk table: the decoded chunks, and the function joining a command's pieces (a base64
+# string: its bytes; a number: a chunk) into the bytes the viewer takes.
+_CHUNKS_LOADER = """  var chunks = JSON.parse(document.getElementById("{chunks_id}").textContent).map(bytes);
+  function joined(entry) {{
+    if (typeof entry === "string") return bytes(entry);
+    var parts = entry.map(function (p) {{ return typeof p === "number" ? chunks[p] : bytes(p); }});
+    var n = 0, at = 0;
+    parts.forEach(function (a) {{ n += a.length; }});
+    var out = new Uint8Array(n);
+    parts.forEach(function (a) {{ out.set(a, at); at += a.length; }});
+    return out;
+  }}
+"""
+
+
+def _b64(b: bytes) -> str:
+    return base64.b64encode(b).decode("ascii")
+
+
 def render_html(result: Result, scale: float = 1.0, title: str = "geoddp replay", **options) -> str:
     """The self-contained HTML page as a string (see :func:`export_html`; ``options``:
     ``geometry``, ``trail``, ``max_mesh_mb``)."""
-    commands = [base64.b64encode(c).decode("ascii") for c in record_scene(result, scale=scale, **options)]
+    window = _record(result, scale=scale, **options)
+    chunks, entries = chunked(window.commands, window.payloads)
+    commands = [_b64(e) if isinstance(e, bytes) else [p if isinstance(p, int) else _b64(p) for p in e] for e in entries]
     return _TEMPLATE.format(
         title=title.replace("<", "&lt;"),
         status_id=STATUS_ID,
         commands_id=COMMANDS_ID,
-        commands_json=json.dumps(commands),  # base64 and JSON punctuation only: script-safe
+        commands_json=json.dumps(commands),  # base64, integers and JSON punctuation only: script-safe
+        chunks_block=(f'<script type="application/json" id="{CHUNKS_ID}">{json.dumps([_b64(c) for c in chunks])}'
+                      "</script>\n") if chunks else "",
+        chunks_loader=_CHUNKS_LOADER.format(chunks_id=CHUNKS_ID) if chunks else "",
+        decode="joined" if chunks else "bytes",
         viewer_js=_script_safe(_VIEWER_JS.read_text(encoding="utf-8")),
     )
 
@@ -175,16 +273,27 @@ def export_html(result: Result, path: str | Path, scale: float = 1.0, *, geometr
     return path
 
 
+def _block(html_text: str, block_id: str) -> str | None:
+    m = re.search(r'<script type="application/json" id="%s">(.*?)</script>' % re.escape(block_id), html_text,
+                  flags=re.DOTALL)
+    return None if m is None else m.group(1)
+
+
+def command_bytes(html_text: str) -> list[bytes]:
+    """The msgpack bytes of each meshcat command embedded in a page written by
+    :func:`export_html`, as the viewer receives them (shared mesh chunks joined back)."""
+    text = _block(html_text, COMMANDS_ID)
+    if text is None:
+        raise ValueError("no geoddp command block in this HTML (not written by export_html?)")
+    chunks = [base64.b64decode(c) for c in json.loads(_block(html_text, CHUNKS_ID) or "[]")]
+    entries = [base64.b64decode(e) if isinstance(e, str) else [p if isinstance(p, int) else base64.b64decode(p) for p in e]
+               for e in json.loads(text)]
+    return [_joined(e, chunks) for e in entries]
+
+
 def decode_commands(html_text: str) -> list[dict]:
     """The meshcat commands embedded in a page written by :func:`export_html`, decoded."""
-    m = re.search(
-        r'<script type="application/json" id="%s">(.*?)</script>' % re.escape(COMMANDS_ID),
-        html_text,
-        flags=re.DOTALL,
-    )
-    if m is None:
-        raise ValueError("no geoddp command block in this HTML (not written by export_html?)")
-    return [umsgpack.unpackb(base64.b64decode(c)) for c in json.loads(m.group(1))]
+    return [umsgpack.unpackb(c) for c in command_bytes(html_text)]
 
 
 def animation_frame_count(html_text: str) -> int:

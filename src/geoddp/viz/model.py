@@ -139,6 +139,39 @@ def _is_placeholder(obj: pin.GeometryObject) -> bool:
     return type(shape).__name__ == "Box" and np.allclose(2.0 * np.asarray(shape.halfSide), _PLACEHOLDER_SIZE, rtol=1e-6, atol=0)
 
 
+def load_model(description: dict) -> pin.Model:
+    """Rebuild the kinematic model (no geometry) of a model description, root joint as solved.
+
+    Args:
+        description: ``Result.multibody``: ``"root"`` in ("free_flyer", "spherical", "fixed") and the
+            model as ``"pin_model"`` (Pinocchio's text archive, a model handed over with
+            ``Multibody.from_model``), else the URDF as ``"urdf_xml"`` (text, preferred) or ``"urdf"``
+            (path).
+
+    Raises:
+        InputError: naming ``result.multibody`` (or the key) when the description is incomplete or
+            its model cannot be parsed.
+    """
+    if not isinstance(description, dict):
+        raise InputError("result.multibody", f"expected a dict with 'urdf_xml' or 'urdf' and 'root', got {type(description).__name__}")
+    root = description.get("root")
+    if root not in ROOTS:
+        raise InputError("result.multibody.root", f"expected one of {ROOTS}, got {root!r}")
+    if description.get("pin_model") is not None:
+        model = pin.Model()
+        try:
+            model.loadFromString(str(description["pin_model"]))
+        except (ValueError, RuntimeError, TypeError) as exc:
+            raise InputError("result.multibody.pin_model", f"expected Pinocchio's text archive of a model ({exc})") from None
+        return model
+    xml = _urdf_text(description)
+    rj = _root_joint(root)
+    try:
+        return pin.buildModelFromXML(xml) if rj is None else pin.buildModelFromXML(xml, rj)
+    except (ValueError, RuntimeError) as exc:
+        raise InputError("result.multibody", f"expected a valid URDF ({exc})") from None
+
+
 def load_visual_model(description: dict, geometry: str = "visual") -> VisualModel:
     """Rebuild the model and its visual (or collision) geometry from a model description.
 
@@ -159,21 +192,12 @@ def load_visual_model(description: dict, geometry: str = "visual") -> VisualMode
     """
     if geometry not in GEOMETRIES:
         raise InputError("geometry", f"expected one of {GEOMETRIES}, got {geometry!r}")
-    if not isinstance(description, dict):
-        raise InputError("result.multibody", f"expected a dict with 'urdf_xml' or 'urdf' and 'root', got {type(description).__name__}")
-    root = description.get("root")
-    if root not in ROOTS:
-        raise InputError("result.multibody.root", f"expected one of {ROOTS}, got {root!r}")
-    if description.get("pin_model") is not None:
-        return _load_handed_over(description, geometry)
-    xml = _urdf_text(description)
+    model = load_model(description)
+    root = description["root"]
     dirs = package_dirs(description)
-    rj = _root_joint(root)
-    try:
-        model = pin.buildModelFromXML(xml) if rj is None else pin.buildModelFromXML(xml, rj)
-    except (ValueError, RuntimeError) as exc:
-        raise InputError("result.multibody", f"expected a valid URDF ({exc})") from None
-    return _geometry_from_urdf(model, xml, dirs, root, geometry)
+    if description.get("pin_model") is not None:
+        return _handed_over_geometry(model, description, dirs, geometry)
+    return _geometry_from_urdf(model, _urdf_text(description), dirs, root, geometry)
 
 
 def _urdf_text(description: dict) -> str:
@@ -190,18 +214,12 @@ def _urdf_text(description: dict) -> str:
     return xml
 
 
-def _load_handed_over(description: dict, geometry: str) -> VisualModel:
-    """A model handed over as a ``pin.Model`` (``Multibody.from_model``): the serialised model,
-    and its visuals from the geometry records when given (``geometry_objects``), else from the
-    URDF named with it (links found by name in the model: a reduced model keeps every link's
-    frame), else none (with a warning)."""
-    model = pin.Model()
-    try:
-        model.loadFromString(str(description["pin_model"]))
-    except (ValueError, RuntimeError, TypeError) as exc:
-        raise InputError("result.multibody.pin_model", f"expected Pinocchio's text archive of a model ({exc})") from None
+def _handed_over_geometry(model: pin.Model, description: dict, dirs: tuple[str, ...], geometry: str) -> VisualModel:
+    """The visuals of a model handed over as a ``pin.Model`` (``Multibody.from_model``): from the
+    geometry records when given (``geometry_objects``), else from the URDF named with it (links
+    found by name in the model: a reduced model keeps every link's frame), else none (with a
+    warning)."""
     root = description["root"]
-    dirs = package_dirs(description)
     records = description.get("geometry_objects")
     if records is not None:
         return _geometry_from_records(model, records, dirs, root)

@@ -9,13 +9,16 @@ placement oMg(q_k), at fps = 1/dt. The target pose is a translucent ghost of the
 
 Each animated node ``robot/<object>`` carries exactly ``oMg``; the shape's own static transform sits
 on its child ``robot/<object>/shape``: for a primitive its frame correction (three.js cylinders lie
-along y, Pinocchio's along z), for a mesh its URDF ``scale`` (diag(sx, sy, sz)). Meshes are drawn
-with meshcat's own mesh geometries, the file embedded in the command (STL and OBJ through
-``meshcat.geometry``; a DAE without a URDF ``<material>`` through Pinocchio's
-``pin.visualize.meshcat_visualizer.DaeMeshGeometry``, which keeps the file's own colours and inlines
-its textures; a DAE with one through ``meshcat.geometry``, in the URDF colour), so the HTML page
-stays self-contained. Above ``max_mesh_mb`` of mesh data the scene is refused with a message that
-offers ``geometry="collision"``.
+along y, Pinocchio's along z), for a mesh its URDF ``scale`` (diag(sx, sy, sz)). A DAE or binary
+STL mesh is drawn as compact binary geometry (:mod:`geoddp.viz.compact_mesh`: the triangles meshcat's
+viewer would build from the file, quantised; a DAE without a URDF ``<material>`` in the file's own
+materials, else in the URDF colour), read once per file. A file that module leaves alone (OBJ,
+ASCII STL, a textured DAE, ...) is drawn with meshcat's own mesh geometries, the file embedded in
+the command (STL and OBJ through ``meshcat.geometry``; a DAE without a URDF ``<material>`` through
+Pinocchio's ``pin.visualize.meshcat_visualizer.DaeMeshGeometry``, which keeps the file's own colours
+and inlines its textures; a DAE with one through ``meshcat.geometry``, in the URDF colour). Either
+way the HTML page stays self-contained. Above ``max_mesh_mb`` of mesh files (each counted once per
+object that draws it) the scene is refused with a message that offers ``geometry="collision"``.
 
 Besides the model: optional frame-target triads (``vis["frame_targets"]``, from
 :func:`geoddp.viz.model.frame_targets`), an optional trail (``vis["trail"]``: a line through the
@@ -35,6 +38,8 @@ This module only *describes* the scene: it talks to anything that behaves like a
 """
 from __future__ import annotations
 
+import functools
+import os
 import warnings
 
 import meshcat
@@ -45,6 +50,7 @@ from meshcat.animation import Animation
 
 from ..solver.result import Result
 from ..validate import InputError, positive_float
+from .compact_mesh import CompactMeshObject, MeshData, read_mesh
 from .model import (VisualModel, check_replayable, frame_positions, frame_targets, ghost_configuration,
                     load_visual_model, mesh_bytes, mesh_file, placements_at, replay_description,
                     satellite_description, trajectory_corners)
@@ -118,17 +124,32 @@ def _primitive(obj: pin.GeometryObject) -> tuple[g.Geometry, np.ndarray] | None:
 
 
 def _mesh(obj: pin.GeometryObject, ghost: bool):
-    """(meshcat geometry or Pinocchio DAE element, 4x4 scale diag(meshScale)) of a mesh-file
-    object, or None when it is not one (or its file is gone)."""
+    """(drawable, 4x4 scale diag(meshScale)) of a mesh-file object, or None when it is not one (or
+    its file is gone). The drawable is the file's triangles as compact binary geometry
+    (:class:`~geoddp.viz.compact_mesh.MeshData`, read once per file) where
+    :func:`~geoddp.viz.compact_mesh.read_mesh` reads it, else meshcat's own mesh geometry of the
+    file (or Pinocchio's DAE element, which keeps the file's materials and textures)."""
     path = mesh_file(obj)
     if path is None:
         return None
     ext = path.rsplit(".", 1)[-1].lower()
     scale = np.diag([*np.asarray(obj.meshScale, dtype=float), 1.0])
-    if ext == "dae" and not ghost and not obj.overrideMaterial and _PinDae is not None:
+    own = ext == "dae" and not ghost and not obj.overrideMaterial
+    compact = _compact(path, os.path.getmtime(path))
+    if compact is not None:
+        # a DAE keeps the file's own materials unless the URDF gives one (or it is the ghost)
+        return (compact if own and compact.materials else compact.plain), scale
+    if own and _PinDae is not None:
         return _PinDae(path), scale
     loader = {"dae": g.DaeMeshGeometry, "stl": g.StlMeshGeometry, "obj": g.ObjMeshGeometry}[ext]
     return loader.from_file(path), scale
+
+
+@functools.lru_cache(maxsize=128)  # a robot has up to ~60 mesh files
+def _compact(path: str, mtime: float) -> MeshData | None:
+    """:func:`~geoddp.viz.compact_mesh.read_mesh` of a file, remembered while it is unchanged
+    (``mtime``): a model draws a file once per object that uses it, and again for its ghost."""
+    return read_mesh(path)
 
 
 def _color(rgba) -> int:
@@ -167,7 +188,12 @@ def _draw(vis: meshcat.Visualizer, visual: VisualModel, placements: np.ndarray, 
         else:
             material = g.MeshLambertMaterial(color=_color(obj.meshColor), opacity=float(np.clip(obj.meshColor[3], 0, 1)))
         node = vis[name][SHAPE]
-        if _PinDae is not None and isinstance(geometry, _PinDae):
+        if isinstance(geometry, MeshData):
+            # compact geometry: the file's own materials, or this one for the whole mesh
+            element = CompactMeshObject(geometry, None if geometry.materials else material.lower(None))
+            element.path = node.path
+            node.window.send(element)
+        elif _PinDae is not None and isinstance(geometry, _PinDae):
             # A whole set_object command (geometry and the file's own materials), sent as is.
             geometry.path = node.path
             node.window.send(geometry)
