@@ -33,7 +33,7 @@ def example():
 
 def test_the_example_runs_and_prints_what_the_readme_says(example):
     result = example["result"]
-    assert result.converged and result.iterations == 5
+    assert result.converged and result.iterations == 6
     printed = f"{result.status} J* = {result.cost:.9f} {result.iterations} iterations"
     assert f"This prints `{printed}`." in README.read_text(encoding="utf-8")
 

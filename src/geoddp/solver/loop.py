@@ -33,8 +33,12 @@ Decisions the paper leaves open, and why:
   would change J by less than ANTICIPATE = 0.01 of that threshold (:meth:`_Solve.converged_next`).
   Crocoddyl stops on the direction it computed at the previous iterate; here the certificate at
   the returned iterate costs one exact linearisation, and these rules keep it to one.
-* Stopping: |J_i - J_(i-1)| <= tol after an accepted step, or ||dJ/dU|| <= grad_tol (gradient by
-  Lemma lemm:psi), or max_iter. A final backward pass at the returned iterate, with the exact
+* Stopping: |J_i - J_(i-1)| <= tau after an accepted step, or ||dJ/dU|| <= grad threshold
+  (gradient by Lemma lemm:psi), or max_iter. tau = max(tol, rtol max(|J_i|, ZERO_COST |J_0|))
+  (:meth:`SolverOptions.cost_tolerance`): relative to |J| by default (rtol = 1e-11), so that
+  scaling every weight by c scales J, dJ, the decrement and tau alike and the solve is the same;
+  the paper's absolute tol = 1e-8 (the satellite scenes) when ``tol`` is set. A final backward
+  pass at the returned iterate, with the exact
   second-order expansion and lambda = 0, gives the feedback gains and tells whether the point is
   a strict local minimum: for exact second-order DDP, all Q_uu positive definite is equivalent to
   a positive definite Hessian of J(U). A stationary point that fails this test is reported as a
@@ -83,7 +87,7 @@ _EPS = np.finfo(float).eps
 
 # Early certification (solves with a Gauss-Newton first order: multibody costs). A point whose
 # exact lambda = 0 pass factorises with a Newton decrement (1/2) g^T H^-1 g at most CERTIFY_EARLY
-# times the final check's threshold is returned as it stands: its J is within a tenth of tol of
+# times the final check's threshold is returned as it stands: its J is within a tenth of that of
 # the quadratic model's minimum, and one more Newton step would cost an exact linearisation at
 # the new point only to certify it (on the real robots the final check was 21-35 % of a solve).
 CERTIFY_EARLY = 0.1
@@ -263,10 +267,23 @@ class _Solve:
         lin2 = self.problem.linearise(self.traj, 2)
         return (lin2, *backward(lin2, self.ws, 0.0, self.traj.u))
 
+    def cost_tol(self) -> float:
+        """The threshold of the cost test at the iterate: max(tol, rtol max(|J|, ZERO_COST |J_0|))
+        (:meth:`SolverOptions.cost_tolerance`; relative to |J| by default, the paper's absolute
+        tol when a scene or the caller sets ``tol``)."""
+        return self.opt.cost_tolerance(self.J, self.J0)
+
     def newton_threshold(self) -> float:
-        """The largest Newton decrement the final check calls converged: tol, or the round-off
-        of J where that is larger."""
-        return max(self.opt.tol, 16.0 * _EPS * abs(self.J))
+        """The largest Newton decrement the final check calls converged: the cost test's
+        threshold (:meth:`cost_tol`), or the round-off of J where that is larger."""
+        return max(self.cost_tol(), 16.0 * _EPS * abs(self.J))
+
+    def cost_test_message(self, dJ: float) -> str:
+        """The converged message of the cost test: "|dJ| = ... <= tol" (absolute tol, the paper's
+        words) or "|dJ| = ... <= rtol |J| = ..." (relative)."""
+        if self.opt.absolute():
+            return f"|dJ| = {abs(dJ):.3e} <= tol"
+        return f"|dJ| = {abs(dJ):.3e} <= {self.cost_tol():.1e} ({self.opt.stopping_rule()})"
 
     def certified_deep(self) -> bool:
         """At a first-order stop of switch: the exact lambda = 0 pass at the iterate (the final
@@ -317,10 +334,12 @@ class _Solve:
             self.stop(STATUS_NON_FINITE, f"the order-{order} linearisation at iteration {self.it} is not finite "
                       "(||dJ/dU|| = nan or inf); the last finite iterate is returned")
             return False
-        if gnorm <= opt.grad_tol:
+        gtol = opt.grad_tolerance(self.J, self.J0)  # max(grad_tol, grad_rtol |J|), relative by default
+        if gnorm <= gtol:
             if self.escaped():
                 return True
-            self.stop(STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= grad_tol", True)
+            self.stop(STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= " + (
+                "grad_tol" if opt.absolute() and opt.grad_rtol is None else f"{gtol:.1e}"), True)
             return False
 
         t0 = time.perf_counter()
@@ -385,10 +404,11 @@ class _Solve:
         # only after an undamped Newton-like step: gamma = 1 (or a model decrease below tol) and
         # lambda negligible against Q_uu (with S_u = 1e-8, lambda = 0.03 would dominate Q_uu and
         # shrink every step to a gradient step with a tiny dJ, far from the optimum) ...
-        undamped = (gamma == 1.0 or abs(full_step_decrease) <= opt.tol) and lam_used <= 1e-3 * quu_min
+        tol = self.cost_tol()  # at the accepted iterate: max(tol, rtol |J_i|)
+        undamped = (gamma == 1.0 or abs(full_step_decrease) <= tol) and lam_used <= 1e-3 * quu_min
         # ... unless J no longer changes beyond round-off: no step can make progress then.
         at_roundoff = abs(dJ) <= 4.0 * _EPS * abs(self.J)
-        if abs(dJ) <= opt.tol and (undamped or at_roundoff):
+        if abs(dJ) <= tol and (undamped or at_roundoff):
             if opt.expansion == "switch" and not self.use_second:
                 # first order has done what it can: second order finishes (quadratically) and
                 # the exact check decides, instead of stopping at a linearly converging point ...
@@ -397,11 +417,11 @@ class _Solve:
                     return True
                 # ... unless the exact check certifies this point already, to CERTIFY_EARLY of the
                 # final check's threshold (then a Newton step would change J by less than that)
-                self.stop(STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True)
+                self.stop(STATUS_CONVERGED_COST, self.cost_test_message(dJ), True)
                 return False
             if self.escaped():
                 return True
-            self.stop(STATUS_CONVERGED_COST, f"|dJ| = {abs(dJ):.3e} <= tol", True)
+            self.stop(STATUS_CONVERGED_COST, self.cost_test_message(dJ), True)
             return False
         return True
 
@@ -417,9 +437,10 @@ class _Solve:
           Hessian), so the quadratic model has a strict minimum; otherwise: saddle; and
         * the Newton decrement is small: the model decrease of the full unregularised step,
           delta = d1 - d2 / 2 = (1/2) g^T H^-1 g (g = dJ/dU, H the Hessian of J(U); d1 = sum_k
-          Q_u^T k_k, d2 = sum_k k_k^T Q_uu k_k), is <= max(tol, 16 eps |J|). delta is a squared
-          gradient norm in the metric of H^-1: invariant under any rescaling of the controls or of
-          individual weights, in units of J like tol, and it bounds the distance to the local
+          Q_u^T k_k, d2 = sum_k k_k^T Q_uu k_k), is <= max(tau, 16 eps |J|) (tau: the cost
+          test's threshold, :meth:`cost_tol`). delta is a squared gradient norm in the metric of
+          H^-1: invariant under any rescaling of the controls, in units of J like tau (relative
+          tau: invariant under scaling the whole cost too), and it bounds the distance to the local
           optimum in cost for a quadratic J (Boyd & Vandenberghe, Convex Optimization, 9.5.1).
           Otherwise: stalled (a small cost change at a linearly convergent step, far from the
           optimum).
@@ -561,7 +582,8 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
     Args:
         problem: anything satisfying :class:`geoddp.contract.OptimalControlProblem`
             (:class:`geoddp.problem.Problem`, satellite or multibody).
-        options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
+        options: :class:`SolverOptions`; the switch expansion (sigma = 0.1) and the stopping tests
+            relative to |J| (rtol = 1e-11) by default; ``tol=1e-8`` gives the paper's absolute test.
         initial_controls: (H, m) initial guess; zeros by default (as in the paper), clipped into
             the problem's control limits if it has some (a given guess must lie inside them).
     """
