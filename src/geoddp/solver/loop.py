@@ -584,15 +584,21 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
             (:class:`geoddp.problem.Problem`, satellite or multibody).
         options: :class:`SolverOptions`; the switch expansion (sigma = 0.1) and the stopping tests
             relative to |J| (rtol = 1e-11) by default; ``tol=1e-8`` gives the paper's absolute test.
-        initial_controls: (H, m) initial guess; zeros by default (as in the paper), clipped into
-            the problem's control limits if it has some (a given guess must lie inside them).
+        initial_controls: (H, m) initial guess (it must lie inside the problem's control limits,
+            if any). By default the problem's ``quasi_static_controls()``: the controls that hold
+            the initial posture against gravity where the actuation can, clipped into the
+            limits; zeros (the paper's guess) without gravity, and for a problem that does not
+            offer them (then projected into the limits).
     """
     _check_problem(problem, options)
     opt = options or SolverOptions()
-    bounds = problem.control_bounds() if hasattr(problem, "control_bounds") else None
-    # zeros by default (the paper's guess), projected into the limits
-    U = (np.zeros((problem.horizon, problem.nu)) if bounds is None else np.clip(0.0, *bounds)) \
-        if initial_controls is None else problem.check_controls(initial_controls)
+    if initial_controls is not None:
+        U = problem.check_controls(initial_controls)
+    elif hasattr(problem, "quasi_static_controls"):  # optional member of the contract
+        U = problem.check_controls(problem.quasi_static_controls(), "quasi_static_controls()")
+    else:
+        bounds = problem.control_bounds() if hasattr(problem, "control_bounds") else None
+        U = np.zeros((problem.horizon, problem.nu)) if bounds is None else np.clip(0.0, *bounds)
     # Overflow and invalid operations are detected by the explicit finiteness checks of the loop
     # (cost, gradient, backward pass): numpy's warnings would only duplicate them on stderr.
     with np.errstate(all="ignore"):
