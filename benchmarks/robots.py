@@ -30,7 +30,8 @@ threads still poll beside the other's solve), one warm-up round, medians of ``--
 
 * Crocoddyl ``SolverFDDP``, ``th_stop`` 1e-9, ``ShootingProblem.nthreads`` left at its default
   and set to 1; time = wall time of ``solve``;
-* geoddp ``solve`` (default options: tol 1e-8 on |dJ|), ``expansion`` first / second / switch;
+* geoddp ``solve`` (default options: stopping relative to |J|, rtol 1e-11; tol 1e-8 on |dJ| before
+  that default), ``expansion`` first / second / switch;
   time = ``Result.solve_time_s`` (includes the final gradient check).
 
 Reported per solver: iterations, J* (geoddp's cost of the returned controls, for both
