@@ -34,40 +34,18 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import robots  # noqa: E402
-from geoddp.models.multibody import Multibody  # noqa: E402
-from geoddp.multibody_costs import (ControlRegularisation, FramePlacement, MultibodyCostSum,  # noqa: E402
-                                    StateRegularisation)
 from geoddp.multibody_problem import MultibodyProblem  # noqa: E402
 from geoddp.solver import SolverOptions, solve  # noqa: E402
 
 
-def kinova(dt: float = 0.01, H: int = 100) -> robots.Case:
+def kinova() -> robots.Case:
     """Kinova Gen2 arm (``kinova_description/robots/kinova.urdf``: three continuous joints, nq 9,
-    nv 6), fixed base, gravity on, every joint actuated: the end effector reaches the pose it has
-    at integrate(q0, dq) in 1 s; the costs of robots.arm_case (posture and velocity, torques about
-    the gravity torque at q0; terminal FramePlacement + at rest), U0 = gravity torque at q0."""
+    nv 6) in robots.arm_case's reach from example-robot-data's q0 (1 s, dt 0.01 s)."""
     import example_robot_data
 
-    r = example_robot_data.load("kinova")
-    mb = Multibody(Path(r.urdf), root="fixed", dt=dt, integrator="semi_implicit")
-    pm = mb.pin_model
-    nv = pm.nv
-    q0 = np.asarray(r.q0, float)
-    qt = pin.integrate(pm, q0, np.array([0.5, 0.3, -0.4, 0.5, 0.4, -0.3]))
-    frame = "j2s6s200_end_effector"
-    M_ref = robots._se3_at(pm, qt, frame)
-    g0 = robots._gravity_torque(pm, q0)
-    running = MultibodyCostSum([
-        StateRegularisation(pm, q0, W=np.r_[np.full(nv, 1e-3), np.full(nv, 1e-2)]),
-        ControlRegularisation(g0, W=np.full(nv, 1e-4)),
-    ], model=pm)
-    terminal = MultibodyCostSum([
-        FramePlacement(pm, frame, M_ref, W=np.full(6, 1e3)),
-        StateRegularisation(pm, q0, W=np.r_[np.zeros(nv), np.full(nv, 1e1)]),
-    ], model=pm, terminal=True)
-    p = MultibodyProblem(mb, q0, np.zeros(nv), H, running, terminal)
-    return robots.Case("kinova", p, np.tile(g0, (H, 1)), f"fixed base, continuous joints, nq {pm.nq}, nv {nv}, "
-                       f"H {H}, dt {dt}, U0 = gravity torque at q0")
+    q0 = np.asarray(example_robot_data.load("kinova").q0, float)
+    return robots.arm_case("kinova", "kinova_description/robots/kinova.urdf", "j2s6s200_end_effector", q0,
+                           np.array([0.5, 0.3, -0.4, 0.5, 0.4, -0.3]))
 
 
 def ladder(label: str) -> Callable[[], robots.Case]:
