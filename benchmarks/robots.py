@@ -30,7 +30,8 @@ threads still poll beside the other's solve), one warm-up round, medians of ``--
 
 * Crocoddyl ``SolverFDDP``, ``th_stop`` 1e-9, ``ShootingProblem.nthreads`` left at its default
   and set to 1; time = wall time of ``solve``;
-* geoddp ``solve`` (default options: tol 1e-8 on |dJ|), ``expansion`` first / second / switch;
+* geoddp ``solve`` (default options: stopping relative to |J|, rtol 1e-11; tol 1e-8 on |dJ| before
+  that default), ``expansion`` first / second / switch;
   time = ``Result.solve_time_s`` (includes the final gradient check).
 
 Reported per solver: iterations, J* (geoddp's cost of the returned controls, for both
@@ -107,13 +108,14 @@ def _gravity_torque(pm: pin.Model, q: np.ndarray) -> np.ndarray:
 def arm_case(name: str, rel: str, frame: str, q0: np.ndarray, dq_target: np.ndarray,
              dt: float = 0.01, H: int = 100) -> Case:
     """Fixed-base arm, gravity on, every joint actuated: ``frame`` reaches the pose it has at
-    q0 + dq_target in H dt seconds; running: posture (q0) and velocity regularisation, torques
-    regularised about the gravity torque at q0; terminal: FramePlacement + at rest."""
+    integrate(q0, dq_target) (q0 + dq_target for revolute and prismatic joints) in H dt seconds;
+    running: posture (q0) and velocity regularisation, torques regularised about the gravity
+    torque at q0; terminal: FramePlacement + at rest."""
     mb = Multibody(urdf(rel), root="fixed", dt=dt, integrator="semi_implicit")
     pm = mb.pin_model
     nv = pm.nv
     q0 = np.asarray(q0, float)
-    M_ref = _se3_at(pm, q0 + dq_target, frame)
+    M_ref = _se3_at(pm, pin.integrate(pm, q0, np.asarray(dq_target, float)), frame)
     running = MultibodyCostSum([
         StateRegularisation(pm, q0, W=np.r_[np.full(nv, 1e-3), np.full(nv, 1e-2)]),
         ControlRegularisation(_gravity_torque(pm, q0), W=np.full(nv, 1e-4)),

@@ -148,7 +148,7 @@ def test_certification_thresholds():
     p.linearised(1, gauss_newton=True)
     assert p.certifies_early(U) and p.certifies(1e-9, 1.0, U) and not p.certifies(2e-9, 1.0, U)
     assert p.newton_threshold(1e10) == 16 * np.finfo(float).eps * 1e10
-    bounded = ExpansionPolicy(SolverOptions(verbose=False), 1.0, (np.full((4, 1), -1.0), np.full((4, 1), 1.0)))
+    bounded = ExpansionPolicy(SolverOptions(verbose=False, tol=1e-8), 1.0, (np.full((4, 1), -1.0), np.full((4, 1), 1.0)))
     bounded.linearised(1, gauss_newton=True)
     on = np.array([[1.0], [0.0], [0.0], [0.0]])
     assert bounded.on_a_bound(on) and not bounded.certifies_early(on) and not bounded.on_a_bound(U)
@@ -194,3 +194,13 @@ def test_with_trajectory_keeps_the_kind_and_derives_its_views_again():
     assert run.model == mb.model and run.model is not mb.model
     np.testing.assert_allclose(run.rotations[2], [[np.cos(0.5), -np.sin(0.5), 0.0], [np.sin(0.5), np.cos(0.5), 0.0],
                                                   [0.0, 0.0, 1.0]], atol=1e-15)  # ... derived again from q
+
+
+def test_relative_certification_threshold_scales_with_J():
+    """At the default (relative) stopping rule the threshold is rtol |J|: scaling the cost scales it."""
+    p = ExpansionPolicy(SolverOptions(verbose=False), 1.0, None)
+    p.linearised(1, gauss_newton=True)
+    U = np.zeros((4, 1))
+    assert p.newton_threshold(1.0) == 1e-11 and np.isclose(p.newton_threshold(1e6), 1e-5, rtol=1e-15, atol=0)
+    assert p.certifies(1e-12, 1.0, U) and not p.certifies(2e-12, 1.0, U)  # CERTIFY_EARLY = 0.1
+    assert p.certifies(1e-6, 1e6, U) and not p.certifies(2e-6, 1e6, U)

@@ -34,7 +34,7 @@ def example():
 
 def test_the_example_runs_and_prints_what_the_guide_says(example):
     result = example["result"]
-    assert result.converged and result.iterations == 5
+    assert result.converged and result.iterations == 6
     printed = f"{result.status} J* = {result.cost:.9f} {result.iterations} iterations"
     assert f"This prints `{printed}`." in GUIDE.read_text(encoding="utf-8")
 

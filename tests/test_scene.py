@@ -263,7 +263,11 @@ def test_solver_section_optional_with_defaults():
     del d["initial"]["angular_velocity"], d["target"]["angular_velocity"]
     del d["name"], d["description"]
     s = parse_scene(d)
-    assert s == load_scene(PAPER).with_overrides(name="scene", description="", source="<dict>")
+    # without [solver] the stopping tolerances are unset (None: the solver's relative default),
+    # where the paper's file sets the absolute tol = 1e-8 and grad_tol = 1e-10
+    assert (s.tol, s.rtol, s.grad_tol, s.grad_rtol) == (None, None, None, None)
+    assert s == load_scene(PAPER).with_overrides(name="scene", description="", source="<dict>", tol=None,
+                                                 grad_tol=None)
 
 
 @pytest.mark.parametrize("section, key", [
@@ -537,8 +541,12 @@ def test_solver_defaults_have_one_home():
 
     defaults = {f.name: f.default for f in dataclasses.fields(options.SolverOptions)}
     assert scene.EXPANSIONS is options.EXPANSIONS
-    for name in ("expansion", "switch_ratio", "tol", "grad_tol", "max_iter"):
+    for name in ("expansion", "switch_ratio", "max_iter"):
         assert getattr(scene, f"DEFAULT_{name.upper()}") == defaults[name], name
+    # the stopping tolerances default to None (not set) in both; their values live in options only
+    assert (scene.DEFAULT_RTOL, scene.DEFAULT_GRAD_RTOL, scene.DEFAULT_GRAD_TOL) == (
+        options.DEFAULT_RTOL, options.DEFAULT_GRAD_RTOL, options.DEFAULT_GRAD_TOL)
     mb = {f.name: f.default for f in dataclasses.fields(scene.MultibodySceneSpec)}
-    for name in ("expansion", "switch_ratio", "tol", "grad_tol", "max_iter"):
+    for name in ("expansion", "switch_ratio", "tol", "rtol", "grad_tol", "grad_rtol", "max_iter"):
         assert mb[name] == defaults[name], name
+    assert defaults["tol"] is None and defaults["rtol"] is None

@@ -1,4 +1,5 @@
-"""Actuation matrices mapping thrust magnitudes to the body wrench of a free-flyer root.
+"""Actuation matrices mapping thrust magnitudes to the body wrench of a free-flyer root, and the
+inputs that hold a configuration against gravity (:func:`quasi_static_inputs`, :func:`hover_inputs`).
 
 Pinocchio's free-flyer joint takes its generalised force as the body wrench [force; torque]
 (N, N m) expressed in the root body frame about the frame origin. These helpers build the
@@ -60,8 +61,67 @@ def quadrotor_actuation(arm_length: float, torque_coefficient: float) -> np.ndar
     return Hm
 
 
+def quasi_static_inputs(model, actuation: np.ndarray, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Inputs u (m,) that hold configuration q at rest against gravity where the actuation can.
+
+    With g(q) Pinocchio's generalised gravity at (q, v = 0) (``computeGeneralizedGravity``: the
+    generalised force that holds q at rest) and H the actuation:
+
+    * where some input balances gravity exactly (residual |H u - g| <= tol max(1, |g|)): the
+      least-squares solution of smallest norm, u = pinv(H) g(q), which is what Crocoddyl's
+      ``quasiStatic`` computes for its free-dynamics action models (pinv(dtau/du) tau). A
+      fixed-base arm with every joint actuated gets its gravity torques g(q); a quadrotor level at
+      rest its hover thrusts m g / 4; redundant thrusters the balancing thrusts of smallest norm.
+      These are the inputs of :func:`hover_inputs` (the scene files' "hover"), bit for bit.
+    * where none does (underactuated): the least squares in the metric of the mass matrix M(q),
+      u = argmin_u (H u - g)^T M^-1 (H u - g), the inputs that minimise the kinetic-energy norm
+      of the acceleration a = M^-1 (H u - g) left by the unbalanced gravity (the Euclidean residual
+      would add newtons to newton-metres). A free-flyer base with actuated joints only then gets
+      zero joint torques to round-off: in uniform gravity the whole robot falls with its posture
+      held (g = M a_fall) and no torque is needed for that, where Crocoddyl's Euclidean pinv(H) g
+      gives the joint rows of g, the torques that would hold the posture were the base held,
+      which make a free-falling robot flail (Solo12 with gravity, no contacts: the rollout
+      overflowed). A tilted quadrotor gets the thrusts that cancel gravity along its rotors.
+    * without gravity (g = 0): exact zeros.
+
+    Args:
+        model: a ``pinocchio.Model`` (its gravity field and inertias are used).
+        actuation: (nv, m) input-to-generalised-force matrix (N, N m per unit input).
+        q: (nq,) configuration.
+        tol: residual below which gravity counts as balanced, relative to max(1, |g(q)|).
+
+    Returns:
+        (m,) float64 inputs, in the actuation's units (N m for joint torques, N for thrusts).
+    """
+    import pinocchio as pin
+
+    u, A, g = _holding(model, actuation, q)
+    if float(np.linalg.norm(A @ u - g)) <= tol * max(1.0, float(np.linalg.norm(g))):
+        return u
+    # M = L L^T: (H u - g)^T M^-1 (H u - g) = |L^-1 (H u - g)|^2
+    data = model.createData()
+    M = pin.crba(model, data, np.asarray(q, dtype=float))
+    M = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
+    L = np.linalg.cholesky(M)
+    return np.linalg.lstsq(np.linalg.solve(L, A), np.linalg.solve(L, g), rcond=None)[0]
+
+
+def _holding(model, actuation: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(u, actuation as float64, g(q)): the least-squares inputs of smallest norm, pinv(H) g(q)."""
+    import pinocchio as pin
+
+    g = pin.computeGeneralizedGravity(model, model.createData(), np.asarray(q, dtype=float))
+    A = np.asarray(actuation, dtype=float)
+    if not np.any(g):  # no gravity (or none that acts at q): exact zeros, not a solve's round-off
+        return np.zeros(A.shape[1]), A, g
+    return np.linalg.lstsq(A, g, rcond=None)[0], A, g
+
+
 def hover_inputs(model, actuation: np.ndarray, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """Inputs u (m,) that balance gravity at rest at configuration q: actuation @ u = g(q).
+    """Inputs u (m,) that balance gravity at rest at configuration q exactly: actuation @ u = g(q).
+
+    The strict form of :func:`quasi_static_inputs` (the scene files' ``"hover"``): the same
+    inputs where gravity can be balanced, refused where it cannot.
 
     Args:
         model: a ``pinocchio.Model`` (its gravity field is used).
@@ -76,11 +136,7 @@ def hover_inputs(model, actuation: np.ndarray, q: np.ndarray, tol: float = 1e-9)
     Raises:
         InputError ("hover"): no input balances gravity (residual above ``tol``).
     """
-    import pinocchio as pin
-
-    g = pin.computeGeneralizedGravity(model, model.createData(), np.asarray(q, dtype=float))
-    A = np.asarray(actuation, dtype=float)
-    u = np.linalg.lstsq(A, g, rcond=None)[0]
+    u, A, g = _holding(model, actuation, q)
     res = float(np.linalg.norm(A @ u - g))
     if res > tol * max(1.0, float(np.linalg.norm(g))):
         raise InputError("hover", "expected an actuation that can balance gravity at the configuration, got a "

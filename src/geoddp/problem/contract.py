@@ -162,6 +162,11 @@ class OptimalControlProblem(Protocol):
     # ``rollout_policy`` inside them (clamping after the feedback law) and reject an initial guess
     # outside them in ``check_controls``; the solver then solves the box-constrained problem.
 
+    # Optional member (the default start): ``quasi_static_controls() -> (H, m)``, the controls
+    # the solver starts from when it is given none (geoddp.problem.Problem: those that hold the
+    # initial posture against gravity, clipped into the limits; zeros without gravity). Without
+    # it the solver starts from zeros projected into the limits.
+
     def describe(self) -> dict[str, Any]:
         """The model description a Result and the viewer need without the solver (a dict with at
         least ``kind``, ``integrator``, ``dt``, ``target_rotation`` (3, 3) and

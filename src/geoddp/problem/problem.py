@@ -93,6 +93,28 @@ class Problem:
         """(lower, upper), each (H, m) float64 (-inf / inf where unbounded), or None without limits."""
         return self._bounds
 
+    def quasi_static_controls(self) -> np.ndarray:
+        """(H, m) controls that hold the initial configuration q0 at rest against gravity where
+        the actuation can: the solver's default start (:func:`geoddp.solver.solve` without
+        ``initial_controls``; ``initial_controls = "quasi_static"`` in a scene file).
+
+        Every node gets u = argmin_u |H u - g(q0)| (least squares of smallest norm,
+        :func:`geoddp.models.actuation.quasi_static_inputs`: g is the generalised gravity at
+        (q0, v = 0), H the (nv, m) actuation; Crocoddyl's ``quasiStatic`` computes the same),
+        clipped into the control limits if the problem has some. Zero where there is no gravity:
+        the satellite, and any model built with ``gravity=False``. Read at each call (an MPC
+        moves q0)."""
+        H, m = self.horizon, self.nu
+        if isinstance(self.model, Multibody):  # g(q0) = 0 without gravity: exact zeros
+            from ..models.actuation import quasi_static_inputs
+
+            U = np.tile(quasi_static_inputs(self.model.pin_model, self.model.actuation, self.q0), (H, 1))
+        else:
+            U = np.zeros((H, m))
+        if self._bounds is not None:
+            U = np.clip(U, *self._bounds)
+        return U
+
     @property
     def nu(self) -> int:
         """Number of inputs m."""

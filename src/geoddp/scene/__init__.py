@@ -36,8 +36,8 @@ Adding a table
 """
 from __future__ import annotations
 
-from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO,
-                              DEFAULT_TOL, EXPANSIONS)
+from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_RTOL, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_RTOL,
+                              DEFAULT_SWITCH_RATIO, EXPANSIONS)
 from .build import AnySceneSpec, build_problem, frame_errors, initial_controls, solver_options, terminal_frame_errors
 from .common import CommonSpec
 from .load import SCENE_KINDS, load_scene, parse_scene
@@ -49,5 +49,5 @@ from .solve import solve_scene
 __all__ = ["SceneSpec", "MultibodySceneSpec", "CostTermSpec", "CommonSpec", "AnySceneSpec", "SCENE_KINDS",
            "load_scene", "parse_scene", "solve_scene", "scene_file", "check_urdf", "build_problem", "solver_options",
            "initial_controls", "frame_errors", "terminal_frame_errors", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS",
-           "SECOND_ORDER", "DEFAULT_EXPANSION", "DEFAULT_GRAD_TOL", "DEFAULT_MAX_ITER", "DEFAULT_SWITCH_RATIO",
-           "DEFAULT_TOL"]
+           "SECOND_ORDER", "DEFAULT_EXPANSION", "DEFAULT_GRAD_TOL", "DEFAULT_GRAD_RTOL", "DEFAULT_MAX_ITER",
+           "DEFAULT_RTOL", "DEFAULT_SWITCH_RATIO"]

@@ -145,8 +145,8 @@ def solver_options(spec: AnySceneSpec, **overrides: Any):
     """The scene's ``[solver]`` table as :class:`geoddp.solver.SolverOptions`."""
     from ..solver import SolverOptions
 
-    kw = dict(expansion=spec.expansion, switch_ratio=spec.switch_ratio, tol=spec.tol,
-              grad_tol=spec.grad_tol, max_iter=spec.max_iter)
+    kw = dict(expansion=spec.expansion, switch_ratio=spec.switch_ratio, tol=spec.tol, rtol=spec.rtol,
+              grad_tol=spec.grad_tol, grad_rtol=spec.grad_rtol, max_iter=spec.max_iter)
     kw.update(overrides)
     return SolverOptions(**kw)
 

@@ -20,16 +20,15 @@ import numpy as np
 from .. import validate as v
 from ..problem.limits import ControlLimits, check_inside
 from .simulation import SimulationSpec
-from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_TOL, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, DEFAULT_TOL,
-                              EXPANSIONS)
+from ..solver.options import DEFAULT_EXPANSION, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, EXPANSIONS
 from .reader import Reader, Schema
 
 DEFAULT_SECOND_ORDER = "exact"
 
 # [table] -> key -> required?  (merged into every kind's schema)
 TABLES: Schema = {
-    "solver": {"expansion": False, "switch_ratio": False, "tol": False, "grad_tol": False, "max_iter": False,
-               "second_order": False, "initial_controls": False},
+    "solver": {"expansion": False, "switch_ratio": False, "tol": False, "rtol": False, "grad_tol": False,
+               "grad_rtol": False, "max_iter": False, "second_order": False, "initial_controls": False},
     "simulation": {f.name: False for f in dataclasses.fields(SimulationSpec)},
     "limits": {"control_min": False, "control_max": False, "effort_limits": False},
 }
@@ -50,8 +49,13 @@ class CommonSpec:
     Attributes:
         expansion: "first" | "second" | "switch".
         switch_ratio: sigma in (0, 1) for the switch expansion.
-        tol: stopping tolerance on |J_i - J_(i-1)|, >= 0.
-        grad_tol: stopping tolerance on the gradient norm, >= 0.
+        tol: absolute stopping tolerance on |J_i - J_(i-1)| and the Newton decrement (units of
+            J), >= 0, or None (not set: the solver's relative default applies). A scene that sets
+            it keeps the absolute meaning it always had (the satellite scenes: the paper's 1e-8).
+        rtol: relative stopping tolerance (the same tests against rtol |J|), >= 0, or None.
+        grad_tol: absolute stopping tolerance on the gradient norm, >= 0, or None.
+        grad_rtol: relative stopping tolerance on the gradient norm (against grad_rtol |J|), or None.
+            How the four combine, and their defaults: :class:`geoddp.solver.SolverOptions`.
         max_iter: maximum number of iterations, >= 1.
         second_order: "exact" | "paper" (the paper's: satellite with explicit Euler only).
         simulation: the ``[simulation]`` table as a :class:`~geoddp.scene.simulation.SimulationSpec`
@@ -65,8 +69,10 @@ class CommonSpec:
 
     expansion: str = DEFAULT_EXPANSION
     switch_ratio: float = DEFAULT_SWITCH_RATIO
-    tol: float = DEFAULT_TOL
-    grad_tol: float = DEFAULT_GRAD_TOL
+    tol: float | None = None
+    rtol: float | None = None
+    grad_tol: float | None = None
+    grad_rtol: float | None = None
     max_iter: int = DEFAULT_MAX_ITER
     second_order: str = DEFAULT_SECOND_ORDER
     simulation: SimulationSpec | None = None
@@ -80,8 +86,9 @@ class CommonSpec:
         put = lambda k, val: object.__setattr__(self, k, val)  # noqa: E731  (frozen dataclass)
         put("expansion", v.choice(self.expansion, "expansion", EXPANSIONS))
         put("switch_ratio", v.bounded_float(self.switch_ratio, "switch_ratio", 0.0, 1.0, False, False))
-        put("tol", v.nonnegative_float(self.tol, "tol"))
-        put("grad_tol", v.nonnegative_float(self.grad_tol, "grad_tol"))
+        for key in ("tol", "rtol", "grad_tol", "grad_rtol"):  # None: not set (the solver's default)
+            if getattr(self, key) is not None:
+                put(key, v.nonnegative_float(getattr(self, key), key))
         put("max_iter", v.positive_int(self.max_iter, "max_iter"))
         put("second_order", v.choice(self.second_order, "second_order", second_order_kinds))
         if isinstance(self.simulation, Mapping):
@@ -155,8 +162,8 @@ def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: 
         expansion=r.check(v.choice, get("expansion", DEFAULT_EXPANSION), "[solver].expansion", EXPANSIONS),
         switch_ratio=r.check(v.bounded_float, get("switch_ratio", DEFAULT_SWITCH_RATIO), "[solver].switch_ratio",
                              0.0, 1.0, False, False),
-        tol=r.check(v.nonnegative_float, get("tol", DEFAULT_TOL), "[solver].tol"),
-        grad_tol=r.check(v.nonnegative_float, get("grad_tol", DEFAULT_GRAD_TOL), "[solver].grad_tol"),
+        **{key: r.check(v.nonnegative_float, s[key], f"[solver].{key}") if key in s else None
+           for key in ("tol", "rtol", "grad_tol", "grad_rtol")},
         max_iter=r.check(v.positive_int, get("max_iter", DEFAULT_MAX_ITER), "[solver].max_iter"),
         second_order=r.check(v.choice, get("second_order", DEFAULT_SECOND_ORDER), "[solver].second_order",
                              second_order_kinds),

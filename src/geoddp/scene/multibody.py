@@ -44,14 +44,20 @@ Schema (``?`` = optional, with its default; paths as they appear in error messag
       state_regularisation  q_reference? = "neutral" ("neutral" | "initial" | nq),
                           v_reference? = 0 (nv), and weight (scalar | 2nv | 2nv x 2nv)
                           or q_weight? / v_weight? (scalar | nv, default 0), gauss_newton? = false
-      control             weight (scalar | m | m x m), reference? = 0 (m | "hover"); running only
-    [solver]?    as for satellite scenes (expansion, switch_ratio, tol, grad_tol, max_iter,
-                 second_order? = "exact"; "paper" too on a spherical root without gravity); initial_controls? = "zero" | "hover" | (m) | (H x m)
+      control             weight (scalar | m | m x m), reference? = 0 (m | "quasi_static" |
+                          "gravity_compensation" | "hover"); running only
+    [solver]?    as for satellite scenes (expansion, switch_ratio, tol | rtol, grad_tol | grad_rtol, max_iter,
+                 second_order? = "exact"; "paper" too on a spherical root without gravity);
+                 initial_controls? = "quasi_static" (the default) | "gravity_compensation" (the same)
+                 | "hover" | "zero" | (m) | (H x m)
 
 Weights are positive semidefinite (PSD). Running costs are summed over the H nodes without a dt
-factor (Crocoddyl multiplies running costs by dt: divide its weights by dt to compare). "hover"
-is the input u solving H u = g(q0), Pinocchio's generalised gravity at the initial configuration
-(least squares; refused if no input balances gravity).
+factor (Crocoddyl multiplies running costs by dt: divide its weights by dt to compare).
+"quasi_static" (alias "gravity_compensation") is the input u = argmin |H u - g(q0)| (least
+squares), g Pinocchio's generalised gravity at the initial configuration at rest: the input that
+holds the start posture where the actuation can (zero without gravity); as initial controls it is
+clipped into the limits, and it is the default start. "hover" is the same input where it balances
+gravity exactly (inside the limits, for initial controls), and refused where it does not.
 """
 from __future__ import annotations
 
@@ -74,6 +80,9 @@ DISTANCES = ("geodesic", "chordal")  # of a frame_rotation term
 ACTUATION_TYPES = ("identity", "matrix", "thrusters", "quadrotor", "joints")
 DEFAULT_INTEGRATOR = "euler"
 ROTATION_FORMS = ("quaternion", "rotation", "axis")  # "axis" goes with "angle_deg"
+# inputs holding the start posture against gravity (least squares; "hover": only where exact)
+HOLDING = ("quasi_static", "gravity_compensation", "hover")
+INITIAL_CONTROLS = HOLDING + ("zero",)  # [solver].initial_controls by name; default "quasi_static"
 
 ARRAYS = ("running_costs", "terminal_costs")
 SCHEMA: Schema = {  # [table] -> key -> required?
@@ -172,12 +181,14 @@ class MultibodySceneSpec(CommonSpec):
         dt: time step, s; horizon: H, number of control steps.
         integrator: one of :data:`geoddp.models.multibody.INTEGRATORS`.
         running_costs, terminal_costs: tuples of :class:`CostTermSpec`.
-        initial_controls: None (zeros), (m,) constant input or (H, m) sequence.
+        initial_controls: None (the default start: the quasi-static controls of the built
+            problem, :meth:`geoddp.problem.Problem.quasi_static_controls`), (m,) constant input
+            or (H, m) sequence ("zero" is stored as zeros clipped into the limits).
         package_dirs: absolute directories searched for the URDF's ``package://`` mesh URIs.
         robot: the example-robot-data name of ``[model].robot``, or None.
         inertia: (3, 3) rotational inertia about the centre of mass, kg m^2, replacing the URDF's
             (its mass is kept), for a one-body model on a spherical root (the satellite); or None.
-        expansion, switch_ratio, tol, grad_tol, max_iter, second_order: the ``[solver]`` table
+        expansion, switch_ratio, tol, rtol, grad_tol, grad_rtol, max_iter, second_order: the ``[solver]`` table
             (:class:`~geoddp.scene.common.CommonSpec`).
 
     Shared fields, ``dt``, ``horizon``, ``integrator`` and ``initial_controls`` can be replaced
@@ -242,7 +253,8 @@ class MultibodySceneSpec(CommonSpec):
         return self.horizon * self.dt
 
     def initial_control_sequence(self) -> np.ndarray | None:
-        """(H, m) initial guess for the solver, or None for zeros."""
+        """(H, m) initial guess for the solver, or None for the solver's default start (the
+        quasi-static controls)."""
         if self.initial_controls is None:
             return None
         return np.array(np.broadcast_to(self.initial_controls, (self.horizon, self.num_inputs)))
@@ -295,7 +307,7 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         InputError: naming the key path, e.g. ``running_costs[1].frame`` or ``[horizon].dt``.
     """
     from ..models import multibody as mbm
-    from ..models.actuation import hover_inputs
+    from ..models.actuation import hover_inputs, quasi_static_inputs
 
     r = Reader(data, source, SCHEMA, arrays=ARRAYS, required=REQUIRED)
     r.top()
@@ -344,11 +356,16 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     q0 = _initial_q(r, init_t, pm, root, srdf)
     v0 = r.check(v.finite_array, init_t.get("v", np.zeros(nv)), "[initial].v", (nv,))
 
-    def hover(path: str) -> np.ndarray:
+    def hover(path: str, name: str = "hover") -> np.ndarray:
+        """The input holding q0 against gravity (``name``): least squares for "quasi_static" and
+        "gravity_compensation"; for "hover", refused unless it balances gravity exactly."""
+        if name != "hover":
+            return quasi_static_inputs(pm, actuation, q0)
         try:
             return hover_inputs(pm, actuation, q0)
         except InputError as e:
-            raise r.err(path, f'"hover": {e.detail} (at the initial configuration)') from None
+            raise r.err(path, f'"hover": {e.detail} (at the initial configuration; "quasi_static" takes the '
+                        "least-squares input instead)") from None
 
     # ---- costs
     ctx = _CostContext(r, pm, q0, m, hover)
@@ -365,13 +382,19 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         p = "[solver].initial_controls"
         val = s["initial_controls"]
         if isinstance(val, str):
-            val = r.check(v.choice, val, p, ("hover", "zero"))
-            U0 = hover(p) if val == "hover" else None
+            val = r.check(v.choice, val, p, INITIAL_CONTROLS)
+            if val == "hover":
+                U0 = hover(p)
+            elif val == "zero":  # zeros projected into the limits (URDF effort limits contain 0)
+                lo, hi = common["control_min"], common["control_max"]
+                U0 = np.clip(np.zeros(m), -np.inf if lo is None else lo, np.inf if hi is None else hi)
+            # "quasi_static", "gravity_compensation": the default start (None), made by the solver
+            # from the built problem, clipped into all of its limits (URDF efforts included)
         else:
             U0 = r.check(v.finite_array, val, p)
             if U0.shape not in ((m,), (H, m)):
-                raise r.err(p, f'expected "zero", "hover", a constant input of shape ({m},) or a sequence of shape '
-                            f"({H}, {m}), got shape {U0.shape}")
+                raise r.err(p, f'expected one of {", ".join(map(repr, INITIAL_CONTROLS))}, a constant input of shape '
+                            f"({m},) or a sequence of shape ({H}, {m}), got shape {U0.shape}")
         r.check(initial_in_limits, U0, common["control_min"], common["control_max"], p)
     return MultibodySceneSpec(
         name=name, description=description, source=source, urdf=urdf, root=root, gravity=gravity,
@@ -653,8 +676,8 @@ def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: boo
     W = r.weight(need_weight(), f"{path}.weight", ctx.m)
     u = t.get("reference", np.zeros(ctx.m))
     if isinstance(u, str):
-        r.check(v.choice, u, f"{path}.reference", ("hover",))
-        ref = ctx.hover(f"{path}.reference")
+        name = r.check(v.choice, u, f"{path}.reference", HOLDING)
+        ref = ctx.hover(f"{path}.reference", name)
     else:
         ref = r.check(v.finite_array, u, f"{path}.reference", (ctx.m,))
     return CostTermSpec(kind, label, path, None, readonly(ref), readonly(W), False)

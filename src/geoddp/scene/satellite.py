@@ -20,7 +20,8 @@ Schema (``?`` = optional, with its default)::
                (chordal | geodesic), angular_velocity (S_Omega),
                running_attitude? = 0, running_angular_velocity? = 0
     [solver]?  expansion? = "switch" (first | second | switch), switch_ratio? = 0.1 in (0, 1),
-               tol? = 1e-8, grad_tol? = 1e-10, max_iter? = 200,
+               tol? (absolute, units of J: the paper's 1e-8) | rtol? (relative to |J|; default
+               1e-11 when neither is set), grad_tol? | grad_rtol?, max_iter? = 200,
                second_order? = "exact" (exact | paper), initial_controls? (H x m, default 0)
 """
 from __future__ import annotations
@@ -92,7 +93,7 @@ class SceneSpec(CommonSpec):
         running_S_R: (3, 3) PSD attitude weight applied at every running step.
         running_S_Omega: (3, 3) PSD angular-velocity weight applied at every running step.
         initial_controls: (H, m) initial control guess, or None for zeros.
-        expansion, switch_ratio, tol, grad_tol, max_iter, second_order: the ``[solver]`` table
+        expansion, switch_ratio, tol, rtol, grad_tol, grad_rtol, max_iter, second_order: the ``[solver]`` table
             (:class:`~geoddp.scene.common.CommonSpec`).
 
     Constructing a SceneSpec (directly, via :meth:`with_overrides` or :func:`parse_scene`)

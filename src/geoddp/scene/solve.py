@@ -57,7 +57,7 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
             raise InputError(key, "unknown option of solve_scene" + (f" (did you mean {hint!r}?)" if hint else "")
                              + f"; known: {', '.join(sorted(known))}")
     spec = scene if isinstance(scene, (SceneSpec, MultibodySceneSpec)) else load_scene(scene)
-    scene_keys = {"expansion", "switch_ratio", "tol", "grad_tol", "max_iter"}
+    scene_keys = {"expansion", "switch_ratio", "tol", "rtol", "grad_tol", "grad_rtol", "max_iter"}
     overrides = {k: v for k, v in options.items() if k in scene_keys}
     if overrides:  # with_overrides re-validates the whole spec: only when something changes
         spec = spec.with_overrides(**overrides)

@@ -28,8 +28,12 @@ Decisions the paper leaves open, and why:
   reg_min) so that the last iterations run unregularised and keep their superlinear rate.
 * Line search: gamma in {1, 1/3, 1/9, ...} until J <= J_bar (the paper's test); if gamma falls
   below min_step, lambda is raised and the iteration is redone; past reg_max the solve stops.
-* Stopping: |J_i - J_(i-1)| <= tol after an accepted step, or ||dJ/dU|| <= grad_tol (gradient by
-  Lemma V.1, eq. (32)), or max_iter. A final backward pass at the returned iterate, with the exact
+* Stopping: |J_i - J_(i-1)| <= tau after an accepted step, or ||dJ/dU|| <= the gradient threshold
+  (gradient by Lemma V.1, eq. (32)), or max_iter. tau = max(tol, rtol max(|J_i|, ZERO_COST |J_0|))
+  (:meth:`SolverOptions.cost_tolerance`): relative to |J| by default (rtol = 1e-11), so that
+  scaling every weight by c scales J, dJ, the decrement and tau alike and the solve is the same;
+  the paper's absolute tol = 1e-8 (the satellite scenes) when ``tol`` is set. A final backward
+  pass at the returned iterate, with the exact
   second-order expansion and lambda = 0, gives the feedback gains and tells whether the point is
   a strict local minimum: for exact second-order DDP, all Q_uu positive definite is equivalent to
   a positive definite Hessian of J(U). A stationary point that fails this test is reported as a
@@ -128,8 +132,10 @@ class _Solve:
         if not np.isfinite(gnorm):
             return self.stop(STATUS_NON_FINITE, f"the order-{order} linearisation at iteration {self.it} is not finite "
                              "(||dJ/dU|| = nan or inf); the last finite iterate is returned")
-        if gnorm <= opt.grad_tol:
-            return self.converge(STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= grad_tol")
+        gtol = opt.grad_tolerance(self.J, self.policy.J0)  # max(grad_tol, grad_rtol |J|), relative by default
+        if gnorm <= gtol:
+            return self.converge(STATUS_CONVERGED_GRAD, f"||dJ/dU|| = {gnorm:.3e} <= " + (
+                "grad_tol" if opt.absolute() and opt.grad_rtol is None else f"{gtol:.1e}"))
         d1, d2, rungs = self.backward_pass(lin)  # eqs. (19), (14), (17), (18); lambda restarts
         if not (np.isfinite(d1) and np.isfinite(d2)):
             return self.stop(STATUS_NON_FINITE, f"the backward pass at iteration {self.it} produced non-finite gains; "
@@ -257,12 +263,13 @@ class _Solve:
         # only after an undamped Newton-like step: gamma = 1 (or a model decrease below tol) and
         # lambda negligible against Q_uu (with S_u = 1e-8, lambda = 0.03 would dominate Q_uu and
         # shrink every step to a gradient step with a tiny dJ, far from the optimum) ...
-        undamped = (gamma == 1.0 or abs(full_step_decrease) <= opt.tol) and lam_used <= 1e-3 * quu_min
+        tol = self.policy.cost_tol(self.J)  # at the accepted iterate: max(tol, rtol |J_i|)
+        undamped = (gamma == 1.0 or abs(full_step_decrease) <= tol) and lam_used <= 1e-3 * quu_min
         # ... unless J no longer changes beyond round-off: no step can make progress then.
         at_roundoff = abs(dJ) <= 4.0 * _EPS * abs(self.J)
-        if not (abs(dJ) <= opt.tol and (undamped or at_roundoff)):
+        if not (abs(dJ) <= tol and (undamped or at_roundoff)):
             return True
-        message = f"|dJ| = {abs(dJ):.3e} <= tol"
+        message = self.policy.cost_test_message(dJ, self.J)
         if self.policy.switching():
             # first order has done what it can: second order finishes (quadratically) and
             # the exact check decides, instead of stopping at a linearly converging point ...
@@ -495,16 +502,23 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
     Args:
         problem: anything satisfying :class:`geoddp.problem.contract.OptimalControlProblem`
             (:class:`geoddp.problem.Problem`, satellite or multibody).
-        options: :class:`SolverOptions`; defaults follow the paper (switch, sigma = 0.1, tol 1e-8).
-        initial_controls: (H, m) initial guess; zeros by default (as in the paper), clipped into
-            the problem's control limits if it has some (a given guess must lie inside them).
+        options: :class:`SolverOptions`; the switch expansion (sigma = 0.1) and the stopping tests
+            relative to |J| (rtol = 1e-11) by default; ``tol=1e-8`` gives the paper's absolute test.
+        initial_controls: (H, m) initial guess (it must lie inside the problem's control limits,
+            if any). By default the problem's ``quasi_static_controls()``: the controls that hold
+            the initial posture against gravity where the actuation can, clipped into the
+            limits; zeros (the paper's guess) without gravity, and for a problem that does not
+            offer them (then projected into the limits).
     """
     _check_problem(problem, options)
     opt = options or SolverOptions()
-    bounds = problem.control_bounds() if hasattr(problem, "control_bounds") else None
-    # zeros by default (the paper's guess), projected into the limits
-    U = (np.zeros((problem.horizon, problem.nu)) if bounds is None else np.clip(0.0, *bounds)) \
-        if initial_controls is None else problem.check_controls(initial_controls)
+    if initial_controls is not None:
+        U = problem.check_controls(initial_controls)
+    elif hasattr(problem, "quasi_static_controls"):  # optional member of the contract
+        U = problem.check_controls(problem.quasi_static_controls(), "quasi_static_controls()")
+    else:
+        bounds = problem.control_bounds() if hasattr(problem, "control_bounds") else None
+        U = np.zeros((problem.horizon, problem.nu)) if bounds is None else np.clip(0.0, *bounds)
     # Overflow and invalid operations are detected by the explicit finiteness checks of the loop
     # (cost, gradient, backward pass): numpy's warnings would only duplicate them on stderr.
     with np.errstate(all="ignore"):

@@ -17,8 +17,18 @@ EXPANSIONS = ("first", "second", "switch")
 DEFAULT_EXPANSION = "switch"
 DEFAULT_SWITCH_RATIO = 0.1
 DEFAULT_SWITCH_AFTER = 5
-DEFAULT_TOL = 1e-8
+# Stopping (see SolverOptions.cost_tolerance): relative to |J| by default, so that scaling every
+# weight by c changes nothing; an absolute ``tol`` (the paper's Table I criterion, 1e-8) replaces it
+# when given, and then the gradient test is absolute too (DEFAULT_GRAD_TOL), as before.
+DEFAULT_RTOL = 1e-11
+DEFAULT_GRAD_RTOL = 1e-12
 DEFAULT_GRAD_TOL = 1e-10
+# The relative tests measure |J| from ZERO_COST |J_0| up (J_0: the cost of the initial guess):
+# where the optimum is J* = 0 (every residual can vanish), rtol |J| shrinks with J and no test
+# would pass before round-off stalls the line search (a free spin reached exactly: 68 iterations,
+# "stalled" at J = 2e-26, where the absolute tol stopped after 2); below 1e-12 of the initial
+# cost, J counts as zero. Scaling every weight by c scales J_0 too: the rule stays scale-free.
+ZERO_COST = 1e-12
 DEFAULT_MAX_ITER = 200
 DEFAULT_REG_INIT = 0.0
 DEFAULT_REG_MIN = 1e-8
@@ -48,8 +58,18 @@ class SolverOptions:
             linear rate for tens of iterations. With a Gauss-Newton first-order model only full
             (gamma = 1) first-order steps count, at most 4 switch_after iterations in all, and
             not while the last one converged superlinearly (see geoddp.solver.loop).
-        tol: stop when |J_i - J_(i-1)| <= tol.
-        grad_tol: stop when ||dJ/dU||_2 <= grad_tol.
+        tol: absolute tolerance, in units of J: stop when |J_i - J_(i-1)| <= tol, and call the
+            returned point converged when its Newton decrement is <= tol (the paper's Table I
+            criterion: tol = 1e-8). None (the default): not used.
+        rtol: relative tolerance: the same tests against rtol |J_i|. None (the default): 1e-11
+            (:data:`DEFAULT_RTOL`) when ``tol`` is None too, else not used. Given both, either
+            test suffices: the threshold is max(tol, rtol |J_i|) (:meth:`cost_tolerance`).
+        grad_tol: stop when ||dJ/dU||_2 <= grad_tol (absolute, units of J per unit of u).
+            None (the default): 1e-10 (:data:`DEFAULT_GRAD_TOL`) when the cost test is absolute
+            (``tol`` given, ``rtol`` not), else not used.
+        grad_rtol: stop when ||dJ/dU||_2 <= grad_rtol |J_i|. None (the default): 1e-12
+            (:data:`DEFAULT_GRAD_RTOL`) unless the cost test is absolute or ``grad_tol`` is given.
+            Given both: max(grad_tol, grad_rtol |J_i|) (:meth:`grad_tolerance`).
         max_iter: maximum number of accepted iterations.
         reg_init, reg_min, reg_max: Q_uu regularisation lambda (start, floor, ceiling).
         reg_increase: factor on lambda when Q_uu is not positive definite (paper: 1.9).
@@ -68,8 +88,10 @@ class SolverOptions:
     expansion: str = DEFAULT_EXPANSION
     switch_ratio: float = DEFAULT_SWITCH_RATIO
     switch_after: int = DEFAULT_SWITCH_AFTER
-    tol: float = DEFAULT_TOL
-    grad_tol: float = DEFAULT_GRAD_TOL
+    tol: float | None = None
+    rtol: float | None = None
+    grad_tol: float | None = None
+    grad_rtol: float | None = None
     max_iter: int = DEFAULT_MAX_ITER
     reg_init: float = DEFAULT_REG_INIT
     reg_min: float = DEFAULT_REG_MIN
@@ -88,8 +110,9 @@ class SolverOptions:
         if not self.switch_ratio < 1.0:
             raise InputError("switch_ratio", f"expected a number in (0, 1), got {self.switch_ratio}")
         self.switch_after = positive_int(self.switch_after, "switch_after")
-        self.tol = nonnegative_float(self.tol, "tol")
-        self.grad_tol = nonnegative_float(self.grad_tol, "grad_tol")
+        for name in ("tol", "rtol", "grad_tol", "grad_rtol"):
+            if getattr(self, name) is not None:
+                setattr(self, name, nonnegative_float(getattr(self, name), name))
         self.max_iter = positive_int(self.max_iter, "max_iter")
         self.reg_init = nonnegative_float(self.reg_init, "reg_init")
         self.reg_min = positive_float(self.reg_min, "reg_min")
@@ -124,3 +147,40 @@ class SolverOptions:
             if missing:
                 raise InputError(f"callbacks[{i}]", f"expected a callback (a geoddp.solver.callbacks.Callback), got "
                                  f"{type(cb).__name__} without {', '.join(missing)}")
+
+    # ------------------------------------------------------------ the stopping thresholds
+    # The fields keep what the user gave (None = not given), so that dataclasses.replace(opt,
+    # tol=...) means what it says; the defaults are resolved here, on each call.
+    def absolute(self) -> bool:
+        """True when the cost test is absolute only (``tol`` given, ``rtol`` not): the paper's
+        criterion, and the scene files that set ``tol``."""
+        return self.tol is not None and self.rtol is None
+
+    def cost_tolerance(self, J: float, J0: float = 0.0) -> float:
+        """The threshold on |J_i - J_(i-1)| and on the Newton decrement at cost J, J0 being the
+        cost of the initial guess: max(tol, rtol max(|J|, ZERO_COST |J0|)), a missing tol
+        counting 0 and a missing rtol DEFAULT_RTOL (0 if tol is given). Relative by default:
+        multiplying every weight by c multiplies J, J0, every |dJ| and every decrement by c, and
+        this threshold with them."""
+        tol = 0.0 if self.tol is None else self.tol
+        rtol = self.rtol if self.rtol is not None else (0.0 if self.tol is not None else DEFAULT_RTOL)
+        return max(tol, rtol * max(abs(J), ZERO_COST * abs(J0))) if rtol else tol
+
+    def grad_tolerance(self, J: float, J0: float = 0.0) -> float:
+        """The threshold on ||dJ/dU|| at cost J: max(grad_tol, grad_rtol max(|J|, ZERO_COST
+        |J0|)); when neither is given, DEFAULT_GRAD_TOL with an absolute cost test
+        (:meth:`absolute`), else the relative test with DEFAULT_GRAD_RTOL."""
+        if self.grad_tol is None and self.grad_rtol is None:
+            if self.absolute():
+                return DEFAULT_GRAD_TOL
+            return DEFAULT_GRAD_RTOL * max(abs(J), ZERO_COST * abs(J0))
+        gtol = 0.0 if self.grad_tol is None else self.grad_tol
+        grtol = 0.0 if self.grad_rtol is None else self.grad_rtol
+        return max(gtol, grtol * max(abs(J), ZERO_COST * abs(J0))) if grtol else gtol
+
+    def stopping_rule(self) -> str:
+        """The cost test in words, for messages: "tol = 1e-08", "rtol = 1e-11" or both."""
+        if self.absolute():
+            return f"tol = {self.tol:g}"
+        rtol = DEFAULT_RTOL if self.rtol is None else self.rtol
+        return f"rtol = {rtol:g}" + ("" if self.tol is None else f", tol = {self.tol:g}")

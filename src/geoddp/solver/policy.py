@@ -34,7 +34,7 @@ _EPS = np.finfo(float).eps
 
 # Early certification (solves with a Gauss-Newton first order: multibody costs). A point whose
 # exact lambda = 0 pass factorises with a Newton decrement (1/2) g^T H^-1 g at most CERTIFY_EARLY
-# times the final check's threshold is returned as it stands: its J is within a tenth of tol of
+# times the final check's threshold is returned as it stands: its J is within a tenth of that of
 # the quadratic model's minimum, and one more Newton step would cost an exact linearisation at
 # the new point only to certify it (on the real robots the final check was 21-35 % of a solve).
 CERTIFY_EARLY = 0.1
@@ -134,10 +134,23 @@ class ExpansionPolicy:
         (d_prev, g_prev), (d_last, _) = self.first_steps[-2:]
         return g_prev == 1.0 and 0.0 < d_prev and d_last * d_last / d_prev <= ANTICIPATE * self.newton_threshold(J)
 
+    def cost_tol(self, J: float) -> float:
+        """The threshold of the cost test at cost J: max(tol, rtol max(|J|, ZERO_COST |J_0|))
+        (:meth:`SolverOptions.cost_tolerance`; relative to |J| by default, the paper's absolute
+        tol when a scene or the caller sets ``tol``)."""
+        return self.opt.cost_tolerance(J, self.J0)
+
     def newton_threshold(self, J: float) -> float:
-        """The largest Newton decrement the final check calls converged: tol, or the round-off
-        of J where that is larger."""
-        return max(self.opt.tol, 16.0 * _EPS * abs(J))
+        """The largest Newton decrement the final check calls converged: the cost test's
+        threshold (:meth:`cost_tol`), or the round-off of J where that is larger."""
+        return max(self.cost_tol(J), 16.0 * _EPS * abs(J))
+
+    def cost_test_message(self, dJ: float, J: float) -> str:
+        """The converged message of the cost test: "|dJ| = ... <= tol" (absolute tol, the paper's
+        words) or "|dJ| = ... <= 5.1e-09 (rtol = 1e-11)" (relative)."""
+        if self.opt.absolute():
+            return f"|dJ| = {abs(dJ):.3e} <= tol"
+        return f"|dJ| = {abs(dJ):.3e} <= {self.cost_tol(J):.1e} ({self.opt.stopping_rule()})"
 
     def certifies_early(self, U: np.ndarray) -> bool:
         """Whether the early-certification rules apply: a Gauss-Newton first order (multibody

@@ -32,9 +32,10 @@ class ReferenceSolution:
 
 def lbfgs(problem: Problem, initial_controls: np.ndarray | None = None, max_iter: int = 5000,
           gtol: float = 1e-8) -> ReferenceSolution:
-    """Minimise J(U) with L-BFGS-B from zero controls (or ``initial_controls``, (H, m))."""
+    """Minimise J(U) with L-BFGS-B from ``initial_controls`` (H, m), by default from the solver's
+    default start (:meth:`geoddp.problem.Problem.quasi_static_controls`: zeros without gravity)."""
     H, m = problem.horizon, problem.nu
-    U0 = np.zeros((H, m)) if initial_controls is None else problem.check_controls(initial_controls)
+    U0 = problem.check_controls(problem.quasi_static_controls() if initial_controls is None else initial_controls)
     history, times = [problem.total_cost(U0)], [0.0]
     t0 = time.perf_counter()
 
