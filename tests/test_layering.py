@@ -57,6 +57,7 @@ FLOORS: dict[str, int] = {
     "geoddp.solver": 3,
     "geoddp.result": 3,
     "geoddp.reference": 3,
+    "geoddp.constraints": 3,  # constraint kinds, the augmented Lagrangian and its outer loop around the solver
     # 4: scenes (readers, builders, built-in scene builders) and the API
     "geoddp.scene": 4,
     "geoddp.multibody_scene": 4,

@@ -203,7 +203,10 @@ class Result:
             bound, 0 inside; None without limits. ``optimality`` (in extra) then also holds the
             KKT residual (max |projected gradient|) and the complementarity numbers.
         extra: free-form additions; the solver puts ``"saddle_escapes"`` here (a list of dicts with
-            iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle.
+            iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle,
+            and a constrained solve (:func:`geoddp.constraints.solve_constrained`) its report in
+            ``"constraints"`` (feasibility, multipliers and active nodes per constraint, the outer
+            iterations), which the JSON keeps.
 
     Views (properties): ``rotations`` (H+1, 3, 3) body-to-world attitudes (the root body's for a
     multibody; identity for a fixed root), ``angular_velocities`` (H+1, 3) body rates (rad/s),
@@ -521,6 +524,9 @@ class Result:
             "model": _jsonable({k: val for k, val in self.model.items() if mb is None or k not in mb}),
             # the certificate of the final check (solver.loop._Solve.final_check); None if not solved here
             "optimality": _jsonable(self.extra.get("optimality")),
+            # hard constraints (geoddp.constraints.solve_constrained): feasibility, multipliers,
+            # active nodes, the outer iterations; None for a solve without constraints
+            "constraints": _jsonable(self.extra.get("constraints")),
             # control limits: unbounded sides as null (strict JSON has no infinity; a NaN bound is
             # invalid, so null is unambiguous)
             "limits": None if self.limits is None else {
@@ -600,7 +606,7 @@ class Result:
             target_angular_velocity=None if model is not None else a(d["target_angular_velocity"], dtype=float),
             multibody=None if model is not None or d.get("multibody") is None else dict(d["multibody"]),
             integrator=None if model is not None else str(d["integrator"]),
-            extra={"optimality": dict(d["optimality"])} if d.get("optimality") is not None else None,
+            extra={key: dict(d[key]) for key in ("optimality", "constraints") if d.get(key) is not None} or None,
             limits=_limits_from_json(d.get("limits")),
             active_set=None if d.get("active_set") is None else np.asarray(d["active_set"], dtype=np.int8),
         )
