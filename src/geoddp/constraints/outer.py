@@ -20,7 +20,8 @@ It stops at a KKT point: every V_j <= constraint_tol after an inner solve at the
 that converged (its certificate: Newton decrement below its threshold with a positive definite
 reduced Hessian, at multipliers lambda whose estimates lhat it then returns: the gradient of the
 augmented Lagrangian at lambda is the Lagrangian's at lhat, so that certificate is stationarity of
-the Lagrangian). "converged" means exactly that. A constraint still violated at mu = penalty_max
+the Lagrangian). "converged" means exactly that. A constraint still violated at mu = penalty_max,
+or whose violation no longer falls as its penalty grows (by less than 1 % over three increases),
 ends the solve as infeasible, reporting the smallest violation reached.
 
 The Result is the solver's, with the constraints' report in ``extra["constraints"]`` and the KKT
@@ -46,11 +47,14 @@ __all__ = ["solve_constrained", "STATUS_KKT", "STATUS_INFEASIBLE", "STATUS_OUTER
            "CONSTRAINED_STATUSES"]
 
 STATUS_KKT = "converged: KKT point (constraints within constraint_tol, Lagrangian stationary)"
-STATUS_INFEASIBLE = "stopped: infeasible (a constraint stayed violated with its penalty at penalty_max)"
+STATUS_INFEASIBLE = "stopped: infeasible (a constraint stayed violated as its penalty grew)"
 STATUS_OUTER_MAX_ITER = "stopped: max_outer_iter reached"
 STATUS_INNER_FAILED = "stopped: the constraints hold but the last inner solve did not converge"
 CONSTRAINED_STATUSES = (STATUS_KKT, STATUS_INFEASIBLE, STATUS_OUTER_MAX_ITER, STATUS_INNER_FAILED)
 
+# Infeasibility before penalty_max: a constraint's violation fell by less than 1 % over this many
+# increases of its penalty (x penalty_increase each).
+STALL_INCREASES = 3
 # A multiplier estimate beyond this is clipped (ALGENCAN's safeguard): it keeps the inner problem
 # finite when a constraint cannot be met (mu grows, lambda + mu c with it).
 _MULTIPLIER_MAX = 1e20
@@ -103,6 +107,7 @@ def solve_constrained(problem: Any, options: SolverOptions | None = None,
     lam = [np.zeros((p.nodes.size, p.bound.rows)) for p in placed]
     mu = [al.penalty_initial] * len(placed)
     V_prev = [np.inf] * len(placed)
+    raised: list[list[float]] = [[] for _ in placed]  # each constraint's violation at its penalty increases
     omega = max(opt.tol, al.inner_tol_initial)
     V0 = None
     results: list[Result] = []
@@ -150,17 +155,28 @@ def solve_constrained(problem: Any, options: SolverOptions | None = None,
                 break
             omega = opt.tol  # the final inner solve at the solver's own tolerance
             continue
-        # penalties: raised where the violation did not fall enough; infeasible when one is at its maximum
+        # penalties: raised where the violation did not fall enough. Infeasible: a constraint still
+        # violated with its penalty at penalty_max, or whose violation fell by less than 1 % over
+        # its last STALL_INCREASES penalty increases (a factor 1000 by default) while its penalty
+        # term mu/2 |c+|^2 outweighs J: the inner solve then minimises the violation itself, which
+        # is (locally) the smallest the dynamics allow, and a larger mu would only distort J. (The
+        # second condition keeps a feasible problem whose constraint needs a large mu before it
+        # moves at all, e.g. the keep-out cone at mu <= 1e3, from being called infeasible.)
         stuck = [j for j in range(len(placed)) if V[j] > al.constraint_tol and V[j] > al.violation_decrease * V_prev[j]]
-        capped = [j for j in stuck if mu[j] >= al.penalty_max]
-        if capped:
-            j = capped[0]
+        stalled = [j for j in stuck if mu[j] >= al.penalty_max
+                   or (len(raised[j]) >= STALL_INCREASES and V[j] > 0.99 * raised[j][-STALL_INCREASES]
+                       and 0.5 * mu[j] * float(np.sum(_feasibility(cs[j], placed[j].bound.equality) ** 2)) > abs(J))]
+        if stalled:
+            j = stalled[0]
             status = STATUS_INFEASIBLE
-            message = (f"constraint {_name(problem, j)!r} violated by {V[j]:.3e} with its penalty at penalty_max = "
-                       f"{al.penalty_max:.1e}; the smallest violation reached: {best:.3e}")
+            why = (f"with its penalty at penalty_max = {al.penalty_max:.1e}" if mu[j] >= al.penalty_max else
+                   f"after {STALL_INCREASES} penalty increases (mu = {mu[j]:.1e}) that reduced it by less than 1 %")
+            message = (f"constraint {_name(problem, j)!r} violated by {V[j]:.3e} {why}; the smallest violation "
+                       f"reached: {best:.3e}")
             lam = lhat
             break
         for j in stuck:
+            raised[j].append(V[j])
             mu[j] = min(mu[j] * al.penalty_increase, al.penalty_max)
         V_prev = V
         lam = lhat
