@@ -244,7 +244,7 @@ class _PointingTSO3(Bound):
         self.labels = ("cos(angle) - cos(min_angle)",)
 
     def value(self, q, v):
-        return (np.einsum("i,nij,j->n", self.d, q, self.a) - self.cos_min)[:, None]
+        return (np.einsum("nji,j->ni", q, self.d) @ self.a - self.cos_min)[:, None]  # as derivatives(): b.a
 
     def derivatives(self, q, v, w):
         a = self.a
