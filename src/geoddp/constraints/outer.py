@@ -39,7 +39,7 @@ import numpy as np
 from ..contract import Trajectory
 from ..result import Result
 from ..solver import SolverOptions, solve
-from ..solver.status import STATUS_LINALG, STATUS_NON_FINITE
+from ..solver.status import STATUS_LINALG, STATUS_MAX_ITER, STATUS_NON_FINITE
 from ..validate import InputError
 from .augmented import multiplier_estimate
 
@@ -155,6 +155,11 @@ def solve_constrained(problem: Any, options: SolverOptions | None = None,
                 break
             omega = opt.tol  # the final inner solve at the solver's own tolerance
             continue
+        if r.status == STATUS_MAX_ITER:
+            # the inner solve ran out of iterations short of its tolerance: its point says nothing
+            # about the multipliers and penalties yet; it goes on, warm-started, with the same ones
+            # (max_outer_iter bounds the repeats)
+            continue
         # penalties: raised where the violation did not fall enough. Infeasible: a constraint still
         # violated with its penalty at penalty_max, or whose violation fell by less than 1 % over
         # its last STALL_INCREASES penalty increases (a factor 1000 by default) while its penalty
@@ -163,9 +168,10 @@ def solve_constrained(problem: Any, options: SolverOptions | None = None,
         # second condition keeps a feasible problem whose constraint needs a large mu before it
         # moves at all, e.g. the keep-out cone at mu <= 1e3, from being called infeasible.)
         stuck = [j for j in range(len(placed)) if V[j] > al.constraint_tol and V[j] > al.violation_decrease * V_prev[j]]
-        stalled = [j for j in stuck if mu[j] >= al.penalty_max
-                   or (len(raised[j]) >= STALL_INCREASES and V[j] > 0.99 * raised[j][-STALL_INCREASES]
-                       and 0.5 * mu[j] * float(np.sum(_feasibility(cs[j], placed[j].bound.equality) ** 2)) > abs(J))]
+        # Only a converged inner solve (a minimiser of the augmented Lagrangian) tells.
+        stalled = [j for j in stuck if r.converged and (mu[j] >= al.penalty_max or (
+            len(raised[j]) >= STALL_INCREASES and V[j] > 0.99 * raised[j][-STALL_INCREASES]
+            and 0.5 * mu[j] * float(np.sum(_feasibility(cs[j], placed[j].bound.equality) ** 2)) > abs(J)))]
         if stalled:
             j = stalled[0]
             status = STATUS_INFEASIBLE
@@ -176,7 +182,8 @@ def solve_constrained(problem: Any, options: SolverOptions | None = None,
             lam = lhat
             break
         for j in stuck:
-            raised[j].append(V[j])
+            if r.converged:
+                raised[j].append(V[j])
             mu[j] = min(mu[j] * al.penalty_increase, al.penalty_max)
         V_prev = V
         lam = lhat
