@@ -13,6 +13,7 @@ forward kinematics (:func:`visual_placements` gives the per-frame world placemen
 target pose as a translucent ghost, frame targets as triads, an optional ``trail`` and a camera
 framing the whole trajectory.
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures;
+  :func:`plot_keep_out`: a body axis's path on the sphere around a pointing keep-out cone;
   :func:`plot_simulation`: the Monte Carlo bundles and error histograms (issue 16).
 """
 import warnings
@@ -25,6 +26,7 @@ with warnings.catch_warnings():
 
 from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
+from .keep_out import plot_keep_out
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
 from .model import load_visual_model, visual_placements
 from .simulation import plot_simulation
@@ -38,6 +40,7 @@ __all__ = [
     "export_html",
     "load_visual_model",
     "plot_convergence",
+    "plot_keep_out",
     "plot_simulation",
     "plot_trajectory",
     "replay",
