@@ -21,6 +21,7 @@ expressions) must equal geoddp's J to 1e-12 relative: the two problems are the s
     python benchmarks/keep_out_ipopt.py            # the table: expansion, J*, J_ipopt, relative
                                                    # difference, max violation, min angle,
                                                    # outer / inner iterations, time
+    python benchmarks/keep_out_ipopt.py --figure docs/figures/keep_out.png   # and the guide's figure
 
 Timings are wall times of one run each on whatever machine runs it (geoddp: the whole outer loop;
 IPOPT: its solve, without building the NLP).
@@ -173,12 +174,22 @@ def min_angle_deg(cp: Any, R: np.ndarray) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import argparse
+
     from geoddp.solver import SolverOptions, solve
 
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--figure", help="also draw the keep-out figure (geoddp.viz.plot_keep_out) of the switch "
+                    "solve against the unconstrained one into this PNG (the guide's: docs/figures/keep_out.png)")
+    args = ap.parse_args(argv)
     cp = keep_out_problem()
     free = solve(cp.problem, SolverOptions(verbose=False))
     print(f"unconstrained: J* = {free.cost:.12f}, smallest angle of the boresight to the direction "
           f"{min_angle_deg(cp, free.q):.4f} deg (the cone is {_parts(cp)['min_angle_deg']:g} deg)")
+    if args.figure:
+        from geoddp.viz import plot_keep_out
+
+        print(f"wrote {plot_keep_out(solve_geoddp(cp, 'switch'), args.figure, unconstrained=free).path}")
     ip = solve_ipopt(cp)
     print(f"IPOPT: {ip['status']}, {ip['iterations']} iterations, {ip['time_s']:.2f} s; dynamics residual "
           f"{ip['dynamics_residual']:.1e}, max cone value {ip['max_cone']:.1e}")

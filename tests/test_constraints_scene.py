@@ -158,3 +158,15 @@ def test_geoddp_run_satellite_keep_out(tmp_path):
     d = json.loads(out.read_text())
     assert d["converged"] is True and d["constraints"]["max_violation"] <= 1e-8
     assert d["cost"] == pytest.approx(908.7470197, rel=1e-8)
+
+
+def test_simulate_flies_a_constrained_plan_but_refuses_mpc():
+    """The plan of a constrained scene flies open loop and with its feedback; MPC would re-solve
+    without the constraints, so it is refused, naming the key."""
+    from geoddp.simulate import simulate_scene
+
+    mc = simulate_scene("satellite_keep_out", {"policy": "feedback"})
+    assert mc.statistics()["plan_cost"] == pytest.approx(908.7470197, rel=1e-8)
+    with pytest.raises(InputError) as info:
+        simulate_scene("satellite_keep_out", {"policy": "mpc"})
+    assert info.value.parameter == "[simulation].policy" and "constraints" in info.value.detail
