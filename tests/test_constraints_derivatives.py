@@ -311,3 +311,23 @@ def test_gauss_newton_first_order_keeps_only_the_penalty_curvature(rng):
     l2, b2 = al.linearise(traj, 2), p.linearise(traj, 2)
     np.testing.assert_allclose(l2.l_xx[1:] - b2.l_xx[1:], gn[:-1] + Hw[:-1], rtol=1e-12, atol=1e-12)
     assert np.abs(Hw).max() > 1e-3  # the curvature is there to drop
+
+
+def test_weights_as_a_function_of_the_value_are_the_weights_at_the_value(rng):
+    """derivatives(q, v, f) with f a function of c (what the augmented Lagrangian hands over, so a
+    frame's kinematics run once) equals derivatives(q, v, f(c)), for every kind."""
+    sat, arm = _sat(), _arm()
+    pm = arm.pin_model
+    cases = [(sat, PointingKeepOut([1.0, 0.2, 0.0], D, 20.0)), (sat, StateConstraint(q=[0.0, 0.0, 0.6, 0.8])),
+             (arm, PointingKeepOut([1.0, 0.0, 0.0], [0.0, 0.3, 1.0], 40.0, frame="ee")),
+             (arm, FrameSphereKeepOut("ee", [0.4, 0.1, 0.2], 0.3)), (arm, FrameHalfspace("ee", [1.0, 0.0, 0.0], 0.1)),
+             (arm, FramePlacementConstraint("ee", pin.SE3(_rotation(rng, "random"), np.ones(3)))),
+             (arm, StateConstraint(q=pin.neutral(pm), v=np.zeros(pm.nv))), (arm, JointLimits(joints={"elbow": [-1, 1]}))]
+    for model, c in cases:
+        b = c.bind(model)
+        q, v = _states(model, rng, "random")
+        f = lambda cc: np.maximum(2.0 + 3.0 * cc, 0.0)  # noqa: E731  (a multiplier estimate)
+        c1, J1, H1 = b.derivatives(q, v, f)
+        c2, J2, H2 = b.derivatives(q, v, f(b.value(q, v)))
+        for x, y in ((c1, c2), (J1, J2), (H1, H2)):
+            np.testing.assert_array_equal(x, y)

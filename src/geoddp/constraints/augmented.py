@@ -135,9 +135,12 @@ class AugmentedLagrangianProblem:
         exact = not lin.gauss_newton
         for p, lam, mu in zip(self.constraints, self.multipliers, self.penalties):
             q, v = p.states(traj)
-            c = p.bound.value(q, v)
-            lhat = multiplier_estimate(c, lam, mu, p.bound.equality)
-            _, J, Hw = p.bound.derivatives(q, v, lhat if exact else None)
+            eq = p.bound.equality
+            # the Hessian's weights are the multiplier estimates at c: handed over as a function of
+            # c, so the constraint evaluates its kinematics once
+            c, J, Hw = p.bound.derivatives(q, v, (lambda c_, lam=lam, mu=mu, eq=eq: multiplier_estimate(c_, lam, mu, eq))
+                                           if exact else None)
+            lhat = multiplier_estimate(c, lam, mu, eq)
             grad = np.einsum("nij,ni->nj", J, lhat)
             on = np.ones_like(c) if p.bound.equality else (lam + mu * c > 0.0).astype(float)
             hess = mu * np.einsum("nia,ni,nib->nab", J, on, J)

@@ -138,10 +138,12 @@ class Bound:
         """c (N, nc) at states q (N, ...), v (N, nv)."""
         return self.derivatives(q, v, None)[0]
 
-    def derivatives(self, q: np.ndarray, v: np.ndarray, w: np.ndarray | None
+    def derivatives(self, q: np.ndarray, v: np.ndarray, w: Any
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """c (N, nc), its Jacobian (N, nc, nx) and, for weights w (N, nc), the contracted Hessian
-        sum_i w[:, i] Hess c_i (N, nx, nx), symmetric (None when w is None)."""
+        sum_i w[:, i] Hess c_i (N, nx, nx), symmetric (None when w is None). ``w`` may also be a
+        function of c (N, nc) returning the weights: the augmented Lagrangian's multiplier
+        estimates depend on c, and a frame's kinematics are then computed once."""
         raise NotImplementedError
 
 
@@ -252,6 +254,7 @@ class _PointingTSO3(Bound):
         c = (b @ a - self.cos_min)[:, None]
         J = np.zeros((q.shape[0], 1, 6))
         J[:, 0, :3] = np.cross(a, b)
+        w = w(c) if callable(w) else w
         if w is None:
             return c, J, None
         Hth = sym(np.einsum("i,nj->nij", a, b)) - (b @ a)[:, None, None] * np.eye(3)
@@ -270,8 +273,10 @@ class _PointingFrame(Bound):
 
     def derivatives(self, q, v, w):
         Q = _configurations(self.model, q)
-        y, Jy, Hy = self.kin.vector(Q, self.a, None if w is None else w[:, :1] * self.d)
-        c = (y @ self.d - self.cos_min)[:, None]
+        frames = self.kin.jacobians(Q)
+        c = (frames[0] @ self.a @ self.d - self.cos_min)[:, None]
+        w = w(c) if callable(w) else w
+        y, Jy, Hy = self.kin.vector(Q, self.a, None if w is None else w[:, :1] * self.d, frames)
         J = _pad(np.einsum("i,nij->nj", self.d, Jy)[:, None], self.kin.nv)
         return c, J, None if Hy is None else _pad_hessian(Hy, self.kin.nv)
 
@@ -367,15 +372,15 @@ class _FramePoint(Bound):
 
     def derivatives(self, q, v, w):
         Q = _configurations(self.model, q)
+        frames = self.kin.jacobians(Q)
+        c, dc, d2c = self.kind.point_value(frames[1])  # the point first: the Hessian's weights need dc/dp
+        w = w(c[:, None]) if callable(w) else w
+        _, Jp, Hp = self.kin.point(Q, None if w is None else w[:, :1] * dc, frames)
+        J = _pad(np.einsum("ni,nij->nj", dc, Jp)[:, None], self.kin.nv)
         if w is None:
-            p, Jp, _ = self.kin.point(Q)
-            c, dc, _ = self.kind.point_value(p)
-            return c[:, None], _pad(np.einsum("ni,nij->nj", dc, Jp)[:, None], self.kin.nv), None
-        p, _, _ = self.kin.point(Q)  # the point first: the Hessian's weights need dc/dp there
-        c, dc, d2c = self.kind.point_value(p)
-        _, Jp, Hp = self.kin.point(Q, w[:, :1] * dc)
+            return c[:, None], J, None
         Hw = Hp + w[:, 0, None, None] * np.einsum("nai,ab,nbj->nij", Jp, d2c, Jp)
-        return c[:, None], _pad(np.einsum("ni,nij->nj", dc, Jp)[:, None], self.kin.nv), _pad_hessian(Hw, self.kin.nv)
+        return c[:, None], J, _pad_hessian(Hw, self.kin.nv)
 
 
 # ------------------------------------------------------------------ joints
@@ -543,6 +548,9 @@ class _JointRows(Bound):
         J = np.broadcast_to(self.J, (c.shape[0],) + self.J.shape).copy()
         return c, J, None if w is None else np.zeros((c.shape[0], self.nx, self.nx))
 
+    def value(self, q, v):
+        return self.sign * (self._coordinates(q, v) - self.bounds)
+
 
 def _q_index(model: Any, iv: int) -> int:
     """The configuration index of a 1-dof vector joint's tangent index iv."""
@@ -679,11 +687,17 @@ class _State(Bound):
         N, nv = v.shape[0], self.nv
         c = np.zeros((N, self.rows))
         J = np.zeros((N, self.rows, self.nx))
-        Hw = None if w is None else np.zeros((N, self.nx, self.nx))
         row = 0
-        if self.q_ref is not None:
-            r = self._log(q)
+        r = self._log(q) if self.q_ref is not None else None
+        if r is not None:
             c[:, :nv] = r
+            row = nv
+        if self.v_ref is not None:
+            c[:, row:row + nv] = v - self.v_ref
+            J[:, row:row + nv, nv:] = np.eye(nv)
+        w = w(c) if callable(w) else w
+        Hw = None if w is None else np.zeros((N, self.nx, self.nx))
+        if r is not None:
             J[:, :nv, :nv] = np.eye(nv)
             for g in self.groups:
                 G = cfg.NONCOMMUTATIVE.get(g.kind)
@@ -698,10 +712,6 @@ class _State(Bound):
                     gw = np.einsum("npi,np->ni", Ji, w[:, s])
                     Dg = np.einsum("np,npab->nab", gw, D)
                     Hw[:, s, s] = -sym(np.einsum("nai,nab,nbj->nij", Ji, Dg, Ji))
-            row = nv
-        if self.v_ref is not None:
-            c[:, row:row + nv] = v - self.v_ref
-            J[:, row:row + nv, nv:] = np.eye(nv)
         return c, J, Hw
 
 

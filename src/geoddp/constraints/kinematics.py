@@ -37,18 +37,26 @@ Hessians are computed only at nodes whose weights are not all zero (an inactive 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pinocchio as pin
 
 from .. import kernels
 from ..lie import hat
 
-__all__ = ["FrameKinematics", "frame_kinematic_hessian", "sym"]
+__all__ = ["FrameKinematics", "Frames", "frame_kinematic_hessian", "sym"]
 
 
 def sym(A: np.ndarray) -> np.ndarray:
     """(A + A^T) / 2 over the last two axes."""
     return 0.5 * (A + np.swapaxes(A, -1, -2))
+
+
+#: (R (N, 3, 3), p (N, 3), J (N, 6, nv)): a frame's placements and LOCAL Jacobians at N nodes
+Frames = tuple[np.ndarray, np.ndarray, np.ndarray]
+#: residual weights (N, nr), a function of the residual (N, nr) giving them, or None
+Weights = np.ndarray | Callable[[np.ndarray], np.ndarray] | None
 
 
 def frame_kinematic_hessian(model: pin.Model, data: pin.Data, frame_id: int) -> np.ndarray:
@@ -118,13 +126,14 @@ class FrameKinematics:
         return sym(S)
 
     # ---------------------------------------------------------------- residuals
-    def vector(self, Q: np.ndarray, a: np.ndarray, w: np.ndarray | None = None
+    def vector(self, Q: np.ndarray, a: np.ndarray, w: np.ndarray | None = None, frames: Frames | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """The frame's unit vector ``a`` (3,) in the world, y = R_f a.
 
         Returns y (N, 3), its Jacobian dy/ddq (N, 3, nv) = -R_f hat(a) J_ang and, for world
-        weights w (N, 3), sum_i w_i Hess y_i (N, nv, nv) (else None)."""
-        R, _, J = self.jacobians(Q)
+        weights w (N, 3), sum_i w_i Hess y_i (N, nv, nv) (else None). ``frames``: the result of
+        :meth:`jacobians` at Q when already computed."""
+        R, _, J = self.jacobians(Q) if frames is None else frames
         y = R @ a
         Ja = J[:, 3:]
         Jy = -np.einsum("nij,jk,nkl->nil", R, hat(a), Ja)
@@ -138,11 +147,12 @@ class FrameKinematics:
         Hth = sym(np.einsum("i,nj->nij", a, b)) - np.einsum("ni,i->n", b, a)[:, None, None] * np.eye(3)
         return y, Jy, sym(np.einsum("nai,nab,nbj->nij", Ja, Hth, Ja)) + self.hessian_contraction(Q, g6)
 
-    def point(self, Q: np.ndarray, w: np.ndarray | None = None
+    def point(self, Q: np.ndarray, w: np.ndarray | None = None, frames: Frames | None = None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """The frame's origin p (N, 3) in the world (m), its Jacobian (N, 3, nv) = R_f J_lin and,
-        for world weights w (N, 3), sum_i w_i Hess p_i (N, nv, nv) (else None)."""
-        R, p, J = self.jacobians(Q)
+        for world weights w (N, 3), sum_i w_i Hess p_i (N, nv, nv) (else None). ``frames``: as
+        for :meth:`vector`."""
+        R, p, J = self.jacobians(Q) if frames is None else frames
         Jl, Ja = J[:, :3], J[:, 3:]
         Jp = R @ Jl
         if w is None:
@@ -155,13 +165,14 @@ class FrameKinematics:
         cross = -np.einsum("nai,nab,nbj->nij", Ja, hat(u), Jl)
         return p, Jp, sym(cross) + self.hessian_contraction(Q, g6)
 
-    def log6(self, Q: np.ndarray, M_ref: np.ndarray, w: np.ndarray | None = None
+    def log6(self, Q: np.ndarray, M_ref: np.ndarray, w: Weights = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """r = log6(M_ref^-1 oMf) (N, 6) [linear (m); angular (rad)], the residual of the
         frame_placement cost (geoddp.multibody_costs.FramePlacement), its Jacobian Jr(r)^-1 J
         (N, 6, nv) and, for weights w (N, 6), sum_i w_i Hess r_i (N, nv, nv) (else None).
 
-        M_ref: (4, 4) homogeneous target placement."""
+        M_ref: (4, 4) homogeneous target placement. ``w`` may also be a function of r giving
+        the weights (the augmented Lagrangian's multiplier estimates depend on r)."""
         N = Q.shape[0]
         R, p, J = self.jacobians(Q)
         Mref_inv = pin.SE3(M_ref[:3, :3], M_ref[:3, 3]).inverse()
@@ -177,6 +188,8 @@ class FrameKinematics:
             r[n] = pin.log6(E).vector
             Ji[n] = kernels.se3_right_jacobian(r[n], True)
             Jr_res[n] = Ji[n] @ J[n]
+        if callable(w):
+            w = w(r)
         if w is None:
             return r, Jr_res, None
         g = np.einsum("nji,nj->ni", Ji, w)  # Ji^T w
