@@ -52,6 +52,9 @@ def test_the_builtin_keep_out_scene():
     assert isinstance(cp, ConstrainedProblem) and cp.options.constraint_tol == 1e-8
     # the paper's problem underneath, unchanged
     assert load_scene("satellite_paper").has_constraints is False
+    # a scene read twice is one scene (constraints compare by value)
+    assert load_scene("satellite_keep_out") == spec
+    assert spec.with_overrides(constraints=(PointingKeepOut([1, 0, 0], [0, 0, 1], 20.0),)) != spec
 
 
 def test_satellite_scene_tables_of_every_kind_it_can_take():

@@ -170,6 +170,14 @@ class Constraint:
         """JSON-ready parameters (what the result reports and the figures draw)."""
         raise NotImplementedError
 
+    def __eq__(self, other: object) -> bool:
+        # by value, as the scene specs that hold constraints compare (a file read twice is one scene)
+        if not isinstance(other, Constraint):
+            return NotImplemented
+        return type(self) is type(other) and self.describe() == other.describe()
+
+    __hash__ = None  # type: ignore[assignment]  # equal by value, mutable
+
     def _label(self, name: Any) -> str:
         if name is None:
             return self.type
