@@ -55,6 +55,7 @@ FLOORS: dict[str, int] = {
     "geoddp.problem": 2,
     # 3: the solver (loop, policy, callbacks, passes, options, status), its result, the reference solver
     "geoddp.solver": 3,
+    "geoddp.constraints": 3,  # constraint kinds, the augmented Lagrangian and its outer loop around the solver
     # 4: scenes: readers, builders, built-in scenes, the [simulation] table, solve_scene
     "geoddp.scene": 4,
     # 5: what reads Results: viewers and figures, closed-loop simulation, sweeps

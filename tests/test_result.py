@@ -58,7 +58,7 @@ def test_v0_json_still_loads_and_writes_the_same_fields(kind, tmp_path):
     assert type(r) is (MultibodyResult if kind == "multibody" else SatelliteResult) and isinstance(r, Result)
     assert r.integrator == old["integrator"] and r.dt == old["dt"] and r.horizon == old["horizon"]
     new = json.loads(r.write_json(tmp_path / "again.json").read_text())
-    assert set(new) == V0_FIELDS | {"model", "optimality", "limits", "active_set"}
+    assert set(new) == V0_FIELDS | {"model", "optimality", "limits", "active_set", "constraints"}
     for key in V0_FIELDS - {"solve_time_s"}:
         a, b = old[key], new[key]
         if isinstance(a, list) and a and not isinstance(a[0], str):

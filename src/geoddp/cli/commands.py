@@ -47,6 +47,19 @@ def _print_limits(result) -> None:
           + (f"  KKT residual = {kkt:.3e}" if kkt is not None else ""))
 
 
+def _print_constraints(result) -> None:
+    """With hard constraints ([[constraints]], [[terminal_constraints]]): per constraint its largest
+    violation and active nodes, and the outer and inner iteration counts."""
+    report = result.extra.get("constraints")
+    if not report:
+        return
+    for item in report["items"]:
+        print(f"constraint {item['name']!r} ({item['type']}, {item['where']}): max violation = "
+              f"{item['max_violation']:.3e}  active at {item['active_nodes']} of {len(item['nodes'])} nodes")
+    print(f"constraints: max violation = {report['max_violation']:.3e} (tol {report['constraint_tol']:.0e})  "
+          f"{report['outer_iterations']} outer, {report['inner_iterations']} inner iterations")
+
+
 def _summary_row(name: str, r) -> str:
     return (f"| {name:8s} | {r.iterations:5d} | {r.cost:.12f} | {r.grad_norm:9.2e} | "
             f"{r.attitude_error_deg:8.4f} | {r.solve_time_s * 1e3:9.1f} | {r.status} |")
@@ -78,6 +91,7 @@ def _solve_and_report(spec, args) -> int:
               f"attitude error = {result.attitude_error_deg:.4f} deg  |Omega_H - Omega_d| = "
               f"{result.angular_velocity_error:.3e} rad/s  solve time = {result.solve_time_s:.3f} s")
     _print_limits(result)
+    _print_constraints(result)
     print(f"status: {result.status} ({result.message})")
     if args.json:
         wrote(result.write_json(args.json))

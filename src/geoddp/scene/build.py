@@ -28,12 +28,28 @@ AnySceneSpec = Union[SceneSpec, MultibodySceneSpec]
 def build_problem(spec: AnySceneSpec):
     """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0); the
     model's backend is chosen when it is built (TSO(3) closed forms for the satellite). A fresh
-    model each call. The shared tables (:mod:`.common`) act on the problem here, once for every kind."""
+    model each call. The shared tables (:mod:`.common`) act on the problem here, once for every kind:
+    a scene with constraints gives a :class:`geoddp.constraints.ConstrainedProblem` around it."""
     general = spec.general() if isinstance(spec, SceneSpec) else spec
     problem = _on_tso3(general) or _multibody(general)
     if general.has_limits:
         problem = problem.with_limits(control_limits(general, problem.model))
+    if general.has_constraints:
+        problem = constrained_problem(general, problem)
     return problem
+
+
+def constrained_problem(spec: AnySceneSpec, problem: Any) -> Any:
+    """``problem`` with the scene's ``[[constraints]]`` and ``[[terminal_constraints]]``: a
+    :class:`geoddp.constraints.ConstrainedProblem` (its tolerance ``[solver].constraint_tol``);
+    errors name the constraint's key path and the file."""
+    from ..constraints import ConstrainedProblem, ConstraintOptions
+
+    try:
+        return ConstrainedProblem(problem, spec.constraints, spec.terminal_constraints,
+                                  ConstraintOptions(constraint_tol=spec.constraint_tol))
+    except InputError as e:
+        raise e.with_source(spec.source) from None
 
 
 def control_limits(spec: AnySceneSpec, model: Any = None) -> tuple[np.ndarray, np.ndarray] | None:

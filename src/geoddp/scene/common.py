@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from .. import validate as v
+from ..constraints import Constraint
+from ..constraints.problem import DEFAULT_CONSTRAINT_TOL
 from ..problem.limits import ControlLimits, check_inside
 from .simulation import SimulationSpec
 from ..solver.options import DEFAULT_EXPANSION, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, EXPANSIONS
@@ -28,7 +30,8 @@ DEFAULT_SECOND_ORDER = "exact"
 # [table] -> key -> required?  (merged into every kind's schema)
 TABLES: Schema = {
     "solver": {"expansion": False, "switch_ratio": False, "tol": False, "rtol": False, "grad_tol": False,
-               "grad_rtol": False, "max_iter": False, "second_order": False, "initial_controls": False},
+               "grad_rtol": False, "max_iter": False, "second_order": False, "initial_controls": False,
+               "constraint_tol": False},
     "simulation": {f.name: False for f in dataclasses.fields(SimulationSpec)},
     "limits": {"control_min": False, "control_max": False, "effort_limits": False},
 }
@@ -65,6 +68,11 @@ class CommonSpec:
         effort_limits: ``[limits].effort_limits``: "urdf" (multibody scenes: every input is a
             joint motor bounded by its URDF effort, -effort <= u <= effort; combined with
             control_min / control_max by taking the tighter bound) or None.
+        constraints, terminal_constraints: the ``[[constraints]]`` (every node k = 1..H) and
+            ``[[terminal_constraints]]`` (k = H) tables as :mod:`geoddp.constraints` objects
+            (:mod:`geoddp.scene.constraints`); empty: an unconstrained problem.
+        constraint_tol: ``[solver].constraint_tol``, the tolerance the constraints are met to
+            (:class:`geoddp.constraints.ConstraintOptions`).
     """
 
     expansion: str = DEFAULT_EXPANSION
@@ -79,6 +87,9 @@ class CommonSpec:
     control_min: np.ndarray | None = None
     control_max: np.ndarray | None = None
     effort_limits: str | None = None
+    constraints: tuple = ()
+    terminal_constraints: tuple = ()
+    constraint_tol: float = DEFAULT_CONSTRAINT_TOL
 
     def _check_common(self, second_order_kinds: tuple[str, ...], nu: int) -> None:
         """Validate the shared fields under their field names (direct construction, with_overrides);
@@ -101,6 +112,18 @@ class CommonSpec:
         put("control_max", hi)
         if self.effort_limits is not None:
             put("effort_limits", v.choice(self.effort_limits, "effort_limits", EFFORT_LIMITS))
+        for name in ("constraints", "terminal_constraints"):
+            items = tuple(getattr(self, name))
+            for i, c in enumerate(items):
+                if not isinstance(c, Constraint):
+                    raise v.InputError(f"{name}[{i}]", f"expected a geoddp.constraints constraint, got {type(c).__name__}")
+            put(name, items)
+        put("constraint_tol", v.nonnegative_float(self.constraint_tol, "constraint_tol"))
+
+    @property
+    def has_constraints(self) -> bool:
+        """True if the scene has hard constraints (``[[constraints]]``, ``[[terminal_constraints]]``)."""
+        return bool(self.constraints or self.terminal_constraints)
 
     @property
     def has_limits(self) -> bool:
@@ -132,7 +155,8 @@ def control_bounds(lower: Any, upper: Any, nu: int, names: tuple[str, str]) -> t
     return (None if lower is None else readonly(lo[0])), (None if upper is None else readonly(hi[0]))
 
 
-def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: Any = None) -> dict[str, Any]:
+def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: Any = None,
+                constraint_model: Any = None, default_frame: str | None = None) -> dict[str, Any]:
     """The shared tables as :class:`CommonSpec` keyword arguments.
 
     Args:
@@ -140,11 +164,19 @@ def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: 
         second_order_kinds: the kind's choices for ``[solver].second_order``.
         nu: the number of inputs m (for per-input values).
         model: the kind's ``pin.Model`` if it has one at parse time (multibody), else None.
+        constraint_model: the ``pin.Model`` the constraint tables are checked against when it is
+            not ``model`` (the satellite's one body on a spherical root).
+        default_frame: the frame a ``pointing_keep_out`` constraint without ``frame`` uses (the
+            satellite's body), or None.
 
     ``[solver].initial_controls`` has forms that depend on the kind ("hover"): each kind reads it.
     ``[limits]``: control_min / control_max (a number or nu numbers, -inf / inf allowed) and, for a
     multibody scene (``model`` given), effort_limits = "urdf".
+    ``[[constraints]]``, ``[[terminal_constraints]]`` (:mod:`geoddp.scene.constraints`): checked
+    against ``constraint_model`` or ``model``.
     """
+    from .constraints import read_constraints
+
     s = r.table("solver")
     get = s.get
     lim = r.table("limits")
@@ -156,7 +188,12 @@ def read_common(r: Reader, second_order_kinds: tuple[str, ...], nu: int, model: 
         if model is None:
             raise r.err("[limits].effort_limits", "only multibody scenes read joint efforts from their URDF; "
                         "give control_min / control_max")
+    pm = constraint_model if constraint_model is not None else model
+    path, terminal = read_constraints(r, pm, default_frame) if pm is not None else ((), ())
     return dict(
+        constraints=path, terminal_constraints=terminal,
+        constraint_tol=r.check(v.nonnegative_float, get("constraint_tol", DEFAULT_CONSTRAINT_TOL),
+                               "[solver].constraint_tol"),
         control_min=lo, control_max=hi, effort_limits=effort,
         simulation=r.check(_simulation, r.table("simulation")) if "simulation" in r.data else None,
         expansion=r.check(v.choice, get("expansion", DEFAULT_EXPANSION), "[solver].expansion", EXPANSIONS),

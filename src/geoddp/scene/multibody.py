@@ -49,7 +49,8 @@ Schema (``?`` = optional, with its default; paths as they appear in error messag
     [solver]?    as for satellite scenes (expansion, switch_ratio, tol | rtol, grad_tol | grad_rtol, max_iter,
                  second_order? = "exact"; "paper" too on a spherical root without gravity);
                  initial_controls? = "quasi_static" (the default) | "gravity_compensation" (the same)
-                 | "hover" | "zero" | (m) | (H x m)
+                 | "hover" | "zero" | (m) | (H x m); constraint_tol? = 1e-8
+    [[constraints]]?, [[terminal_constraints]]?  hard constraints (geoddp.scene.constraints)
 
 Weights are positive semidefinite (PSD). Running costs are summed over the H nodes without a dt
 factor (Crocoddyl multiplies running costs by dt: divide its weights by dt to compare).
@@ -73,18 +74,19 @@ import pinocchio as pin
 from .. import validate as v
 from ..validate import InputError
 from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
+from .constraints import ARRAYS as CONSTRAINT_ARRAYS
+from .frames import POSE_KEYS, ROTATION_FORMS, placement_reference, read_configuration, read_frame
 from .reader import Reader, Schema, check_urdf
 
 COST_TYPES = ("frame_placement", "frame_rotation", "frame_translation", "state_regularisation", "control")
 DISTANCES = ("geodesic", "chordal")  # of a frame_rotation term
 ACTUATION_TYPES = ("identity", "matrix", "thrusters", "quadrotor", "joints")
 DEFAULT_INTEGRATOR = "euler"
-ROTATION_FORMS = ("quaternion", "rotation", "axis")  # "axis" goes with "angle_deg"
 # inputs holding the start posture against gravity (least squares; "hover": only where exact)
 HOLDING = ("quasi_static", "gravity_compensation", "hover")
 INITIAL_CONTROLS = HOLDING + ("zero",)  # [solver].initial_controls by name; default "quasi_static"
 
-ARRAYS = ("running_costs", "terminal_costs")
+ARRAYS = ("running_costs", "terminal_costs") + CONSTRAINT_ARRAYS
 SCHEMA: Schema = {  # [table] -> key -> required?
     "model": {"kind": True, "urdf": False, "robot": False, "package_dirs": False, "srdf": False, "root": False,
               "gravity": False, "inertia": False},
@@ -106,9 +108,8 @@ _ACTUATION_KEYS = {
 }
 _ACTUATION_REQUIRED = {"matrix": ("matrix",), "thrusters": ("positions", "directions"),
                        "quadrotor": ("arm_length", "torque_coefficient"), "joints": ("joints",)}
-_POSE_KEYS = ("translation", "quaternion", "rotation", "axis", "angle_deg")
 _COST_KEYS = {
-    "frame_placement": ("frame", "weight", "at_configuration", "gauss_newton") + _POSE_KEYS,
+    "frame_placement": ("frame", "weight", "at_configuration", "gauss_newton") + POSE_KEYS,
     "frame_rotation": ("frame", "weight", "at_configuration", "gauss_newton", "quaternion", "rotation", "axis",
                        "angle_deg", "distance"),
     "frame_translation": ("frame", "weight", "at_configuration", "gauss_newton", "translation"),
@@ -282,12 +283,6 @@ def second_order_kinds(root: str, gravity: bool) -> tuple[str, ...]:
 
 # --------------------------------------------------------------------------------------
 # parsing
-
-
-def _frame_list(model: pin.Model, limit: int = 8) -> str:
-    names = [f.name for f in model.frames if f.name != "universe"]
-    shown = ", ".join(repr(n) for n in names[:limit])
-    return shown + (f", ... ({len(names)} frames)" if len(names) > limit else "")
 
 
 def _joint_names(model: pin.Model) -> list[str]:
@@ -521,14 +516,14 @@ def _actuation(r: Reader, t: Mapping[str, Any], pm: pin.Model, root: str) -> np.
 
 
 def _initial_q(r: Reader, t: Mapping[str, Any], pm: pin.Model, root: str, srdf: Path | None = None) -> np.ndarray:
-    pose = [k for k in _POSE_KEYS if k in t]
+    pose = [k for k in POSE_KEYS if k in t]
     if "q" in t:
         if pose:
-            raise r.err("[initial]", f"expected q or a root pose ({', '.join(_POSE_KEYS)}), got q and {', '.join(pose)}")
+            raise r.err("[initial]", f"expected q or a root pose ({', '.join(POSE_KEYS)}), got q and {', '.join(pose)}")
         q = t["q"]
         if isinstance(q, (str, Mapping)):
             return _posture(r, q, pm, srdf)
-        return _configuration(r, q, pm, "[initial].q")
+        return read_configuration(r, q, pm, "[initial].q")
     q = pin.neutral(pm)
     R = r.rotation(t, "[initial]", ROTATION_FORMS, required=False)
     if "translation" in t:
@@ -560,14 +555,6 @@ def _posture(r: Reader, val: Any, pm: pin.Model, srdf: Path | None) -> np.ndarra
     return r.check(robots.configuration, pm, named, val.get("posture", "neutral"), joints, "[initial].q.posture")
 
 
-def _configuration(r: Reader, val: Any, pm: pin.Model, path: str) -> np.ndarray:
-    q = r.check(v.finite_array, val, path, (pm.nq,))
-    if not pin.isNormalized(pm, q, 1e-9):
-        raise r.err(path, "expected a configuration with unit quaternions and unit (cos, sin) pairs "
-                    "(to 1e-9), got a non-normalised one")
-    return q
-
-
 @dataclass
 class _CostContext:
     r: Reader
@@ -575,25 +562,6 @@ class _CostContext:
     q0: np.ndarray
     m: int
     hover: Any
-
-
-def _frame_kinematics(r: Reader, t: Mapping[str, Any], path: str, pm: pin.Model) -> tuple[str, pin.SE3 | None]:
-    if "frame" not in t:
-        raise r.err(f"{path}.frame", "missing required key (a frame name of the model)")
-    frame = t["frame"]
-    if not isinstance(frame, str):
-        raise r.err(f"{path}.frame", f"expected a frame name (string), got {frame!r}")
-    if not pm.existFrame(frame):
-        guess = v.closest(frame, [f.name for f in pm.frames])
-        hint = f"did you mean {guess!r}? " if guess else ""
-        raise r.err(f"{path}.frame", f"expected a frame of model {pm.name!r}, got {frame!r}; {hint}"
-                    f"frames: {_frame_list(pm)}")
-    if "at_configuration" in t:
-        q = _configuration(r, t["at_configuration"], pm, f"{path}.at_configuration")
-        data = pm.createData()
-        pin.framesForwardKinematics(pm, data, q)
-        return frame, data.oMf[pm.getFrameId(frame)].copy()
-    return frame, None
 
 
 def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: bool) -> CostTermSpec:
@@ -616,21 +584,14 @@ def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: boo
         return t["weight"]
 
     if kind in ("frame_placement", "frame_rotation", "frame_translation"):
-        frame, M_at = _frame_kinematics(r, t, path, pm)
-        refs = [k for k in _POSE_KEYS if k in t]
+        frame, M_at = read_frame(r, t, path, pm)
+        refs = [k for k in POSE_KEYS if k in t]
         if M_at is not None and refs:
             raise r.err(f"{path}.at_configuration", f"expected either at_configuration or an explicit reference, "
                         f"got both (with {', '.join(refs)})")
         if kind == "frame_placement":
             W = r.weight(need_weight(), f"{path}.weight", 6)
-            if M_at is None:
-                if "translation" not in t:
-                    raise r.err(f"{path}.translation", "missing: a frame_placement reference needs translation and a "
-                                "rotation (quaternion | rotation | axis + angle_deg), or at_configuration")
-                p = r.check(v.finite_array, t["translation"], f"{path}.translation", (3,))
-                R = r.rotation(t, path, ROTATION_FORMS)
-                M_at = pin.SE3(R, p)
-            ref = M_at.homogeneous
+            ref = placement_reference(r, t, path, M_at)
         elif kind == "frame_rotation":
             W = r.weight(need_weight(), f"{path}.weight", 3)
             ref = M_at.rotation if M_at is not None else r.rotation(t, path, ROTATION_FORMS)
@@ -653,7 +614,7 @@ def _cost_term(t: Mapping[str, Any], path: str, ctx: _CostContext, terminal: boo
             qr = r.check(v.choice, qr, f"{path}.q_reference", ("initial", "neutral"))
             q_ref = pin.neutral(pm) if qr == "neutral" else ctx.q0.copy()
         else:
-            q_ref = _configuration(r, qr, pm, f"{path}.q_reference")
+            q_ref = read_configuration(r, qr, pm, f"{path}.q_reference")
         v_ref = r.check(v.finite_array, t.get("v_reference", np.zeros(nv)), f"{path}.v_reference", (nv,))
         split = [k for k in ("q_weight", "v_weight") if k in t]
         if "weight" in t and split:

@@ -22,7 +22,10 @@ Schema (``?`` = optional, with its default)::
     [solver]?  expansion? = "switch" (first | second | switch), switch_ratio? = 0.1 in (0, 1),
                tol? (absolute, units of J: the paper's 1e-8) | rtol? (relative to |J|; default
                1e-11 when neither is set), grad_tol? | grad_rtol?, max_iter? = 200,
-               second_order? = "exact" (exact | paper), initial_controls? (H x m, default 0)
+               second_order? = "exact" (exact | paper), initial_controls? (H x m, default 0),
+               constraint_tol? = 1e-8
+    [[constraints]]?, [[terminal_constraints]]?  hard constraints (geoddp.scene.constraints);
+               a pointing_keep_out's frame is the body unless named
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ from ..data import urdf_path
 from .. import validate as v
 from ..validate import InputError
 from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
+from .constraints import ARRAYS as CONSTRAINT_ARRAYS
 from .multibody import CostTermSpec, MultibodySceneSpec
 from .reader import Reader, Schema, check_urdf
 
@@ -250,15 +254,21 @@ class SceneSpec(CommonSpec):
 
 
 @functools.lru_cache(maxsize=32)
+def _one_body(urdf: str) -> pin.Model:
+    """A one-body URDF on a spherical root (cached: read only, by the constraint tables' checks)."""
+    return pin.buildModelFromUrdf(urdf, pin.JointModelSpherical())
+
+
+@functools.lru_cache(maxsize=32)
 def _body_frame(urdf: str) -> str:
     """The name of the body frame of a one-body URDF on a spherical root (its one link)."""
-    pm = pin.buildModelFromUrdf(urdf, pin.JointModelSpherical())
+    pm = _one_body(urdf)
     return next(f.name for f in pm.frames if f.parentJoint == 1 and f.type == pin.FrameType.BODY)
 
 
 def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: str) -> SceneSpec:
     """Validate a parsed satellite scene into a :class:`SceneSpec`; errors name the key path."""
-    r = Reader(data, source, SCHEMA, required=REQUIRED)
+    r = Reader(data, source, SCHEMA, arrays=CONSTRAINT_ARRAYS, required=REQUIRED)
     r.top()
     name = r.string(data.get("name", default_name), "name")
     description = r.string(data.get("description", ""), "description")
@@ -294,7 +304,11 @@ def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: st
     running_S_R = weight("running_attitude", 3, default=0.0)
     running_S_Omega = weight("running_angular_velocity", 3, default=0.0)
 
-    common = read_common(r, SECOND_ORDER, m)
+    # the constraint tables are checked against the body's model (frames, joints): built only for them
+    body_urdf = str(urdf if urdf is not None else urdf_path("satellite.urdf"))
+    constrained = any(name in data for name in CONSTRAINT_ARRAYS)
+    common = read_common(r, SECOND_ORDER, m, constraint_model=_one_body(body_urdf) if constrained else None,
+                         default_frame=_body_frame(body_urdf) if constrained else None)
     solver = r.table("solver")
     U0 = None
     if "initial_controls" in solver:

@@ -63,6 +63,8 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
         spec = spec.with_overrides(**overrides)
     rest = {k: v for k, v in options.items() if k not in scene_keys}
     problem = built_problem(spec)
-    result = solve(problem, solver_options(spec, verbose=verbose, **rest), initial_controls=initial_controls(spec))
+    # a scene with constraints solves by its outer loop (geoddp.constraints.solve_constrained)
+    run = getattr(problem, "solve_constrained", None) or (lambda opt, U0: solve(problem, opt, initial_controls=U0))
+    result = run(solver_options(spec, verbose=verbose, **rest), initial_controls(spec))
     result.extra["scene"] = spec.name
     return result

@@ -58,7 +58,13 @@ def simulate_scene(scene: Any, simulation: SimulationSpec | dict | None = None) 
         sim = simulation
     else:
         raise InputError("simulation", f"expected a SimulationSpec, a dict or None, got {type(simulation).__name__}")
+    if getattr(spec, "has_constraints", False) and "mpc" in sim.policies:
+        # the MPC re-solves would drop the constraints (they solve the unconstrained problem)
+        raise InputError("[simulation].policy", '"mpc" re-solves a scene with [[constraints]] without them; '
+                         'fly its plan with "open" and "feedback"', getattr(spec, "source", None))
     plan = solve_scene(spec, verbose=False)
     problem = built_problem(spec)
+    # a constrained scene's plan flies on its (unconstrained) problem's model and costs
+    problem = getattr(problem, "problem", problem) if getattr(spec, "has_constraints", False) else problem
     return monte_carlo(plan, problem, samples=sim.samples, seed=sim.seed, policies=sim.policies, plant=sim.plant,
                        disturbances=disturbances(sim), steps=sim.steps, workers=sim.workers, **mpc_options(sim))

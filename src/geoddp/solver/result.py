@@ -202,7 +202,10 @@ class Result:
             bound, 0 inside; None without limits. ``optimality`` (in extra) then also holds the
             KKT residual (max |projected gradient|) and the complementarity numbers.
         extra: free-form additions; the solver puts ``"saddle_escapes"`` here (a list of dicts with
-            iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle.
+            iteration, node, eigenvalue, alpha, cost_before, cost_after) when it escaped a saddle,
+            and a constrained solve (:func:`geoddp.constraints.solve_constrained`) its report in
+            ``"constraints"`` (feasibility, multipliers and active nodes per constraint, the outer
+            iterations), which the JSON keeps.
 
     Views (properties) of the root body's attitude: ``rotations`` (H+1, 3, 3) body-to-world
     attitudes, ``angular_velocities`` (H+1, 3) body rates (rad/s), ``quaternions`` (H+1, 4),
@@ -455,6 +458,9 @@ class Result:
             **self._state_fields(),
             # the certificate of the final check (solver.loop._Solve.final_check); None if not solved here
             "optimality": _jsonable(self.extra.get("optimality")),
+            # hard constraints (geoddp.constraints.solve_constrained): feasibility, multipliers,
+            # active nodes, the outer iterations; None for a solve without constraints
+            "constraints": _jsonable(self.extra.get("constraints")),
             # control limits: unbounded sides as null (strict JSON has no infinity; a NaN bound is
             # invalid, so null is unambiguous)
             "limits": None if self.limits is None else {
@@ -679,7 +685,7 @@ def _from_dict(d: dict[str, Any]) -> Result:
         target_rotation=None if model is not None else a(d["target_rotation"], dtype=float),
         target_angular_velocity=None if model is not None else a(d["target_angular_velocity"], dtype=float),
         integrator=None if model is not None else str(d["integrator"]),
-        extra={"optimality": dict(d["optimality"])} if d.get("optimality") is not None else None,
+        extra={key: dict(d[key]) for key in ("optimality", "constraints") if d.get(key) is not None} or None,
         limits=_limits_from_json(d.get("limits")),
         active_set=None if d.get("active_set") is None else np.asarray(d["active_set"], dtype=np.int8),
     )

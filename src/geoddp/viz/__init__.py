@@ -16,7 +16,8 @@ framing the whole trajectory.
 - :func:`plot_trajectory`, :func:`plot_convergence`: matplotlib PNG figures of a satellite result and
   of several solves' convergence; :func:`plot_multibody`: a multibody result's joints, controls,
   frame-target errors and solver history; :func:`plot_solver_history`: any result's cost and
-  gradient norm per iteration; :func:`plot_simulation`: the Monte Carlo bundles and error
+  gradient norm per iteration; :func:`plot_keep_out`: a body axis's path on the sphere around a
+  pointing keep-out cone; :func:`plot_simulation`: the Monte Carlo bundles and error
   histograms.
 """
 import warnings
@@ -29,6 +30,7 @@ with warnings.catch_warnings():
 
 from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
+from .keep_out import plot_keep_out
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
 from .model import load_model, load_visual_model, visual_placements
 from .multibody_figures import MULTIBODY_FIGURES, plot_multibody, plot_solver_history
@@ -45,6 +47,7 @@ __all__ = [
     "load_model",
     "load_visual_model",
     "plot_convergence",
+    "plot_keep_out",
     "plot_multibody",
     "plot_simulation",
     "plot_solver_history",
