@@ -357,8 +357,15 @@ def _sweep(args) -> int:
     return EXIT_NOT_CONVERGED
 
 
+MAX_MESSAGE = 2000  # characters of an error line; a message quoting a huge value keeps its two ends
+
+
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if len(text) > MAX_MESSAGE:  # the start names the parameter, the end the file: both kept
+        cut = len(text) - MAX_MESSAGE
+        text = f"{text[:MAX_MESSAGE // 2]} [... {cut} characters ...] {text[-MAX_MESSAGE // 2:]}"
+    return text
 
 
 def _written() -> str:

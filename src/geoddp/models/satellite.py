@@ -21,6 +21,7 @@ import pinocchio as pin
 
 from .. import integrators as integ
 from .. import data, kernels
+from ..urdf_checks import build_urdf_model
 from ..validate import actuation_matrix, choice, finite_array, inertia_matrix, positive_float, rotation_matrix
 
 DEFAULT_URDF = data.urdf_path("satellite.urdf")
@@ -69,7 +70,8 @@ class Satellite:
         self.urdf = DEFAULT_URDF if self.urdf is None else Path(self.urdf)
         if not self.urdf.is_file():
             raise FileNotFoundError(f"urdf: no such file {self.urdf}")
-        self.pin_model = _one_body(pin.buildModelFromUrdf(str(self.urdf), pin.JointModelSpherical()), self.inertia)
+        # read and checked as every URDF is (encoding, XML, urdfdom's messages), by name
+        self.pin_model = _one_body(build_urdf_model(self.urdf, pin.JointModelSpherical()), self.inertia)
         self.pin_model.gravity = pin.Motion.Zero()
         self.inertia_inv = np.linalg.inv(self.inertia)
 

@@ -37,6 +37,7 @@ import pinocchio as pin
 
 from ..data import urdf_path
 from .. import validate as v
+from ..urdf_checks import build_urdf_model
 from ..validate import InputError
 from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
 from .multibody import CostTermSpec, MultibodySceneSpec
@@ -251,7 +252,7 @@ class SceneSpec(CommonSpec):
 @functools.lru_cache(maxsize=32)
 def _body_frame(urdf: str) -> str:
     """The name of the body frame of a one-body URDF on a spherical root (its one link)."""
-    pm = pin.buildModelFromUrdf(urdf, pin.JointModelSpherical())
+    pm = build_urdf_model(urdf, pin.JointModelSpherical(), "[model].urdf")
     return next(f.name for f in pm.frames if f.parentJoint == 1 and f.type == pin.FrameType.BODY)
 
 
@@ -267,6 +268,8 @@ def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: st
     act = r.check(v.actuation_matrix, model["actuation"], "[model].actuation") if "actuation" in model else np.eye(3)
     m = act.shape[1]
     urdf = r.check(check_urdf, model["urdf"], "[model].urdf", base_dir) if "urdf" in model else None
+    if urdf is not None:
+        r.check(_body_frame, str(urdf))  # read and built now (cached), so a bad file is named with the scene
 
     zero3 = [0.0, 0.0, 0.0]
     initial = r.table("initial")
