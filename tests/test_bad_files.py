@@ -96,8 +96,11 @@ URDF_CASES = {
                                             .encode(), ("unknown encoding 'rot13'",)),
     "a lone surrogate": (QUAD_URDF.replace('version="1.0"', 'version="1.0" encoding="unicode_escape"', 1)
                          .replace("Quadrotor scene", "\\ud800", 1).encode(), ("lone surrogate",)),
-    "nesting deeper than urdfdom allows": (('<?xml version="1.0"?>\n<robot name="r">' + "<a>" * 20000 + "</a>" * 20000
-                                            + "</robot>").encode(), ("expected a valid URDF model",)),
+    "elements nested 20000 deep": (('<?xml version="1.0"?>\n<robot name="r">' + "<a>" * 20000 + "</a>" * 20000
+                                    + "</robot>").encode(), ("nested at most 64 levels deep",)),
+    "UTF-16 without a mark, with a NUL": (QUAD_URDF.replace('version="1.0"', 'version="1.0" encoding="UTF-16LE"', 1)
+                                          .replace("<link", "<li\0nk", 1).encode("utf-16-le"),
+                                          ("not well-formed XML",)),
 }
 
 
@@ -127,11 +130,13 @@ def test_a_bad_satellite_urdf_is_refused_naming_it(capfd, tmp_path, case):
     refused(capfd, tmp_path / "sat.urdf", "run", str(scene), "--quiet", words=("[model].urdf",))
 
 
-@pytest.mark.parametrize("case", ["declared ISO-8859-1", "UTF-8 byte-order mark", "UTF-16 with its mark"])
+@pytest.mark.parametrize("case", ["declared ISO-8859-1", "UTF-8 byte-order mark", "UTF-16 with its mark",
+                                  "UTF-16 without a mark, declared"])
 def test_urdf_encodings_xml_allows_are_decoded_and_solve_the_same(capfd, tmp_path, quad_cost, case):
     data = {"declared ISO-8859-1": DECLARED.encode("latin-1"),
             "UTF-8 byte-order mark": codecs.BOM_UTF8 + QUAD_URDF.encode("utf-8"),
-            "UTF-16 with its mark": QUAD_URDF.encode("utf-16")}[case]
+            "UTF-16 with its mark": QUAD_URDF.encode("utf-16"),
+            "UTF-16 without a mark, declared": DECLARED.replace("ISO-8859-1", "UTF-16BE").encode("utf-16-be")}[case]
     scene, _ = quad_scene(tmp_path, data)
     assert solved_cost(capfd, scene) == quad_cost
 
@@ -162,6 +167,8 @@ SRDF_CASES = {
     "empty": (b"", ("not well-formed XML",)),
     "entity expansion": (ENTITY_BOMB.encode(), ("<!ENTITY",)),
     "not an SRDF": (b'<?xml version="1.0"?><model/>', ("a <robot> root element",)),
+    "elements nested 100000 deep (Pinocchio's reader crashed)": (srdf("<a>" * 100000 + "</a>" * 100000),
+                                                                 ("nested at most 64 levels deep",)),
     "a group state without a name": (srdf('<group_state group="all"/>'), ("without a name",)),
     "a joint value of NaN": (srdf(HOVER.replace("0 0 1 0 0 0 1", "nan nan nan nan nan nan nan")),
                              ("group_state 'up', joint 'root_joint'", "expected 7 finite numbers")),
@@ -263,6 +270,7 @@ def test_a_bad_sweep_file_is_refused_naming_it(capfd, tmp_path, case):
 def test_a_huge_value_in_a_message_is_cut_to_one_readable_line(capfd, tmp_path):
     # a message quoting a huge value keeps the parameter (its start) and the file (its end)
     scene = tmp_path / "scene.toml"
-    scene.write_text(SAT_SCENE.replace('expansion = "switch"', 'expansion = "' + "x" * 100000 + '"', 1), encoding="utf-8")
+    huge = SAT_SCENE.replace('expansion = "switch"', 'expansion = "' + "x" * 100000 + '"', 1)
+    scene.write_text(huge, encoding="utf-8")
     line = refused(capfd, scene, "run", str(scene), "--quiet", words=("[solver].expansion", "characters ..."))
     assert len(line) < 2200

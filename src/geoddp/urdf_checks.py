@@ -32,13 +32,16 @@ import pinocchio as pin
 
 from .validate import InputError
 
-__all__ = ["read_xml_text", "read_urdf_text", "check_urdf_text", "check_model", "build_checked_model",
+__all__ = ["read_xml_text", "read_urdf_text", "parse_xml", "check_urdf_text", "check_model", "build_checked_model",
            "build_urdf_model", "captured_stderr"]
 
 _DECL = re.compile(rb"""^\s*<\?xml[^>]*encoding\s*=\s*["']([A-Za-z0-9._-]+)["']""")
-# byte-order marks, longest first (UTF-32 LE starts with UTF-16 LE's mark); the codec drops the mark
+# Byte-order marks, longest first (UTF-32 LE starts with UTF-16 LE's mark; the codec drops the
+# mark), then UTF-16 without one, known by its first characters "<?" (XML 1.0, appendix F.1).
 _BOMS = ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"), (codecs.BOM_UTF8, "utf-8-sig"),
-         (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"))
+         (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"), (b"<\0?\0", "utf-16-le"),
+         (b"\0<\0?", "utf-16-be"))
+_TEXT_DECL = re.compile(r"""^\s*<\?xml[^>]*?(\s+encoding\s*=\s*["'])([^"']*)["']""")
 _ENTITY = re.compile(r"<!ENTITY\b")
 _COMMENT = re.compile(r"<!--.*?-->", re.S)
 _MOVING = ("revolute", "continuous", "prismatic", "planar")
@@ -47,6 +50,7 @@ _MOVING = ("revolute", "continuous", "prismatic", "planar")
 # a 200 MiB URDF took 1.1 GB and 18 s), so a huge one is refused by name rather than let run
 # the machine out of memory.
 MAX_XML_BYTES = 64 << 20
+MAX_XML_DEPTH = 64  # element nesting; URDFs and SRDFs nest 3-6 levels (gazebo extensions included)
 
 
 def read_xml_text(path: str | Path, name: str = "urdf", kind: str = "URDF") -> str:
@@ -93,15 +97,43 @@ def read_xml_text(path: str | Path, name: str = "urdf", kind: str = "URDF") -> s
     if _ENTITY.search(_COMMENT.sub("", text)):
         raise InputError(name, f"{path}: declares XML entities (<!ENTITY ...>), which Pinocchio's {kind} parser does "
                          "not expand; write their values out")
-    if codecs.lookup(enc).name in ("utf-8", "utf-8-sig"):
+    declared = _TEXT_DECL.match(text)
+    if declared is None or (_utf8(enc) and _utf8(declared.group(2))):
         return text  # as in the file: the Result's urdf_xml stays the file's text
-    # the declaration no longer holds once decoded (Pinocchio reads UTF-8 strings)
-    return re.sub(r"""^(\s*<\?xml[^>]*?)\s+encoding\s*=\s*["'][^"']*["']""", r"\1", text, count=1)
+    # The declaration no longer holds once decoded (Pinocchio reads UTF-8 strings), or never held
+    # (a UTF-8 byte-order mark before encoding="UTF-16": expat then refuses the UTF-8 bytes).
+    return text[:declared.start(2) - len(declared.group(1))] + text[declared.end(2) + 1:]
+
+
+def _utf8(encoding: str) -> bool:
+    try:
+        return codecs.lookup(encoding).name in ("utf-8", "utf-8-sig")
+    except LookupError:
+        return False
 
 
 def read_urdf_text(path: str | Path, name: str = "urdf") -> str:
     """The text of a URDF file (:func:`read_xml_text`). InputError naming ``name`` and the file."""
     return read_xml_text(path, name, "URDF")
+
+
+def parse_xml(text: str, name: str, where: str = "") -> ET.Element:
+    """The root element of ``text``; InputError naming ``name`` (``where`` prefixes the message)
+    if it is not well-formed XML or nests elements more than :data:`MAX_XML_DEPTH` levels deep.
+    Boost's property tree (Pinocchio's SRDF reader) recurses once per level: a file nested some
+    10^5 levels deep crashed the process."""
+    try:
+        root = ET.fromstring(text.encode("utf-8"))
+    except (ET.ParseError, ValueError) as exc:  # ValueError: expat's own refusals (a multi-byte encoding)
+        raise InputError(name, f"{where}not well-formed XML ({exc})") from None
+    stack = [(root, 1)]
+    while stack:  # iterative: the tree may be as deep as the file says
+        node, depth = stack.pop()
+        if depth > MAX_XML_DEPTH:
+            raise InputError(name, f"{where}expected XML elements nested at most {MAX_XML_DEPTH} levels deep, got "
+                             f"deeper (<{node.tag}>)")
+        stack.extend((child, depth + 1) for child in node)
+    return root
 
 
 def _floats(text: str | None, n: int) -> list[float] | None:
@@ -117,11 +149,9 @@ def _floats(text: str | None, n: int) -> list[float] | None:
 def check_urdf_text(text: str, name: str = "urdf", path: str | Path | None = None) -> None:
     """Refuse, by joint or link name: a moving joint whose axis is not 3 finite numbers or is zero,
     and an inertial (mass, inertia) that is not finite or negative; text that is not well-formed
-    XML (NUL bytes, a truncated file), naming ``path`` when given. InputError naming ``name``."""
-    try:
-        root = ET.fromstring(text.encode("utf-8"))
-    except ET.ParseError as exc:
-        raise InputError(name, (f"{path}: " if path is not None else "") + f"not well-formed XML ({exc})") from None
+    XML (NUL bytes, a truncated file). InputError naming ``name`` (and ``path`` when given)."""
+    where = f"{path}: " if path is not None else ""
+    root = parse_xml(text, name, where)
     for j in root.iter("joint"):
         jname, jtype = j.get("name", "?"), j.get("type", "")
         axis = j.find("axis")
@@ -131,10 +161,10 @@ def check_urdf_text(text: str, name: str = "urdf", path: str | Path | None = Non
         if xyz is None:
             continue  # URDF default (1, 0, 0)
         if not xyz or not all(math.isfinite(x) for x in xyz):
-            raise InputError(name, f"joint {jname!r}: axis xyz = {axis.get('xyz')!r}, expected 3 finite numbers")
+            raise InputError(name, f"{where}joint {jname!r}: axis xyz = {axis.get('xyz')!r}, expected 3 finite numbers")
         if math.sqrt(sum(x * x for x in xyz)) < 1e-12:
-            raise InputError(name, f"joint {jname!r}: axis xyz = {axis.get('xyz')!r} is zero; a {jtype} joint needs a "
-                             "direction")
+            raise InputError(name, f"{where}joint {jname!r}: axis xyz = {axis.get('xyz')!r} is zero; a {jtype} joint "
+                             "needs a direction")
     for link in root.iter("link"):
         inertial = link.find("inertial")
         if inertial is None:
@@ -147,7 +177,8 @@ def check_urdf_text(text: str, name: str = "urdf", path: str | Path | None = Non
             except ValueError:
                 mv = float("nan")
             if not math.isfinite(mv) or mv < 0:
-                raise InputError(name, f"link {lname!r}: mass {mass.get('value')!r}, expected a finite number >= 0")
+                raise InputError(name, f"{where}link {lname!r}: mass {mass.get('value')!r}, expected a finite number "
+                                 ">= 0")
         inertia = inertial.find("inertia")
         if inertia is not None:
             for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
@@ -156,7 +187,8 @@ def check_urdf_text(text: str, name: str = "urdf", path: str | Path | None = Non
                 except ValueError:
                     val = float("nan")
                 if not math.isfinite(val):
-                    raise InputError(name, f"link {lname!r}: inertia {key} = {inertia.get(key)!r}, expected a finite number")
+                    raise InputError(name, f"{where}link {lname!r}: inertia {key} = {inertia.get(key)!r}, expected a "
+                                     "finite number")
 
 
 def _body_of(model: pin.Model, joint: int) -> str:
@@ -274,7 +306,10 @@ def build_urdf_model(path: str | Path, root_joint: object | None = None, name: s
 
 def _build_checked(text: str, path: str | Path, root_joint: object | None, name: str) -> pin.Model:
     model = _build(text, path, root_joint, name)
-    check_model(model, name)
+    try:
+        check_model(model, name)
+    except InputError as exc:
+        raise InputError(name, f"{path}: {exc.detail}") from None
     return model
 
 

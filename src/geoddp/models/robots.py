@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..urdf_checks import captured_stderr, read_urdf_text, read_xml_text
+from ..urdf_checks import captured_stderr, parse_xml, read_urdf_text, read_xml_text
 from ..validate import InputError, closest
 from .multibody import Multibody, package_dir_tuple
 
@@ -318,13 +318,9 @@ def check_srdf_text(text: str, model: pin.Model, parameter: str = "srdf", path: 
     """Refuse, naming ``parameter``, the file, the group state and the joint: an SRDF that is not
     well-formed XML or has no ``<robot>`` root, a ``group_state`` or one of its joints without a
     name, and a value of a joint of ``model`` that is not its nq finite numbers (one angle for a
-    continuous joint, as Pinocchio reads it)."""
-    import xml.etree.ElementTree as ET
-
-    try:
-        root = ET.fromstring(text.encode("utf-8"))
-    except ET.ParseError as exc:
-        raise InputError(parameter, f"{path}: not well-formed XML ({exc})") from None
+    continuous joint, as Pinocchio reads it); elements nested too deep for Pinocchio's reader
+    (:func:`geoddp.urdf_checks.parse_xml`)."""
+    root = parse_xml(text, parameter, f"{path}: ")
     if root.tag != "robot":
         raise InputError(parameter, f"{path}: expected an SRDF (a <robot> root element), got <{root.tag}>")
     for state in root.findall("group_state"):
