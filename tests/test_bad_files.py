@@ -274,3 +274,21 @@ def test_a_huge_value_in_a_message_is_cut_to_one_readable_line(capfd, tmp_path):
     scene.write_text(huge, encoding="utf-8")
     line = refused(capfd, scene, "run", str(scene), "--quiet", words=("[solver].expansion", "characters ..."))
     assert len(line) < 2200
+
+
+def test_a_broken_part_file_of_a_sweep_is_refused_naming_it(capfd, tmp_path):
+    # parts are written atomically: only another program leaves a broken one; resume and the
+    # summary name it (they raised pyarrow's ArrowInvalid, exit 3, before)
+    from geoddp.sweep.table import part_files
+
+    sweep = tmp_path / "sw.toml"
+    sweep.write_text(SWEEP_HEAD + 'seed = 1\nsamples = 2\n[scene]\nhorizon.tf = 0.3\nhorizon.dt = 0.05\n[[random]]\n'
+                     'key = "target.quaternion"\ndistribution = "haar"\n', encoding="utf-8")
+    out = tmp_path / "out"
+    rc, stdout, err = run_cli(capfd, "sweep", str(sweep), "--out", str(out), "--serial", "--quiet", "--limit", "1")
+    assert rc == 1 and err == [] and "1 solved now" in stdout
+    part = part_files(out)[0]
+    part.write_bytes(b"PAR1 not really")
+    words = ("--out", "not a sweep's Parquet file", "move it out of the folder")
+    refused(capfd, part, "sweep", str(sweep), "--out", str(out), "--serial", "--quiet", "--resume", words=words)
+    refused(capfd, part, "sweep", "--summary", str(out), words=words)

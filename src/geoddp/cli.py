@@ -7,7 +7,9 @@ Exit codes: 0 converged (a verified local minimum, see the README's status table
 without converging (stalled, max_iter, saddle, non-finite, ...), 2 bad input (one line on stderr,
 no traceback; outputs are checked before the solve), 3 an internal error (one line; a bug to
 report), 128 + N on signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP: the solve stops, the line says
-which outputs were written). Every output file is written atomically (geoddp.outputs).
+which outputs were written; a sweep first writes every case that finished, and the line says how
+many cases are on disk and the command that resumes it). Every output file is written atomically
+(geoddp.outputs).
 """
 from __future__ import annotations
 
@@ -29,7 +31,8 @@ def _on_signal(signum, frame) -> None:
     # recorded first: if the exception lands in a gc callback, Python drops it, and the sweep's
     # loop raises it again from the record (geoddp.interrupts)
     interrupts.record(signum)
-    raise Interrupted(signum)
+    if not interrupts.deferring():  # else: finished work is being written; raised when that ends
+        raise Interrupted(signum)
 
 
 def _wrote(path) -> None:
@@ -98,7 +101,9 @@ def _sweep_parser(sub) -> None:
     sw.add_argument("--full", action="store_true", help="also write each case's full result as cases/<hash>.json")
     sw.add_argument("--limit", type=int, help="solve at most this many cases now (the rest with --resume)")
     sw.add_argument("--flush-rows", type=int, default=200, help="write a part file every N finished cases "
-                    "(and at least every 5 s)")
+                    "(and at least every --flush-seconds)")
+    sw.add_argument("--flush-seconds", type=float, default=5.0, help="write a part file at least this often (s); "
+                    "finished cases are also written on SIGINT, SIGTERM and SIGHUP")
     sw.add_argument("--dashboard", action="store_true", help="start the local cluster's dashboard on 127.0.0.1")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.add_argument("--summary", type=Path, metavar="DIR", help="print the summary of the sweep results in DIR")
@@ -327,7 +332,7 @@ def _simulate(args) -> int:
 def _sweep(args) -> int:
     """``geoddp sweep``: run a sweep (exit 0 when every case is in the table, 1 when --limit left
     some for --resume) or summarise one (--summary)."""
-    from .sweep import read_table, run_sweep
+    from .sweep import SweepInterrupted, read_table, run_sweep
     from .sweep.summary import plots, summary
 
     if args.summary is not None:
@@ -345,16 +350,39 @@ def _sweep(args) -> int:
         raise InputError("--plots", "expected together with --summary DIR")
     if args.flush_rows < 1:
         raise InputError("--flush-rows", f"expected a number of rows >= 1, got {args.flush_rows}")
-    run = run_sweep(args.sweep_file, args.out, workers=args.workers, scheduler=args.scheduler, serial=args.serial,
-                    resume=args.resume, csv=args.csv, full=args.full, limit=args.limit, flush_rows=args.flush_rows,
-                    progress=None if args.quiet else sys.stderr, dashboard=args.dashboard)
+    if not args.flush_seconds > 0:  # also NaN
+        raise InputError("--flush-seconds", f"expected a number of seconds > 0, got {args.flush_seconds}")
+    try:
+        run = run_sweep(args.sweep_file, args.out, workers=args.workers, scheduler=args.scheduler, serial=args.serial,
+                        resume=args.resume, csv=args.csv, full=args.full, limit=args.limit,
+                        flush_rows=args.flush_rows, flush_seconds=args.flush_seconds,
+                        progress=None if args.quiet else sys.stderr, dashboard=args.dashboard)
+    except SweepInterrupted as exc:  # the finished cases are on disk: say how many and how to go on
+        exc.note += f"; resume with: {_resume_command(args)}"
+        raise
     print(f"sweep: {run.total} cases: {run.skipped} already done, {run.solved} solved now ({run.failed} raised), "
           f"{run.wall_time_s:.1f} s")
     if run.table is not None:
         _wrote(run.table)
         return EXIT_CONVERGED
-    print(f"sweep: incomplete; rows so far in {args.out / 'parts'}; finish with --resume")
+    print(f"sweep: incomplete; rows so far in {args.out / 'parts'}; finish with: {_resume_command(args)}")
     return EXIT_NOT_CONVERGED
+
+
+def _resume_command(args) -> str:
+    """The command that finishes a sweep: the same sweep file, folder and executor, with --resume
+    (the cases on disk are skipped by their hashes)."""
+    import shlex
+
+    cmd = ["geoddp", "sweep", str(args.sweep_file), "--out", str(args.out), "--resume"]
+    if args.serial:
+        cmd.append("--serial")
+    elif args.scheduler:
+        cmd += ["--scheduler", args.scheduler]
+    elif args.workers:
+        cmd += ["--workers", str(args.workers)]
+    cmd += [flag for flag, on in (("--csv", args.csv), ("--full", args.full)) if on]
+    return shlex.join(cmd)
 
 
 MAX_MESSAGE = 2000  # characters of an error line; a message quoting a huge value keeps its two ends
@@ -403,7 +431,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
         signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
-        print(f"geoddp: interrupted by {signal.Signals(signum).name}; {_written()}", file=sys.stderr)
+        # a sweep's note: the cases on disk and the command that resumes it
+        note = getattr(exc, "note", "") or _written()
+        print(f"geoddp: interrupted by {signal.Signals(signum).name}; {note}", file=sys.stderr)
         return 128 + int(signum)
     except Exception as exc:  # a bug: one line, not a traceback (GEODDP_TRACEBACK=1 shows it)
         import os
