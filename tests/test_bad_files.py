@@ -292,3 +292,30 @@ def test_a_broken_part_file_of_a_sweep_is_refused_naming_it(capfd, tmp_path):
     words = ("--out", "not a sweep's Parquet file", "move it out of the folder")
     refused(capfd, part, "sweep", str(sweep), "--out", str(out), "--serial", "--quiet", "--resume", words=words)
     refused(capfd, part, "sweep", "--summary", str(out), words=words)
+
+
+def test_a_spin_that_overflows_the_rollout_is_refused_not_returned_with_nan_states(capfd, tmp_path):
+    # Found by benchmarks/fuzz.py: the satellite's rollout kernel stops at the first non-finite
+    # state and left the later steps unwritten; a cost read them as finite (J = 15000) and the
+    # result JSON held NaN states (written as null). Now the initial guess is refused.
+    text = scene_path("tumbling_5rads").read_text(encoding="utf-8")
+    assert "angular_velocity = [2.4, -3.0, 3.2]" in text
+    scene = tmp_path / "spin.toml"
+    scene.write_text(text.replace("angular_velocity = [2.4, -3.0, 3.2]", "angular_velocity = [2.4, -3.0, 3.2e12]"),
+                     encoding="utf-8")
+    out = tmp_path / "out.json"
+    rc, stdout, err = run_cli(capfd, "run", str(scene), "--quiet", "--json", str(out))
+    assert rc == 2 and len(err) == 1 and not out.exists(), (rc, err)
+    assert err[0].startswith("geoddp: error: initial_controls: the initial guess gives a non-finite cost J = nan")
+
+
+def test_the_satellite_rollout_is_nan_throughout_once_it_overflows():
+    import numpy as np
+
+    from geoddp.models.satellite import Satellite
+
+    sat = Satellite(inertia=np.diag([10.0, 11.1, 13.0]), actuation=np.eye(3), dt=0.01)
+    R, Om = sat.rollout(np.eye(3), np.array([2.4, -3.0, 3.2e12]), np.zeros((100, 3)))  # off a principal axis
+    assert np.isnan(R).all() and np.isnan(Om).all()
+    R, Om = sat.rollout(np.eye(3), np.array([0.1, 0.2, 0.3]), np.zeros((100, 3)))
+    assert np.isfinite(R).all() and np.isfinite(Om).all()
