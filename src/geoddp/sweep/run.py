@@ -356,8 +356,8 @@ def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, d
         client = Client(cluster)
         try:
             # Ctrl-C in a terminal signals the whole process group, our workers too: they leave
-            # it to this process, which records what they finished and closes them (a worker
-            # killed mid-task printed a 30-line traceback and lost the task).
+            # it to this process, which records what they finished and closes them (each worker
+            # died of it mid-task before, printing a ~30-line traceback).
             client.run(ignore_sigint)
         except BaseException:
             client.close()
