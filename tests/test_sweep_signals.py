@@ -31,8 +31,8 @@ from geoddp import interrupts
 from geoddp.sweep import expand, load_sweep
 from geoddp.sweep.run import HARVEST_SECONDS, _harvest
 from geoddp.sweep.table import part_files
+from processes import env, stop
 
-SRC = Path(__file__).resolve().parents[1] / "src"
 DASK = Path(sys.executable).parent / "dask"
 TOTAL = 60
 # ~50-100 ms a case: a signal after the first few rows lands with most of the sweep to go
@@ -55,12 +55,6 @@ MESSAGE = re.compile(r"^geoddp: interrupted by (SIG[A-Z]+); (\d+) of (\d+) cases
 BAR = re.compile(rb"(\d+)/" + str(TOTAL).encode() + rb"\b")
 
 
-def env() -> dict[str, str]:
-    e = dict(os.environ)
-    e["PYTHONPATH"] = str(SRC) + os.pathsep + e.get("PYTHONPATH", "")
-    return e
-
-
 def wait_for(what: str, predicate, timeout: float = 120.0, proc: subprocess.Popen | None = None) -> None:
     """Poll ``predicate`` every 20 ms until it holds; fail after ``timeout`` s (or when ``proc``
     has ended first)."""
@@ -69,17 +63,6 @@ def wait_for(what: str, predicate, timeout: float = 120.0, proc: subprocess.Pope
         assert proc is None or proc.poll() is None, f"the process ended before {what}"
         assert time.monotonic() < deadline, f"timed out waiting for {what}"
         time.sleep(0.02)
-
-
-def stop(proc: subprocess.Popen) -> None:
-    """Stop one process we started, by its PID: SIGTERM, then SIGKILL."""
-    if proc.poll() is None:
-        os.kill(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.kill(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=15)
 
 
 class Stderr:
