@@ -453,7 +453,7 @@ def test_initial_controls():
 def test_urdf_resolved_relative_to_scene_file(tmp_path):
     (tmp_path / "models").mkdir()
     urdf = tmp_path / "models" / "sat.urdf"
-    urdf.write_text("<robot name='sat'/>")
+    urdf.write_text("<robot name='sat'><link name='body'/></robot>")  # read and built when the scene is
     sub = tmp_path / "scenes"
     sub.mkdir()
     text = edit(PAPER_TEXT, "[model]\n", '[model]\nurdf = "../models/sat.urdf"\n')

@@ -20,10 +20,10 @@ import pytest
 
 from geoddp.sweep import TIMING_COLUMNS, read_table, run_sweep
 from geoddp.sweep.table import part_files
+from processes import env, stop
 
 distributed = pytest.importorskip("distributed")
 
-SRC = Path(__file__).resolve().parents[1] / "src"
 DASK = Path(sys.executable).parent / "dask"
 
 SMALL = """
@@ -57,12 +57,6 @@ distribution = "haar"
 """
 
 
-def env() -> dict[str, str]:
-    e = dict(os.environ)
-    e["PYTHONPATH"] = str(SRC) + os.pathsep + e.get("PYTHONPATH", "")
-    return e
-
-
 def comparable(df: pd.DataFrame) -> pd.DataFrame:
     return df.drop(columns=[c for c in TIMING_COLUMNS if c in df.columns])
 
@@ -71,17 +65,6 @@ def write(tmp_path: Path, text: str, name: str) -> Path:
     p = tmp_path / name
     p.write_text(textwrap.dedent(text))
     return p
-
-
-def stop(proc: subprocess.Popen) -> None:
-    """Stop one process we started, by its PID: SIGTERM, then SIGKILL."""
-    if proc.poll() is None:
-        os.kill(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.kill(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=15)
 
 
 def start_worker(scheduler_file: Path, name: str, log: Path) -> subprocess.Popen:

@@ -235,7 +235,7 @@ def _simulate(args) -> int:
 def _sweep(args) -> int:
     """``geoddp sweep``: run a sweep (exit 0 when every case is in the table, 1 when --limit left
     some for --resume) or summarise one (--summary)."""
-    from ..sweep import read_table, run_sweep
+    from ..sweep import SweepInterrupted, read_table, run_sweep
     from ..sweep.summary import plots, summary
 
     if args.summary is not None:
@@ -253,16 +253,39 @@ def _sweep(args) -> int:
         raise InputError("--plots", "expected together with --summary DIR")
     if args.flush_rows < 1:
         raise InputError("--flush-rows", f"expected a number of rows >= 1, got {args.flush_rows}")
-    run = run_sweep(args.sweep_file, args.out, workers=args.workers, scheduler=args.scheduler, serial=args.serial,
-                    resume=args.resume, csv=args.csv, full=args.full, limit=args.limit, flush_rows=args.flush_rows,
-                    progress=None if args.quiet else sys.stderr, dashboard=args.dashboard)
+    if not args.flush_seconds > 0:  # also NaN
+        raise InputError("--flush-seconds", f"expected a number of seconds > 0, got {args.flush_seconds}")
+    try:
+        run = run_sweep(args.sweep_file, args.out, workers=args.workers, scheduler=args.scheduler, serial=args.serial,
+                        resume=args.resume, csv=args.csv, full=args.full, limit=args.limit,
+                        flush_rows=args.flush_rows, flush_seconds=args.flush_seconds,
+                        progress=None if args.quiet else sys.stderr, dashboard=args.dashboard)
+    except SweepInterrupted as exc:  # the finished cases are on disk: say how many and how to go on
+        exc.note += f"; resume with: {_resume_command(args)}"
+        raise
     print(f"sweep: {run.total} cases: {run.skipped} already done, {run.solved} solved now ({run.failed} raised), "
           f"{run.wall_time_s:.1f} s")
     if run.table is not None:
         wrote(run.table)
         return EXIT_CONVERGED
-    print(f"sweep: incomplete; rows so far in {args.out / 'parts'}; finish with --resume")
+    print(f"sweep: incomplete; rows so far in {args.out / 'parts'}; finish with: {_resume_command(args)}")
     return EXIT_NOT_CONVERGED
+
+
+def _resume_command(args) -> str:
+    """The command that finishes a sweep: the same sweep file, folder and executor, with --resume
+    (the cases on disk are skipped by their hashes)."""
+    import shlex
+
+    cmd = ["geoddp", "sweep", str(args.sweep_file), "--out", str(args.out), "--resume"]
+    if args.serial:
+        cmd.append("--serial")
+    elif args.scheduler:
+        cmd += ["--scheduler", args.scheduler]
+    elif args.workers:
+        cmd += ["--workers", str(args.workers)]
+    cmd += [flag for flag, on in (("--csv", args.csv), ("--full", args.full)) if on]
+    return shlex.join(cmd)
 
 
 COMMANDS = {"run": _run, "compare": _compare, "multibody": _multibody, "simulate": _simulate, "sweep": _sweep}

@@ -15,11 +15,19 @@ def _on_signal(signum, frame) -> None:
     # recorded first: if the exception lands in a gc callback, Python drops it, and the sweep's
     # loop raises it again from the record (geoddp.interrupts)
     interrupts.record(signum)
-    raise Interrupted(signum)
+    if not interrupts.deferring():  # else: finished work is being written; raised when that ends
+        raise Interrupted(signum)
+
+
+MAX_MESSAGE = 2000  # characters of an error line; a message quoting a huge value keeps its two ends
 
 
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if len(text) > MAX_MESSAGE:  # the start names the parameter, the end the file: both kept
+        cut = len(text) - MAX_MESSAGE
+        text = f"{text[:MAX_MESSAGE // 2]} [... {cut} characters ...] {text[-MAX_MESSAGE // 2:]}"
+    return text
 
 
 def _written() -> str:
@@ -57,7 +65,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
         signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
-        print(f"geoddp: interrupted by {signal.Signals(signum).name}; {_written()}", file=sys.stderr)
+        # a sweep's note: the cases on disk and the command that resumes it
+        note = getattr(exc, "note", "") or _written()
+        print(f"geoddp: interrupted by {signal.Signals(signum).name}; {note}", file=sys.stderr)
         return 128 + int(signum)
     except Exception as exc:  # a bug: one line, not a traceback (GEODDP_TRACEBACK=1 shows it)
         import os

@@ -65,7 +65,9 @@ def _sweep_parser(sub) -> None:
     sw.add_argument("--full", action="store_true", help="also write each case's full result as cases/<hash>.json")
     sw.add_argument("--limit", type=int, help="solve at most this many cases now (the rest with --resume)")
     sw.add_argument("--flush-rows", type=int, default=200, help="write a part file every N finished cases "
-                    "(and at least every 5 s)")
+                    "(and at least every --flush-seconds)")
+    sw.add_argument("--flush-seconds", type=float, default=5.0, help="write a part file at least this often (s); "
+                    "finished cases are also written on SIGINT, SIGTERM and SIGHUP")
     sw.add_argument("--dashboard", action="store_true", help="start the local cluster's dashboard on 127.0.0.1")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     sw.add_argument("--summary", type=Path, metavar="DIR", help="print the summary of the sweep results in DIR")

@@ -27,6 +27,7 @@ joint's nq coordinates as a list otherwise).
 """
 from __future__ import annotations
 
+import math
 import os
 import re
 from collections.abc import Mapping
@@ -37,11 +38,12 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from .urdf import captured_stderr, parse_xml, read_urdf_text, read_xml_text
 from ..validate import InputError, closest
 from .multibody import Multibody, package_dir_tuple
 
 __all__ = ["RobotSpec", "names", "find", "resolve_mesh", "mesh_uris", "check_meshes", "default_package_dirs",
-           "example_robot_data_dir", "postures", "configuration", "load"]
+           "example_robot_data_dir", "postures", "check_srdf_text", "configuration", "load"]
 
 INSTALL_HINT = "pip install 'geoddp[robots]' (example-robot-data and its loaders)"
 _MESH = re.compile(r"<mesh\b[^>]*\bfilename\s*=\s*([\"'])(.*?)\1", re.S)
@@ -233,28 +235,34 @@ def resolve_mesh(uri: str, package_dirs: tuple[str, ...] | list[str] = (), base_
     path = Path(uri[len("file://"):] if uri.startswith("file://") else uri)
     if not path.is_absolute():
         path = Path(base_dir or ".") / path
-    return path.resolve() if path.is_file() else None
+    try:
+        return path.resolve() if path.is_file() else None
+    except (OSError, ValueError):  # a name too long for the file system, a NUL: no such file, a missing mesh
+        return None
 
 
-def mesh_uris(urdf: str | Path) -> list[str]:
-    """Every distinct ``<mesh filename>`` of a URDF file, in order."""
-    text = Path(urdf).read_text(encoding="utf-8")
+def mesh_uris(urdf: str | Path, parameter: str = "urdf") -> list[str]:
+    """Every distinct ``<mesh filename>`` of a URDF file, in order (the file read as the model
+    builder reads it, :func:`geoddp.models.urdf.read_urdf_text`: InputError naming ``parameter``
+    and the file if it is not text)."""
+    text = read_urdf_text(urdf, parameter)
     return list(dict.fromkeys(m.group(2) for m in _MESH.finditer(text)))
 
 
 def check_meshes(urdf: str | Path, package_dirs: tuple[str, ...] | list[str] = (),
-                 parameter: str = "package_dirs") -> list[str]:
+                 parameter: str = "package_dirs", urdf_parameter: str = "urdf") -> list[str]:
     """Resolve every mesh of a URDF (:func:`resolve_mesh`) as the replay will: in
     ``package_dirs``, then :func:`default_package_dirs`; the URIs of the missing ones. When this
     process found every one of the same URIs, from the same folder and search path, before, the
     files found then are checked again on disk instead (a missing one resolves everything anew).
 
     Raises:
-        InputError: naming ``parameter`` for a ``package://`` URI whose package is found nowhere.
+        InputError: naming ``parameter`` for a ``package://`` URI whose package is found nowhere;
+            naming ``urdf_parameter`` and the file for a URDF that is not text (:func:`mesh_uris`).
     """
     base = Path(urdf).resolve().parent
     dirs = list(dict.fromkeys([str(d) for d in package_dirs] + list(default_package_dirs(urdf))))
-    uris = mesh_uris(urdf)
+    uris = mesh_uris(urdf, urdf_parameter)
     # every mesh found before, from the same URIs, folder and search path, and still there: found
     # again (a sweep checks the same robot for every case; resolving its meshes took 1.5-2.7 ms)
     key = (str(base), tuple(uris), tuple(_search_dirs(dirs)))
@@ -274,17 +282,67 @@ def check_meshes(urdf: str | Path, package_dirs: tuple[str, ...] | list[str] = (
 _RESOLVED: dict[tuple[str, tuple[str, ...], tuple[str, ...]], tuple[str, ...]] = {}
 
 
-def postures(model: pin.Model, srdf: str | Path | None) -> dict[str, np.ndarray]:
+def postures(model: pin.Model, srdf: str | Path | None, parameter: str = "srdf") -> dict[str, np.ndarray]:
     """Named configurations (nq,) of ``model``: "neutral" (``pin.neutral``) and each
-    ``group_state`` of the SRDF (``pin.loadReferenceConfigurations``: joints the state does not
-    name keep their neutral value; quaternions normalised)."""
+    ``group_state`` of the SRDF (``pin.loadReferenceConfigurationsFromXML``: joints the state does
+    not name keep their neutral value, joints the model lacks are skipped; quaternions normalised).
+
+    The SRDF is read as a URDF is (:func:`geoddp.models.urdf.read_xml_text`: its encoding, no
+    entity declarations) and checked before Pinocchio reads it (:func:`check_srdf_text`), because
+    Pinocchio prints "Could not read joint config" for a value it cannot read and keeps the
+    joint's neutral value: a posture that silently differs from the file.
+
+    Raises:
+        InputError: naming ``parameter`` and the file: not text, not well-formed XML, no
+            ``<robot>`` root, a group state or joint without a name, a joint value that is not
+            the joint's coordinates (nq finite numbers; one angle for a continuous joint).
+    """
     out = {"neutral": pin.neutral(model)}
     if srdf is not None:
+        text = read_xml_text(srdf, parameter, "SRDF")
+        check_srdf_text(text, model, parameter, srdf)
         m = pin.Model(model)  # loading writes into the model: keep the caller's untouched
-        pin.loadReferenceConfigurations(m, str(srdf), False)
+        with captured_stderr() as said:
+            try:
+                pin.loadReferenceConfigurationsFromXML(m, text, False)
+            except (RuntimeError, ValueError) as exc:
+                raise InputError(parameter, f"{srdf}: expected an SRDF file Pinocchio can read ({exc})") from None
+        if said:  # a value Pinocchio could not read despite the checks: refused, not guessed
+            raise InputError(parameter, f"{srdf}: {'; '.join(said[-3:])}")
         for entry in m.referenceConfigurations:  # boost map entries: .key(), .data()
             out[str(entry.key())] = pin.normalize(m, np.array(entry.data(), dtype=float))
     return out
+
+
+def check_srdf_text(text: str, model: pin.Model, parameter: str = "srdf", path: str | Path = "SRDF") -> None:
+    """Refuse, naming ``parameter``, the file, the group state and the joint: an SRDF that is not
+    well-formed XML or has no ``<robot>`` root, a ``group_state`` or one of its joints without a
+    name, and a value of a joint of ``model`` that is not its nq finite numbers (one angle for a
+    continuous joint, as Pinocchio reads it); elements nested too deep for Pinocchio's reader
+    (:func:`geoddp.models.urdf.parse_xml`)."""
+    root = parse_xml(text, parameter, f"{path}: ")
+    if root.tag != "robot":
+        raise InputError(parameter, f"{path}: expected an SRDF (a <robot> root element), got <{root.tag}>")
+    for state in root.findall("group_state"):
+        sname = state.get("name")
+        if not sname:
+            raise InputError(parameter, f"{path}: a <group_state> without a name")
+        for joint in state.findall("joint"):
+            jname = joint.get("name")
+            if not jname:
+                raise InputError(parameter, f"{path}: group_state {sname!r}: a <joint> without a name")
+            if not model.existJointName(jname):
+                continue  # Pinocchio skips it (an SRDF may describe a larger model than a reduced one)
+            jm = model.joints[model.getJointId(jname)]
+            want = 1 if (jm.nq == 2 and jm.nv == 1) else jm.nq  # a continuous joint's angle
+            raw = joint.get("value")
+            try:
+                vals = [float(x) for x in (raw or "").split()]
+            except ValueError:
+                vals = []
+            if len(vals) != want or not all(math.isfinite(x) for x in vals):
+                raise InputError(parameter, f"{path}: group_state {sname!r}, joint {jname!r}: value = {raw!r}, expected "
+                                 f"{want} finite number{'s' if want > 1 else ''}")
 
 
 def _joint_value(model: pin.Model, joint: str, value: Any, q: np.ndarray, path: str) -> None:

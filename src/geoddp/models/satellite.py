@@ -20,6 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from .. import data, kernels
+from .urdf import build_urdf_model
 from ..validate import actuation_matrix, choice, finite_array, inertia_matrix, positive_float, rotation_matrix
 from . import integrators as integ
 
@@ -69,7 +70,8 @@ class Satellite:
         self.urdf = DEFAULT_URDF if self.urdf is None else Path(self.urdf)
         if not self.urdf.is_file():
             raise FileNotFoundError(f"urdf: no such file {self.urdf}")
-        self.pin_model = _one_body(pin.buildModelFromUrdf(str(self.urdf), pin.JointModelSpherical()), self.inertia)
+        # read and checked as every URDF is (encoding, XML, urdfdom's messages), by name
+        self.pin_model = _one_body(build_urdf_model(self.urdf, pin.JointModelSpherical()), self.inertia)
         self.pin_model.gravity = pin.Motion.Zero()
         self.inertia_inv = np.linalg.inv(self.inertia)
 
@@ -123,11 +125,18 @@ class Satellite:
         R = np.empty((H + 1, 3, 3))
         Om = np.empty((H + 1, 3))
         dummy = np.empty((H, self.nu))
-        kernels.satellite_rollout(
+        finite = kernels.satellite_rollout(
             np.ascontiguousarray(R0, dtype=float), np.ascontiguousarray(Omega0, dtype=float),
             R, Om, U, dummy, np.empty((H, self.nu, 6)), 0.0, False,
             self.inertia, self.inertia_inv, self.actuation, self.dt, self.semi_implicit, R, Om, dummy,
         )
+        if not finite:
+            # The kernel stops at the first non-finite state and leaves the later steps unwritten
+            # (uninitialised memory, which a cost could read as finite: a spin of 3e12 rad/s gave
+            # J = 15000 and a result with NaN states). NaN throughout: the cost is NaN, and the
+            # solver refuses such an initial guess as bad input.
+            R.fill(np.nan)
+            Om.fill(np.nan)
         return R, Om
 
     def rollout_closed_loop(

@@ -17,6 +17,7 @@ from typing import Any, Union
 import numpy as np
 import pinocchio as pin
 
+from ..models.urdf import build_urdf_model
 from ..validate import InputError
 from .multibody import MultibodySceneSpec
 from .satellite import SceneSpec
@@ -107,7 +108,7 @@ def _on_tso3(spec: MultibodySceneSpec):
 @functools.lru_cache(maxsize=32)
 def _one_body_model(urdf: str) -> pin.Model | None:
     """The URDF on a spherical root if it is one rigid body (nv = 3), else None. Cached: read-only."""
-    pm = pin.buildModelFromUrdf(urdf, pin.JointModelSpherical())
+    pm = build_urdf_model(urdf, pin.JointModelSpherical(), "[model].urdf")
     return pm if pm.nv == 3 else None
 
 

@@ -435,7 +435,7 @@ def _model_source(r: Reader, t: Mapping[str, Any], base_dir: Path) -> tuple[Path
         if p is None or not p.is_file():
             raise r.err("[model].srdf", f"expected an existing SRDF file, got {val!r}" + (f" (resolved to {p})" if p else ""))
         srdf = p
-    r.check(robots.check_meshes, urdf, dirs, "[model].package_dirs")
+    r.check(robots.check_meshes, urdf, dirs, "[model].package_dirs", "[model].urdf")
     return urdf, robot, root, tuple(dirs), srdf
 
 
@@ -545,7 +545,7 @@ def _posture(r: Reader, val: Any, pm: pin.Model, srdf: Path | None) -> np.ndarra
     """``[initial].q`` as a posture name or ``{posture, joints}`` (:func:`geoddp.models.robots.configuration`)."""
     from ..models import robots
 
-    named = robots.postures(pm, srdf)
+    named = r.check(robots.postures, pm, srdf, "[model].srdf")
     if isinstance(val, str):
         return r.check(robots.configuration, pm, named, val, None, "[initial].q")
     r.keys(val, ["posture", "joints"], "[initial].q", "[initial].q")

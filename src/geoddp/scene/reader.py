@@ -48,20 +48,65 @@ def scene_file(scene: str | Path) -> Path:
     return data.scene_path(text, "scene")
 
 
-def read_toml(path: Path) -> dict[str, Any]:
-    """The parsed TOML file; errors name ``scene file`` (missing, not UTF-8, malformed: line and column)."""
+MAX_NESTING = 32  # levels of tables and arrays in a scene or sweep file (the files here use at most 4)
+_INT64 = 2**63  # TOML integers are 64-bit signed (TOML 1.0, "Integer")
+_UTF16_32_BOMS = (b"\xff\xfe", b"\xfe\xff", b"\x00\x00\xfe\xff")
+
+
+def read_toml(path: Path, name: str = "scene file") -> dict[str, Any]:
+    """The parsed TOML file (UTF-8, a leading byte-order mark allowed), checked by
+    :func:`check_tree`. Errors name ``name`` and the file: missing or unreadable, not UTF-8
+    (a UTF-16 file said so), malformed (line and column), nested too deep for the parser, an
+    integer outside 64 bits."""
     src = str(path)
     try:
-        raw = path.read_bytes()
+        raw = Path(path).read_bytes()
     except OSError as exc:
-        raise InputError("scene file", f"expected a readable TOML file, got {src!r} ({exc.strerror})") from None
+        raise InputError(name, f"expected a readable TOML file, got {src!r} ({exc.strerror or exc})") from None
+    if raw.startswith(_UTF16_32_BOMS):
+        raise InputError(name, "expected UTF-8 text (TOML files are UTF-8), got a UTF-16 or UTF-32 byte-order mark; "
+                         "save the file as UTF-8", src)
+    text = ""
     try:
-        text = raw.decode("utf-8")
-        return tomllib.loads(text)
+        text = raw.decode("utf-8-sig")  # a UTF-8 byte-order mark (some Windows editors write one) is dropped
+        data = tomllib.loads(text)
     except UnicodeDecodeError as exc:
-        raise InputError("scene file", f"expected UTF-8 text, got invalid bytes at offset {exc.start}", src) from None
+        raise InputError(name, f"expected UTF-8 text, got invalid bytes at offset {exc.start} "
+                         f"({raw[exc.start:exc.start + 1]!r}); save the file as UTF-8", src) from None
     except tomllib.TOMLDecodeError as exc:
-        raise InputError("scene file", _toml_error_detail(exc, text), src) from None
+        raise InputError(name, _toml_error_detail(exc, text), src) from None
+    except RecursionError:  # tomllib recurses once per nested array or inline table
+        raise InputError(name, f"arrays or inline tables nested too deep for the TOML parser (expected at most "
+                         f"{MAX_NESTING} levels)", src) from None
+    except ValueError as exc:  # int() of a decimal integer beyond Python's 4300-digit limit
+        raise InputError(name, f"malformed TOML ({str(exc).split(';')[0]}); TOML integers are 64-bit", src) from None
+    check_tree(data, name, src)
+    return data
+
+
+def check_tree(data: Mapping[str, Any], name: str, source: str | None = None) -> None:
+    """Refuse, naming ``name``, the key path and ``source``: tables and arrays nested more than
+    :data:`MAX_NESTING` levels deep (every later step walks the tree: hashing, copying, messages)
+    and integers outside the 64-bit range of TOML (a hexadecimal literal of any length parses,
+    and Python cannot even print a decimal integer of more than 4300 digits). Iterative: a deep
+    tree cannot exhaust the stack here."""
+    stack: list[tuple[Any, int, str]] = [(data, 1, "")]
+    while stack:
+        node, depth, path = stack.pop()
+        for key, val in (node.items() if isinstance(node, Mapping) else enumerate(node)):
+            if isinstance(val, (Mapping, list)):
+                where = _join(path, key)
+                if depth >= MAX_NESTING:
+                    raise InputError(name, f"expected tables and arrays nested at most {MAX_NESTING} levels deep, got "
+                                     f"deeper at {where}", source)
+                stack.append((val, depth + 1, where))
+            elif isinstance(val, int) and not isinstance(val, bool) and not -_INT64 <= val < _INT64:
+                raise InputError(name, f"{_join(path, key)}: expected a 64-bit integer (TOML's range, |n| < 2^63), got "
+                                 f"one of {val.bit_length()} bits", source)
+
+
+def _join(path: str, key: Any) -> str:
+    return f"{path}[{key}]" if isinstance(key, int) else (f"{path}.{key}" if path else str(key))
 
 
 def _toml_error_detail(exc: tomllib.TOMLDecodeError, text: str) -> str:

@@ -41,6 +41,7 @@ import pinocchio as pin
 
 from ..data import urdf_path
 from .. import validate as v
+from ..models.urdf import build_urdf_model
 from ..validate import InputError
 from .common import TABLES, CommonSpec, initial_in_limits, read_common, readonly
 from .constraints import ARRAYS as CONSTRAINT_ARRAYS
@@ -255,8 +256,9 @@ class SceneSpec(CommonSpec):
 
 @functools.lru_cache(maxsize=32)
 def _one_body(urdf: str) -> pin.Model:
-    """A one-body URDF on a spherical root (cached: read only, by the constraint tables' checks)."""
-    return pin.buildModelFromUrdf(urdf, pin.JointModelSpherical())
+    """A one-body URDF on a spherical root (cached: read only, by the constraint tables' checks and
+    the body frame's name), read and checked as every URDF is (:func:`geoddp.models.urdf.build_urdf_model`)."""
+    return build_urdf_model(urdf, pin.JointModelSpherical(), "[model].urdf")
 
 
 @functools.lru_cache(maxsize=32)
@@ -278,6 +280,8 @@ def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: st
     act = r.check(v.actuation_matrix, model["actuation"], "[model].actuation") if "actuation" in model else np.eye(3)
     m = act.shape[1]
     urdf = r.check(check_urdf, model["urdf"], "[model].urdf", base_dir) if "urdf" in model else None
+    if urdf is not None:
+        r.check(_body_frame, str(urdf))  # read and built now (cached), so a bad file is named with the scene
 
     zero3 = [0.0, 0.0, 0.0]
     initial = r.table("initial")

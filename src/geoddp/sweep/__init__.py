@@ -9,9 +9,9 @@ all local cores or a Dask cluster, resumable, streamed to a Parquet table.
 """
 from __future__ import annotations
 
-from .run import SweepRun, run_sweep
+from .run import SweepInterrupted, SweepRun, run_sweep
 from .spec import Case, Sweep, case_hash, expand, load_sweep, parse_sweep
 from .table import TIMING_COLUMNS, read_table
 
-__all__ = ["Case", "Sweep", "SweepRun", "TIMING_COLUMNS", "case_hash", "expand", "load_sweep", "parse_sweep",
-           "read_table", "run_sweep"]
+__all__ = ["Case", "Sweep", "SweepInterrupted", "SweepRun", "TIMING_COLUMNS", "case_hash", "expand", "load_sweep",
+           "parse_sweep", "read_table", "run_sweep"]

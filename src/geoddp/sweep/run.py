@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -22,7 +23,7 @@ from ..output_files import write_atomic
 from ..validate import THREADS_ENV, InputError
 from . import case as case_mod
 from .spec import Case, Sweep, load_sweep, validate_all
-from .table import MANIFEST, PartWriter, done_hashes, part_files, read_parts, write_manifest, write_table
+from .table import MANIFEST, PARTS, PartWriter, done_hashes, part_files, read_parts, write_manifest, write_table
 
 # Tasks in flight per worker thread: enough to keep every worker busy while a result travels
 # back, few enough that 10^5 cases never sit in the scheduler at once (memory stays flat).
@@ -49,6 +50,25 @@ class SweepRun:
     complete: bool
     table: Path | None
     wall_time_s: float
+
+
+class SweepInterrupted(interrupts.Interrupted):
+    """A sweep stopped by SIGINT, SIGTERM or SIGHUP (or Ctrl-C in Python) once every case that
+    had finished was written to its folder: ``on_disk`` of the ``total`` cases of the sweep are in
+    ``out``/parts (``solved`` of them in this run). Running the sweep again on the same folder with
+    ``resume`` solves only the others."""
+
+    def __init__(self, signum: int, out: Path, on_disk: int, total: int, solved: int) -> None:
+        super().__init__(signum, f"{on_disk} of {total} cases on disk in {out / PARTS} ({solved} solved in this run)")
+        self.out, self.on_disk, self.total, self.solved = out, on_disk, total, solved
+
+    def __str__(self) -> str:
+        return f"{signal.Signals(self.signum).name}: {self.note}; resume with run_sweep(..., resume=True)"
+
+
+# Seconds an interrupted sweep waits for the outcomes of tasks its workers have finished but not
+# yet sent back: they are recorded with the rest (a task still running is solved again on resume).
+HARVEST_SECONDS = 10.0
 
 
 def flatten(params: dict[str, Any]) -> dict[str, Any]:
@@ -97,6 +117,11 @@ class Progress:
             self.bar = tqdm(total=total, initial=done, file=stream, unit="case", desc="sweep", mininterval=0.5,
                             dynamic_ncols=True, smoothing=0.05)
         self.done = done
+
+    def close(self) -> None:
+        """End the bar where it stands (an interrupted run)."""
+        if self.bar is not None:
+            self.bar.close()
 
     def update(self, done: int, failed: int, running: int, final: bool = False) -> None:
         if self.bar is None:
@@ -154,6 +179,11 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     Raises:
         InputError: a bad sweep file (before any case runs), ``out`` holds results without
             ``resume``, bad ``workers`` / ``limit``.
+        SweepInterrupted: SIGINT, SIGTERM or SIGHUP (as raised by the CLI's handler) or
+            KeyboardInterrupt during the run, after every finished case was written: those
+            received from the workers, those the workers had finished (fetched for up to
+            :data:`HARVEST_SECONDS`), before the cluster is closed; a further signal does not
+            cut that write short. It says how many cases are on disk.
     """
     t0 = time.perf_counter()
     if not isinstance(sweep, Sweep):
@@ -178,43 +208,61 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
         raise InputError("--out", f"{str(out)!r} already holds sweep results: pass --resume to finish them, "
                          "or choose another folder")
     out.mkdir(parents=True, exist_ok=True)
-    if sweep_path is not None and sweep_path.is_file():
-        write_atomic(out / "sweep.toml", sweep_path.read_bytes())
     total = len(hashes)
-    done = done_hashes(out) if resume else set()
-    n_pending = sum(h not in done for h in hashes)
-    skipped = total - n_pending
-    if limit is not None:
-        n_pending = min(n_pending, limit)
-    pending = itertools.islice((c for c in sweep.cases() if c.hash not in done), n_pending)
-    full_dir = str((out / "cases").resolve()) if full else None
     writer = PartWriter(out, total, flush_rows=flush_rows, flush_seconds=flush_seconds)
-    bar = Progress(total, skipped, progress)
-    write_manifest(out, {"name": sweep.name, "total": total, "finished": False})
+    bar: Progress | None = None
 
     def record(c: Case, outcome: dict[str, Any], running: int) -> None:
         writer.add(make_row(c, outcome))
-        bar.update(skipped + writer.written, writer.failed, running)
-        interrupts.check()  # a Ctrl-C whose exception a gc callback swallowed ends the run here
+        if bar is not None:
+            bar.update(skipped + writer.written, writer.failed, running)
 
     try:
+        if sweep_path is not None and sweep_path.is_file():
+            write_atomic(out / "sweep.toml", sweep_path.read_bytes())
+        done = done_hashes(out) if resume else set()
+        n_pending = sum(h not in done for h in hashes)
+        skipped = total - n_pending
+        if limit is not None:
+            n_pending = min(n_pending, limit)
+        pending = itertools.islice((c for c in sweep.cases() if c.hash not in done), n_pending)
+        full_dir = str((out / "cases").resolve()) if full else None
+        bar = Progress(total, skipped, progress)
+        write_manifest(out, {"name": sweep.name, "total": total, "finished": False})
         if serial:
             spec_of = dict(zip(hashes, specs or []))
             for c in pending:
                 record(c, run_case(case_mod.payload(c, full_dir, spec_of.get(c.hash))), 1)
+                interrupts.check()  # a Ctrl-C whose exception a gc callback swallowed ends the run here
         else:
-            _run_dask(pending, n_pending, record, full_dir, workers=workers, scheduler=scheduler, dashboard=dashboard)
+            _run_dask(pending, n_pending, record, full_dir, workers=workers, scheduler=scheduler, dashboard=dashboard,
+                      flush=writer.flush)
+        writer.flush()
+        bar.update(skipped + writer.written, writer.failed, 0, final=True)
+        df = read_parts(out, hashes)
+        complete = len(df) == total
+        table = None
+        if complete:
+            table = write_table(out, df, csv=csv)[0]
+        failed = int((df["status"] == "error").sum()) if len(df) else 0
+        write_manifest(out, {"name": sweep.name, "total": total, "done": len(df), "failed": failed,
+                             "finished": complete})
+    except KeyboardInterrupt as exc:
+        # Whatever was running (a case, the cluster, the final table): every finished case is
+        # written, with further signals deferred, then counted on disk for the message.
+        try:
+            with interrupts.deferred():  # a second Ctrl-C does not cut the write short
+                writer.flush()
+                if bar is not None:
+                    bar.close()
+                on_disk = len(done_hashes(out) & set(hashes))
+                write_manifest(out, {"name": sweep.name, "total": total, "done": on_disk, "finished": False})
+        except KeyboardInterrupt:  # a second signal, held until the write ended: the first is reported
+            pass
+        signum = exc.signum if isinstance(exc, interrupts.Interrupted) else signal.SIGINT
+        raise SweepInterrupted(signum, out, on_disk, total, writer.written) from None
     finally:
         writer.flush()  # what finished is on disk, whatever ended the run
-    bar.update(skipped + writer.written, writer.failed, 0, final=True)
-    df = read_parts(out, hashes)
-    complete = len(df) == total
-    table = None
-    if complete:
-        table = write_table(out, df, csv=csv)[0]
-    failed = int((df["status"] == "error").sum()) if len(df) else 0
-    write_manifest(out, {"name": sweep.name, "total": total, "done": len(df), "failed": failed,
-                         "finished": complete})
     return SweepRun(total, skipped, writer.written, writer.failed, complete, table, time.perf_counter() - t0)
 
 
@@ -290,9 +338,14 @@ class ChunkSizer:
 
 
 def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, dict[str, Any], int], None],
-              full_dir: str | None, *, workers: int | None, scheduler: str | None, dashboard: bool) -> None:
+              full_dir: str | None, *, workers: int | None, scheduler: str | None, dashboard: bool,
+              flush: Callable[[], None] = lambda: None) -> None:
     """Submit the ``n_pending`` cases of ``pending`` (generated as they go) to a Dask cluster in a
-    sliding window of tasks; ``record`` each finished case."""
+    sliding window of tasks; ``record`` each finished case.
+
+    Interrupted (KeyboardInterrupt), it records, with further signals deferred, the outcomes in
+    hand and those of tasks the workers have finished (:func:`_harvest`), then calls ``flush``,
+    all before the cluster is closed (which takes seconds), and raises again."""
     from distributed import Client, as_completed
 
     if n_pending == 0:
@@ -301,18 +354,28 @@ def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, d
     if scheduler is None:
         cluster = local_cluster(workers or os.cpu_count() or 1, dashboard)
         client = Client(cluster)
+        try:
+            # Ctrl-C in a terminal signals the whole process group, our workers too: they leave
+            # it to this process, which records what they finished and closes them (each worker
+            # died of it mid-task before, printing a ~30-line traceback).
+            client.run(ignore_sigint)
+        except BaseException:
+            client.close()
+            cluster.close()
+            raise
     else:
         try:
             client = Client(scheduler, timeout=30)
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError("--scheduler", f"cannot reach a Dask scheduler at {scheduler!r} ({exc})") from None
+    inflight: dict[str, tuple[Any, list[Case]]] = {}  # task key -> (future, its cases)
+    in_hand: list[tuple[Case, dict[str, Any]]] = []  # outcomes received, not yet recorded
     try:
         threads = max(1, sum(client.nthreads().values()))
         window = max(2, IN_FLIGHT_PER_THREAD * threads)
         run_id = f"{os.getpid()}-{time.time_ns()}"
         sizer = ChunkSizer(threads)
         left = n_pending
-        inflight: dict[str, list[Case]] = {}
         ac = as_completed()
 
         def submit() -> bool:
@@ -324,7 +387,7 @@ def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, d
             f = client.submit(run_cases, [case_mod.payload(c, full_dir) for c in group],
                               key=f"geoddp-cases-{group[0].hash[:16]}-{len(group)}-{run_id}", pure=False,
                               retries=RETRIES)
-            inflight[f.key] = group
+            inflight[f.key] = (f, group)
             ac.add(f)
             return True
 
@@ -332,16 +395,33 @@ def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, d
             if not submit():
                 break
         for f in ac:
-            group = inflight.pop(f.key)
+            group = inflight[f.key][1]
             try:
                 outcomes = f.result()
             except Exception as exc:  # KilledWorker: the task's workers kept dying; recorded, not fatal
+                interrupts.check()  # ... unless an interruption surfaced as another exception
                 outcomes = [error_outcome(exc)] * len(group)
+            in_hand.extend(zip(group, outcomes))
+            del inflight[f.key]
             f.release()
-            for c, outcome in zip(group, outcomes):
+            running = min(sum(len(g) for _, g in inflight.values()), threads)
+            while in_hand:
+                c, outcome = in_hand[0]
                 sizer.observe(outcome.get("case_time_s", math.nan))
-                record(c, outcome, min(sum(len(g) for g in inflight.values()), threads))
+                record(c, outcome, running)
+                in_hand.pop(0)
+            interrupts.check()  # a Ctrl-C whose exception a gc callback swallowed ends the run here
             submit()
+    except KeyboardInterrupt:
+        try:
+            with interrupts.deferred():  # a second Ctrl-C does not cut the write short
+                in_hand.extend(_harvest([f for f, _ in inflight.values()], {k: g for k, (_, g) in inflight.items()}))
+                for c, outcome in in_hand:
+                    record(c, outcome, 0)  # the writer ignores a case it already has
+                flush()  # before the cluster closes (seconds)
+        except KeyboardInterrupt:  # a second signal, held until the write ended: the first one goes on
+            pass
+        raise
     finally:
         try:
             if cluster is not None:
@@ -350,6 +430,36 @@ def _run_dask(pending: Iterator[Case], n_pending: int, record: Callable[[Case, d
         finally:
             if cluster is not None:
                 cluster.close()
+
+
+def _harvest(futures: list[Any], groups: dict[str, list[Case]], seconds: float = HARVEST_SECONDS
+             ) -> list[tuple[Case, dict[str, Any]]]:
+    """The (case, outcome) pairs of the tasks among ``futures`` that a worker has finished (the
+    scheduler knows it) but whose results this process has not fetched yet: fetched now, within
+    ``seconds`` in all. A task that failed, or whose result cannot be fetched in time, is left out
+    (resume solves its cases)."""
+    out: list[tuple[Case, dict[str, Any]]] = []
+    deadline = time.monotonic() + seconds
+    for f in futures:
+        left = deadline - time.monotonic()
+        if f.status != "finished" or left <= 0:
+            continue
+        try:
+            out.extend(zip(groups[f.key], f.result(timeout=left)))
+        except Exception:  # lost with its worker, or too slow to fetch: solved again on resume
+            continue
+    return out
+
+
+def ignore_sigint() -> bool:
+    """Run on the workers of the sweep's own LocalCluster (``client.run``, in the worker's
+    event-loop thread, its main thread): the worker process ignores SIGINT. True if it was set
+    (False where the worker does not own its process's main thread: nothing is changed)."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:
+        return False
+    return True
 
 
 def quiet_teardown(client: Any) -> None:
@@ -375,4 +485,6 @@ def _silence_worker() -> None:
         logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
-__all__ = ["SweepRun", "run_sweep", "run_cases", "ChunkSizer", "require_extra", "local_cluster", "quiet_teardown", "worker_env", "make_row", "flatten", "MANIFEST", "Progress"]
+__all__ = ["SweepRun", "SweepInterrupted", "HARVEST_SECONDS", "ignore_sigint", "run_sweep", "run_cases",
+           "ChunkSizer", "require_extra", "local_cluster", "quiet_teardown", "worker_env", "make_row", "flatten",
+           "MANIFEST", "Progress"]

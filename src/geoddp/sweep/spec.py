@@ -52,7 +52,6 @@ import itertools
 import json
 import math
 import re
-import tomllib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -62,6 +61,7 @@ import numpy as np
 
 from .. import validate as v
 from ..scene import parse_scene, scene_file
+from ..scene.reader import MAX_NESTING, read_toml
 from ..validate import InputError
 
 SWEEP_KEYS = {"scene": True, "name": False, "description": False, "seed": False, "samples": False}
@@ -98,6 +98,8 @@ def parse_key(path: str, where: str) -> tuple[str | int, ...]:
         pos = m.end()
     if pos != len(path) or not tokens or not isinstance(tokens[0], str):
         raise InputError(where, f"malformed key path {path!r} (expected table.key, [i] for list entries)")
+    if len(tokens) > MAX_NESTING:  # no scene key is this deep; a case built on it would be nested as deep
+        raise InputError(where, f"expected a key path of at most {MAX_NESTING} parts, got {len(tokens)}")
     if len(tokens) < 2 and tokens[0] != SIMULATION:
         raise InputError(where, f"expected a key inside a table such as 'horizon.tf', got {path!r}")
     return tuple(tokens)
@@ -339,14 +341,7 @@ def load_sweep(path: str | Path) -> Sweep:
     if not p.exists() and p.name == str(path) and p.suffix != ".toml" and (sweep_dir() / f"{p}.toml").is_file():
         p = sweep_dir() / f"{p}.toml"
     src = str(p)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError("sweep file", f"expected a readable TOML file, got {src!r} ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError("sweep file", "expected UTF-8 text", src) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError("sweep file", f"malformed TOML: {exc}", src) from None
+    data = read_toml(p, "sweep file")  # UTF-8, nesting and integer range checked, errors name the file
     try:
         return parse_sweep(data, p.resolve().parent, default_name=p.stem, source=src)
     except InputError as e:
@@ -384,9 +379,9 @@ def parse_sweep(data: Mapping[str, Any], base_dir: Path, default_name: str = "sw
     except InputError as e:
         raise InputError("[sweep].scene", e.detail) from None
     try:
-        base = tomllib.loads(Path(scene_path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise InputError("[sweep].scene", f"cannot read the scene file {str(scene_path)!r}: {exc}") from None
+        base = read_toml(Path(scene_path))
+    except InputError as exc:
+        raise InputError("[sweep].scene", f"cannot read the scene file: {exc}") from None
     name = sweep_t.get("name", default_name)
     description = sweep_t.get("description", "")
     for key, val in (("name", name), ("description", description)):

@@ -11,7 +11,9 @@ Layout of an output folder::
 
 The parts are the truth: a case is done when a part holds its hash. A kill at any moment leaves
 whole parts (each written to a temporary file and renamed), so ``--resume`` reads the hashes of
-the parts and solves only the rest; rows held in memory but not yet flushed are solved again.
+the parts and solves only the rest. On SIGINT, SIGTERM or SIGHUP the rows held in memory are
+flushed before the sweep ends (:func:`geoddp.sweep.run.run_sweep`); only a SIGKILL or a crash
+loses them, and ``--resume`` solves those cases again.
 Memory stays flat: rows are flushed every ``flush_rows`` rows or ``flush_seconds`` seconds, and
 the final table is assembled from the parts, which hold only the table's scalars.
 """
@@ -71,9 +73,14 @@ class PartWriter:
         self.seq = 0
         self.written = 0
         self.failed = 0
+        self.seen: set[str] = set()  # hashes queued by this writer
 
     def add(self, row: dict[str, Any]) -> None:
-        """Queue a finished case's row; flush when due."""
+        """Queue a finished case's row; flush when due. A row whose hash this writer already
+        queued is ignored (an interrupted sweep records the outcomes in hand once more)."""
+        if row["hash"] in self.seen:
+            return
+        self.seen.add(row["hash"])
         if not self.rows:
             self.since = time.monotonic()
         self.rows.append(row)
@@ -99,13 +106,32 @@ def part_files(out: Path) -> list[Path]:
     return sorted(p for p in d.glob("part-*.parquet")) if d.is_dir() else []
 
 
+def read_part(path: Path, columns: list[str] | None = None):
+    """One part file (or the results table) as a DataFrame (only ``columns`` if given).
+
+    Raises:
+        InputError: naming ``--out`` and the file, if it is not one this module wrote (they are
+            written atomically, so only another program leaves a broken one): moved away, its
+            cases are solved again on resume (the table is rebuilt from the parts).
+    """
+    import pandas as pd
+    import pyarrow as pa
+
+    try:
+        df = pd.read_parquet(path, columns=columns)
+        if "hash" not in df.columns:
+            raise ValueError("no hash column")
+        return df
+    except (OSError, ValueError, KeyError, pa.ArrowException) as exc:
+        raise InputError("--out", f"{path}: not a sweep's Parquet file ({' '.join(str(exc).split())[:300]}); move it "
+                         "out of the folder and resume (its cases are solved again)") from None
+
+
 def done_hashes(out: Path) -> set[str]:
     """Hashes of the cases whose rows are on disk (read from the parts' hash column only)."""
-    import pyarrow.parquet as pq
-
     done: set[str] = set()
     for p in part_files(out):
-        done.update(pq.read_table(p, columns=["hash"]).column("hash").to_pylist())
+        done.update(read_part(p, ["hash"])["hash"])
     return done
 
 
@@ -114,7 +140,7 @@ def read_parts(out: Path, hashes: Iterable[str] | None = None):
     order; restricted to ``hashes`` if given (the cases of the current sweep file)."""
     import pandas as pd
 
-    frames = [pd.read_parquet(p) for p in part_files(out)]
+    frames = [read_part(p) for p in part_files(out)]
     if not frames:
         return pd.DataFrame()
     df = pd.concat(frames, ignore_index=True)
@@ -153,7 +179,7 @@ def read_table(out: str | Path):
     out = Path(out)
     p = out / RESULTS
     if p.is_file():
-        return pd.read_parquet(p)
+        return read_part(p)
     if not out.is_dir():
         raise InputError("out", f"expected a sweep's output folder, got {str(out)!r} (no such folder)")
     if not (out / MANIFEST).is_file() and not (out / PARTS).is_dir():
