@@ -20,7 +20,7 @@ from geoddp import load_scene, solve_scene
 from geoddp.scene import build_problem, terminal_frame_errors
 
 spec = load_scene("ur5_reach")
-result = solve_scene(spec, verbose=False)
+result = solve_scene(spec)
 print(result.status)
 print(f"J* = {result.cost:.12f} in {result.iterations} iterations, {1e3 * result.solve_time_s:.1f} ms")
 

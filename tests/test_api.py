@@ -204,3 +204,76 @@ def test_unknown_keyword_suggests_the_closest():
         solve_scene("coarse_dt_0p1", initial_control=np.zeros((30, 3)))
     with pytest.raises(InputError, match=r"^second_ordr: .*did you mean 'second_order'"):
         solve_scene("coarse_dt_0p1", second_ordr="paper")
+
+
+# ------------------------------------------------------------------ silent unless verbose=True
+
+# satellite_paper's table as verbose=True prints it (the time in the last line masked): the text
+# the command line has always printed, unchanged by the silent default
+PAPER_TABLE = """\
+iter                 cost     |grad|          dJ    lambda   gamma    exp    rungs
+   0 1.49575632016387e+04  4.683e+02  -1.426e+04  0.00e+00  0.3333  first        0
+   1 7.02141918170731e+02  6.672e+01  -1.918e+02  0.00e+00  1.0000 second        0
+   2 5.10390239994382e+02  6.009e-01  -1.760e-02  0.00e+00  1.0000 second        0
+   3 5.10372636558986e+02  2.593e-05  -1.589e-10  0.00e+00  1.0000 second        0
+converged: |J_i - J_(i-1)| <= tol (|dJ| = 1.589e-10 <= tol; verified at the returned iterate: Newton decrement \
+1.2e-25 <= 1.0e-08, reduced Hessian positive definite (min eig Q_uu = 1.012e-01)); J = 5.103726365588e+02, \
+||grad|| = 7.293e-13, 4 iterations, MS
+"""
+
+
+def _masked(text: str) -> str:
+    import re
+
+    return re.sub(r"[0-9.]+ ms\n", "MS\n", text)
+
+
+def test_python_solves_are_silent_by_default(capfd):
+    from geoddp.constraints import solve_constrained
+    from geoddp.problem import paper_problem
+
+    assert SolverOptions().verbose is False
+    p = paper_problem()
+    solve(p)
+    solve(p, SolverOptions(expansion="second"))
+    r = solve_scene("satellite_paper")
+    solve_constrained(build_problem(load_scene("satellite_keep_out")), SolverOptions(max_iter=2))
+    solve_scene("satellite_keep_out", max_iter=2)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+    assert r.converged and r.iterations == 4  # they did solve
+
+
+def test_verbose_true_prints_the_table_the_command_line_prints(capfd):
+    from geoddp.cli import main
+
+    solve_scene("satellite_paper", verbose=True)
+    assert _masked(capfd.readouterr().out) == PAPER_TABLE
+    spec = load_scene("satellite_paper")
+    solve(build_problem(spec), SolverOptions(tol=spec.tol, verbose=True))
+    assert _masked(capfd.readouterr().out) == PAPER_TABLE
+    assert main(["run", "satellite_paper"]) == 0  # the command line passes verbose itself
+    out = capfd.readouterr().out
+    assert _masked(out).startswith(PAPER_TABLE) and out.count("\n") == PAPER_TABLE.count("\n") + 2
+    assert main(["run", "satellite_paper", "--quiet"]) == 0
+    out = capfd.readouterr().out
+    assert "iter " not in out and out.startswith("J* = 510.3726365588")
+
+
+def test_verbose_true_prints_the_outer_loop_of_a_constrained_scene(capfd):
+    solve_scene("satellite_keep_out", verbose=True, max_iter=2)
+    lines = capfd.readouterr().out.splitlines()
+    assert lines[0].split() == ["outer", "inner", "tol", "max", "mu", "J", "violation", "feasibility", "inner",
+                                "inner", "status"]
+    assert [int(line.split()[0]) for line in lines[1:-1]] == list(range(len(lines) - 2))
+
+
+def test_a_scene_file_cannot_set_verbose():
+    import tomllib
+
+    from geoddp.scene import scene_file
+
+    data = tomllib.loads(scene_file("satellite_paper").read_text())
+    data["solver"]["verbose"] = True
+    with pytest.raises(InputError, match=r"^\[solver\]\.verbose: unknown key in \[solver\]; allowed keys: expansion, "):
+        parse_scene(data)

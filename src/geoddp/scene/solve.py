@@ -42,7 +42,7 @@ SCENE_KEYS = tuple(TABLES["solver"])
 PROBLEM_KEYS = ("second_order", "constraint_tol")
 
 
-def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **options: Any) -> Result:
+def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = False, **options: Any) -> Result:
     """Load (if a path or a built-in scene's name, see :func:`geoddp.scene.load_scene`), build and
     solve a scene: satellite or multibody (``[model] kind``).
 
@@ -55,7 +55,7 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = True, **opt
     Args:
         scene: a scene file, a built-in scene's name or a spec from :func:`geoddp.load_scene`.
         verbose: print the per-iteration table (and, for a scene with constraints, one line per
-            outer iteration).
+            outer iteration); False by default (silent).
         initial_controls: the start. A multibody scene takes an (H, m) sequence, an (m,) input
             held over the horizon, or a name: ``"quasi_static"`` (the default start: the inputs
             that hold the initial posture against gravity where the actuation can, least
