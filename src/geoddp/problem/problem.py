@@ -86,6 +86,8 @@ class Problem:
 
     Attributes:
         model: the model backend (:class:`Satellite` or :class:`Multibody`): dynamics, dt, integrator.
+            A bare ``pin.Model`` is an InputError naming ``model`` that says how to wrap it:
+            ``Multibody.from_model(model, dt=...)`` (:mod:`geoddp.models.multibody`).
         q0: initial configuration part: R0 (3, 3) on TSO(3), (nq,) for a multibody.
         v0: initial velocity part: Omega0 (3,) rad/s on TSO(3), (nv,) for a multibody.
         horizon: number of control steps H.
