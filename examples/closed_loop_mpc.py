@@ -22,7 +22,7 @@ from geoddp.scene import build_problem
 from geoddp.simulate import SimulationSpec, simulate, simulate_scene
 
 spec = load_scene("satellite_authors_code")
-plan = solve_scene(spec, verbose=False)
+plan = solve_scene(spec)
 problem = build_problem(spec)
 plant = {"inertia_scale": 1.2}
 runs = {

@@ -20,7 +20,7 @@ import numpy as np
 from geoddp import SolverOptions, solve, solve_scene
 from geoddp.problem import paper_problem
 
-result = solve_scene("satellite_wheel_limits", verbose=False)
+result = solve_scene("satellite_wheel_limits")
 lower, upper = result.limits                      # each (H, m), N m
 opt = result.extra["optimality"]
 on_bound = (result.active_set != 0).sum(axis=0)   # nodes on a bound, per input
@@ -39,7 +39,7 @@ assert list(on_bound) == [0, 0, 210] and opt["kkt_residual"] < 1e-8
 # ``paper_problem`` builds Table I in code; ``limits`` takes a scalar, one bound per input (m,)
 # or one row per node (H, m), with -inf / inf for an open side. With 3 N m all three wheels
 # saturate, the second one too although its unconstrained peak is below 3.
-tight = solve(paper_problem(limits=(-3.0, 3.0)), SolverOptions(expansion="switch", verbose=False))
+tight = solve(paper_problem(limits=(-3.0, 3.0)), SolverOptions(expansion="switch"))
 print(tight.status, f"J* = {tight.cost:.9f}", (tight.active_set != 0).sum(axis=0))
 assert tight.converged and abs(tight.cost - 1392.846355) < 1e-5
 assert np.abs(tight.controls).max() <= 3.0 and np.all((tight.active_set != 0).sum(axis=0) > 0)

@@ -25,8 +25,8 @@ import numpy as np
 from geoddp import Result, solve_scene
 from geoddp.viz import animation_frame_count, export_html, visual_placements
 
-satellite = solve_scene("satellite_paper", verbose=False)
-quadrotor = solve_scene("quadrotor", verbose=False)
+satellite = solve_scene("satellite_paper")
+quadrotor = solve_scene("quadrotor")
 with tempfile.TemporaryDirectory() as tmp:
     tmp = Path(tmp)
     pages = {"satellite": export_html(satellite, tmp / "satellite.html"),

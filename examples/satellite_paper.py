@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from geoddp import solve_scene
 
-results = {e: solve_scene("satellite_paper", expansion=e, record_controls=True, verbose=False)
+results = {e: solve_scene("satellite_paper", expansion=e, record_controls=True)
            for e in ("first", "second", "switch")}
 for name, r in results.items():
     print(f"{name:6s}  {r.iterations} iterations  J* = {r.cost:.10f}  |dJ/dU| = {r.grad_norm:.1e}  "

@@ -72,3 +72,55 @@ def test_the_custom_terms_derivatives_match_finite_differences(example):
                      for a in E])
     assert np.abs(grad - d.lx[0]).max() < 1e-8 * max(1.0, np.abs(grad).max())
     assert np.abs(hess - d.lxx[0]).max() < 1e-5 * max(1.0, np.abs(hess).max())
+
+
+# ------------------------------------------------------------------ the closed-loop guide's MPC by hand
+
+CLOSED_LOOP = GUIDE.parent / "closed_loop.md"
+
+
+def test_mpc_by_hand_runs_prints_what_the_guide_says_and_is_the_mpc_policy(capsys):
+    """docs/guide/closed_loop.md, "MPC by hand": the block runs as printed, prints the error the
+    guide quotes, leaves the window problem unchanged, and applies the controls geoddp.simulate.MPC
+    applies with every=1 from the same warm start, bit for bit."""
+    from geoddp.simulate import MPC, simulate
+
+    blocks = re.findall(r"```python\n(.*?)```", CLOSED_LOOP.read_text(encoding="utf-8"), flags=re.S)
+    (block,) = [b for b in blocks if "with_initial_state" in b]
+    ns: dict = {"__name__": "closed_loop_example"}
+    exec(compile(block, "docs/guide/closed_loop.md (MPC by hand)", "exec"), ns)
+    printed = capsys.readouterr().out.strip()
+    assert printed.startswith("attitude error after 5 s: ") and f"prints `{printed}`" in CLOSED_LOOP.read_text()
+    window, plant = ns["window"], ns["plant"]
+    np.testing.assert_array_equal(window.R0, np.eye(3))  # with_initial_state left it as built
+    plan = solve(window, SolverOptions())
+    mpc = MPC(window, horizon=100, every=1, max_iter=3)  # no plan: the first warm start is zeros, as above
+    run = simulate(plan, window, mpc, plant=plant, steps=500)
+    np.testing.assert_array_equal(np.array(ns["applied"]), run.u)
+    np.testing.assert_array_equal(run.q[-1], ns["R"])
+
+
+# ------------------------------------------------------------------ getting started
+
+GETTING_STARTED = GUIDE.parents[1] / "getting_started.md"
+
+
+def test_getting_started_python_blocks_run_and_say_what_they_get(tmp_path, monkeypatch, capsys):
+    """Every python block of docs/getting_started.md runs as printed (in an empty folder: the first
+    writes out/result.json), and the numbers its comments quote are the ones it gets."""
+    text = GETTING_STARTED.read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(blocks) == 3
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {"__name__": "getting_started"}
+    for i, block in enumerate(blocks):
+        exec(compile(block, f"docs/getting_started.md (block {i})", "exec"), ns)
+        if "hover" in block and "zero" in block:
+            hover, zero = ns["hover"], ns["zero"]
+            assert f"J = {hover.cost_history[0]:.2e} at the start, {hover.iterations} iterations to J* = " \
+                   f"{hover.cost:.6g}" in block
+            assert f"J = {zero.cost_history[0]:.2e} (it falls), {zero.status!r}" in block
+            assert capsys.readouterr().out.startswith("iter ")  # verbose=True, and only it, printed
+    assert (tmp_path / "out" / "result.json").is_file()
+    assert f"J* = {str(ns['solve'](ns['moved']).cost)[:5]}..." in text
+    np.testing.assert_array_equal(ns["problem"].R0, np.eye(3))  # with_initial_state left it as built

@@ -9,6 +9,7 @@ solver directly it refuses to be linearised rather than be solved without its co
 """
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -132,6 +133,18 @@ class ConstrainedProblem:
                 raise InputError(f"{name}[{i}]", f"expected a constraint (geoddp.constraints: PointingKeepOut, "
                                  f"JointLimits, ...), got {type(c).__name__}")
         return list(items)
+
+    def with_initial_state(self, q0: np.ndarray, v0: np.ndarray) -> "ConstrainedProblem":
+        """The same constrained problem from another initial state: the unconstrained problem's
+        :meth:`geoddp.problem.Problem.with_initial_state` (q0: R0 (3, 3) or (nq,); v0: (3,) rad/s
+        or (nv,); InputError naming ``q0`` / ``v0``) with these constraints, bound once, and
+        options; this one is unchanged."""
+        if not callable(getattr(self.problem, "with_initial_state", None)):
+            raise InputError("problem", f"its unconstrained problem ({type(self.problem).__name__}) has no "
+                             "with_initial_state; build the ConstrainedProblem around a geoddp.problem.Problem")
+        new = copy.copy(self)  # the constraints bind to the model, not to the initial state
+        new.problem = self.problem.with_initial_state(q0, v0)
+        return new
 
     # ---------------------------------------------------------------- sizes and the shared members
     @property

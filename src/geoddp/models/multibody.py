@@ -358,12 +358,16 @@ class Multibody:
         Q, V = self.rollout(q, v, np.reshape(u, (1, -1)))
         return Q[1], V[1]
 
-    def check_state(self, q: np.ndarray, v: np.ndarray, name: str = "initial") -> tuple[np.ndarray, np.ndarray]:
-        """Validate a state: q (nq,) with unit quaternions / (cos, sin) pairs, v (nv,)."""
-        q = finite_array(q, f"{name}.q", (self.nq,))
-        v = finite_array(v, f"{name}.v", (self.nv,))
+    def check_state(self, q: np.ndarray, v: np.ndarray, name: str | tuple[str, str] = "initial"
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Validated float64 copies of a state: q (nq,) finite with unit quaternions / (cos, sin)
+        pairs (to 1e-9), v (nv,) finite; errors name ``name.q`` / ``name.v``, or the two names of
+        a pair (``("q0", "v0")``)."""
+        nq, nv = name if isinstance(name, tuple) else (f"{name}.q", f"{name}.v")
+        q = finite_array(q, nq, (self.nq,))
+        v = finite_array(v, nv, (self.nv,))
         if not pin.isNormalized(self.pin_model, q, 1e-9):
-            raise InputError(f"{name}.q", "expected unit quaternions and unit (cos, sin) pairs (use pin.normalize), got a non-normalised configuration")
+            raise InputError(nq, "expected unit quaternions and unit (cos, sin) pairs (use pin.normalize), got a non-normalised configuration")
         return q, v
 
     def check_controls(self, controls: np.ndarray, H: int | None = None) -> np.ndarray:

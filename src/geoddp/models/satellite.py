@@ -89,10 +89,13 @@ class Satellite:
         """Dimension of the tangent state zeta = (eta, dOmega)."""
         return 6
 
-    def check_state(self, R: np.ndarray, Omega: np.ndarray, name: str = "initial") -> tuple[np.ndarray, np.ndarray]:
-        """Validated state: R (3, 3) a rotation, Omega (3,) rad/s; errors name ``name.rotation`` /
-        ``name.angular_velocity``."""
-        return rotation_matrix(R, f"{name}.rotation"), finite_array(Omega, f"{name}.angular_velocity", (3,))
+    def check_state(self, R: np.ndarray, Omega: np.ndarray, name: str | tuple[str, str] = "initial"
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Validated float64 copies of a state: R (3, 3) a rotation (orthonormal to 1e-9, det +1),
+        Omega (3,) finite, rad/s; errors name ``name.rotation`` / ``name.angular_velocity``, or
+        the two names of a pair (``("q0", "v0")``)."""
+        nR, nO = name if isinstance(name, tuple) else (f"{name}.rotation", f"{name}.angular_velocity")
+        return rotation_matrix(R, nR), finite_array(Omega, nO, (3,))
 
     def description(self) -> dict:
         """What a Result needs to rebuild the model: kind "satellite", dt, integrator, inertia

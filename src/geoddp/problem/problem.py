@@ -14,6 +14,7 @@ rollout_closed_loop, expansion, description), so this one class serves both.
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 from dataclasses import dataclass
 from typing import Any
@@ -39,6 +40,45 @@ from ..validate import InputError, choice, finite_array, keywords_checked, posit
 ATTITUDE_KINDS = ("chordal", "geodesic")
 
 
+# What the problem asks of its model (the backends Satellite and Multibody answer all of it)
+MODEL_METHODS = ("check_state", "rollout", "rollout_closed_loop", "expansion", "description")
+MODEL_SIZES = ("nx", "nu", "dt")
+_WRAP = ("from geoddp.models.multibody import Multibody; model = Multibody.from_model({name}, dt=0.01) "
+         "(dt in s; actuation: (nv, m), every degree of freedom by default)")
+
+
+def check_model(model: Any) -> None:
+    """InputError naming ``model`` unless it is a model backend (:class:`Satellite`,
+    :class:`Multibody`, or an object with their methods and sizes), saying how to make one from
+    what was given: a ``pin.Model`` (:meth:`Multibody.from_model`), a RobotWrapper, a URDF path."""
+    import os
+
+    import pinocchio as pin
+
+    if isinstance(model, (Satellite, Multibody)):
+        return
+    want = "expected a geoddp model (geoddp.models.multibody.Multibody or geoddp.models.satellite.Satellite)"
+    if isinstance(model, pin.Model):
+        raise InputError("model", f"{want}, got a bare pinocchio.Model; wrap it (it is copied): "
+                         + _WRAP.format(name="model"))
+    if isinstance(getattr(model, "model", None), pin.Model):  # pinocchio.RobotWrapper, example_robot_data.load
+        raise InputError("model", f"{want}, got a {type(model).__name__}; wrap its pinocchio.Model and visuals: "
+                         + _WRAP.format(name="robot.model, robot.visual_model"))
+    if isinstance(model, pin.Data):
+        raise InputError("model", f"{want}, got a pinocchio.Data (a model's workspace); wrap the pinocchio.Model: "
+                         + _WRAP.format(name="model"))
+    if isinstance(model, (str, os.PathLike)):
+        raise InputError("model", f"{want}, got the path {str(model)!r}; load the URDF: from geoddp.models.multibody "
+                         "import Multibody; model = Multibody(path, root=\"fixed\", dt=0.01) (root: fixed | "
+                         "free_flyer | spherical)")
+    missing = [a for a in MODEL_METHODS if not callable(getattr(model, a, None))]
+    missing += [a for a in MODEL_SIZES if not hasattr(model, a)]
+    if missing:
+        lacks = f" (it has no {', '.join(missing)})" if len(missing) < len(MODEL_METHODS + MODEL_SIZES) else ""
+        raise InputError("model", f"{want}, got {type(model).__name__}{lacks}; from a pinocchio.Model: "
+                         + _WRAP.format(name="model"))
+
+
 @keywords_checked
 @dataclass
 class Problem:
@@ -46,6 +86,8 @@ class Problem:
 
     Attributes:
         model: the model backend (:class:`Satellite` or :class:`Multibody`): dynamics, dt, integrator.
+            A bare ``pin.Model`` is an InputError naming ``model`` that says how to wrap it:
+            ``Multibody.from_model(model, dt=...)`` (:mod:`geoddp.models.multibody`).
         q0: initial configuration part: R0 (3, 3) on TSO(3), (nq,) for a multibody.
         v0: initial velocity part: Omega0 (3,) rad/s on TSO(3), (nv,) for a multibody.
         horizon: number of control steps H.
@@ -65,6 +107,7 @@ class Problem:
     limits: Any = None
 
     def __post_init__(self) -> None:
+        check_model(self.model)
         self.q0, self.v0 = self.model.check_state(self.q0, self.v0, "initial")
         self.horizon = positive_int(self.horizon, "horizon")
         for name, s in (("running", self.running), ("terminal", self.terminal)):
@@ -83,6 +126,28 @@ class Problem:
                                  f"inputs, got one on {m} ({type(t).__name__})")
         self.limits = as_limits(self.limits)
         self._bounds = None if self.limits is None else self.limits.resolve(self.horizon, self.model.nu)
+
+    def with_initial_state(self, q0: np.ndarray, v0: np.ndarray) -> "Problem":
+        """The same problem from another initial state x_0 = (q0, v0): a new Problem sharing this
+        one's model, costs, horizon and limits (nothing is rebuilt or re-validated but the state);
+        this one is unchanged. What a receding-horizon controller (MPC) calls at every re-solve.
+
+        Args:
+            q0: R0 (3, 3), a rotation matrix (body to world), for a satellite (TSO(3)) problem; the
+                configuration (nq,) for a multibody (unit quaternions, (x, y, z, w), and unit
+                (cos, sin) pairs, to 1e-9: ``pin.normalize``).
+            v0: Omega0 (3,), the body rate in rad/s; the velocity (nv,) for a multibody.
+
+        Raises:
+            InputError: naming ``q0`` (wrong shape, NaN or inf, not a rotation, a quaternion not
+                of unit norm) or ``v0`` (wrong shape, NaN or inf).
+
+        Example: ``solve(problem.with_initial_state(q, v), options, initial_controls=U_warm)``.
+        """
+        q0, v0 = self.model.check_state(q0, v0, ("q0", "v0"))
+        new = copy.copy(self)  # the fields were validated when this problem was made
+        new.q0, new.v0 = q0, v0
+        return new
 
     def with_limits(self, limits: Any) -> "Problem":
         """The same problem (model, costs, horizon, initial state shared) with other control limits

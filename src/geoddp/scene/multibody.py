@@ -63,7 +63,7 @@ gravity exactly (inside the limits, for initial controls), and refused where it 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -260,6 +260,20 @@ class MultibodySceneSpec(CommonSpec):
             return None
         return np.array(np.broadcast_to(self.initial_controls, (self.horizon, self.num_inputs)))
 
+    def read_initial_controls(self, value: Any, name: str = "initial_controls") -> np.ndarray | None:
+        """``value`` as this scene's initial controls, checked as the ``[solver]`` table's are
+        (:func:`read_initial_controls`: a name of :data:`INITIAL_CONTROLS`, (m,) or (H, m), inside
+        the limits); InputError naming ``name``. None means the default (quasi-static) start."""
+        def hover(param: str) -> np.ndarray:  # the reader's model: the URDF as parsed, gravity as set
+            from ..models import multibody as mbm
+
+            pm = mbm.Multibody(self.urdf, root=self.root, dt=self.dt, integrator=self.integrator, gravity=self.gravity,
+                               package_dirs=self.package_dirs).pin_model
+            return holding_input(pm, np.array(self.actuation), np.array(self.q0), param)
+
+        return read_initial_controls(value, name, self.num_inputs, self.horizon, hover, self.control_min,
+                                     self.control_max)
+
     def with_overrides(self, **overrides: Any) -> "MultibodySceneSpec":
         """A copy with shared fields (solver options), ``dt``, ``horizon``, ``integrator`` or
         ``initial_controls`` replaced, re-validated (e.g. ``spec.with_overrides(integrator="euler", horizon=60)``)."""
@@ -271,6 +285,62 @@ class MultibodySceneSpec(CommonSpec):
                 hint = f"; did you mean {guess!r}?" if guess else ""
                 raise InputError(k, f"cannot override this MultibodySceneSpec field{hint} (allowed: {', '.join(allowed)})")
         return dataclasses.replace(self, **overrides)
+
+
+def holding_input(pm: pin.Model, actuation: np.ndarray, q0: np.ndarray, name: str, kind: str = "hover"
+                  ) -> np.ndarray:
+    """The (m,) input holding configuration q0 (nq,) at rest against gravity, by ``kind``: least
+    squares for "quasi_static" and "gravity_compensation"
+    (:func:`geoddp.models.actuation.quasi_static_inputs`); for "hover" the input that balances
+    gravity exactly (:func:`~geoddp.models.actuation.hover_inputs`), else an InputError naming
+    ``name``. ``pm``: the scene's model with its gravity; ``actuation``: (nv, m)."""
+    from ..models.actuation import hover_inputs, quasi_static_inputs
+
+    if kind != "hover":
+        return quasi_static_inputs(pm, actuation, q0)
+    try:
+        return hover_inputs(pm, actuation, q0)
+    except InputError as e:
+        raise InputError(name, f'"hover": {e.detail} (at the initial configuration; "quasi_static" takes the '
+                         "least-squares input instead)") from None
+
+
+def read_initial_controls(val: Any, name: str, m: int, H: int, hover: Callable[[str], np.ndarray],
+                          lower: np.ndarray | None, upper: np.ndarray | None) -> np.ndarray | None:
+    """A multibody scene's initial controls (``[solver].initial_controls``, or the keyword of
+    :func:`geoddp.solve_scene`) as the spec stores them; InputError naming ``name``.
+
+    Args:
+        val: a name of :data:`INITIAL_CONTROLS`, an (m,) constant input or an (H, m) sequence (in
+            the units of the model's inputs: N m, N).
+        name: the parameter named in errors (``"[solver].initial_controls"``, ``"initial_controls"``).
+        m, H: the number of inputs and the horizon.
+        hover: ``hover(name)``: the input that balances gravity exactly at the initial state
+            (:func:`holding_input`), called for "hover" only.
+        lower, upper: the scene's ``[limits]`` control_min / control_max, (m,) each or None.
+
+    Returns:
+        None for "quasi_static" and "gravity_compensation" (the default start: made by the solver
+        from the built problem, clipped into all of its limits, URDF efforts included); the hover
+        input (m,); zeros (m,) clipped into [lower, upper] for "zero"; the array as given.
+    """
+    if isinstance(val, str):
+        val = v.choice(val, name, INITIAL_CONTROLS)
+        if val == "hover":
+            return _inside(hover(name), lower, upper, name)
+        if val == "zero":  # zeros projected into the limits (URDF effort limits contain 0)
+            return np.clip(np.zeros(m), -np.inf if lower is None else lower, np.inf if upper is None else upper)
+        return None
+    U0 = v.finite_array(val, name)
+    if U0.shape not in ((m,), (H, m)):
+        raise InputError(name, f'expected one of {", ".join(map(repr, INITIAL_CONTROLS))}, a constant input of shape '
+                         f"({m},) or a sequence of shape ({H}, {m}), got shape {U0.shape}")
+    return _inside(U0, lower, upper, name)
+
+
+def _inside(U0: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None, name: str) -> np.ndarray:
+    initial_in_limits(U0, lower, upper, name)
+    return U0
 
 
 def second_order_kinds(root: str, gravity: bool) -> tuple[str, ...]:
@@ -302,7 +372,6 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
         InputError: naming the key path, e.g. ``running_costs[1].frame`` or ``[horizon].dt``.
     """
     from ..models import multibody as mbm
-    from ..models.actuation import hover_inputs, quasi_static_inputs
 
     r = Reader(data, source, SCHEMA, arrays=ARRAYS, required=REQUIRED)
     r.top()
@@ -352,15 +421,8 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     v0 = r.check(v.finite_array, init_t.get("v", np.zeros(nv)), "[initial].v", (nv,))
 
     def hover(path: str, name: str = "hover") -> np.ndarray:
-        """The input holding q0 against gravity (``name``): least squares for "quasi_static" and
-        "gravity_compensation"; for "hover", refused unless it balances gravity exactly."""
-        if name != "hover":
-            return quasi_static_inputs(pm, actuation, q0)
-        try:
-            return hover_inputs(pm, actuation, q0)
-        except InputError as e:
-            raise r.err(path, f'"hover": {e.detail} (at the initial configuration; "quasi_static" takes the '
-                        "least-squares input instead)") from None
+        """The input holding q0 against gravity (``name``): :func:`holding_input`, errors naming the file."""
+        return r.check(holding_input, pm, actuation, q0, path, name)
 
     # ---- costs
     ctx = _CostContext(r, pm, q0, m, hover)
@@ -374,23 +436,8 @@ def parse_multibody_scene(data: Mapping[str, Any], source: str, base_dir: Path, 
     s = r.table("solver")
     U0 = None
     if "initial_controls" in s:
-        p = "[solver].initial_controls"
-        val = s["initial_controls"]
-        if isinstance(val, str):
-            val = r.check(v.choice, val, p, INITIAL_CONTROLS)
-            if val == "hover":
-                U0 = hover(p)
-            elif val == "zero":  # zeros projected into the limits (URDF effort limits contain 0)
-                lo, hi = common["control_min"], common["control_max"]
-                U0 = np.clip(np.zeros(m), -np.inf if lo is None else lo, np.inf if hi is None else hi)
-            # "quasi_static", "gravity_compensation": the default start (None), made by the solver
-            # from the built problem, clipped into all of its limits (URDF efforts included)
-        else:
-            U0 = r.check(v.finite_array, val, p)
-            if U0.shape not in ((m,), (H, m)):
-                raise r.err(p, f'expected one of {", ".join(map(repr, INITIAL_CONTROLS))}, a constant input of shape '
-                            f"({m},) or a sequence of shape ({H}, {m}), got shape {U0.shape}")
-        r.check(initial_in_limits, U0, common["control_min"], common["control_max"], p)
+        U0 = r.check(read_initial_controls, s["initial_controls"], "[solver].initial_controls", m, H, hover,
+                     common["control_min"], common["control_max"])
     return MultibodySceneSpec(
         name=name, description=description, source=source, urdf=urdf, root=root, gravity=gravity,
         actuation=actuation, q0=q0, v0=v0, dt=dt, horizon=H, integrator=integrator,

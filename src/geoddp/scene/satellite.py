@@ -171,6 +171,11 @@ class SceneSpec(CommonSpec):
         """(H, m) initial guess for the solver, or None for zeros."""
         return None if self.initial_controls is None else np.array(self.initial_controls)
 
+    def read_initial_controls(self, value: Any, name: str = "initial_controls") -> np.ndarray:
+        """``value`` as this scene's initial controls, checked as the ``[solver]`` table's are
+        (:func:`read_initial_controls`: an (H, m) array inside the limits); InputError naming ``name``."""
+        return read_initial_controls(value, name, self.num_inputs, self.horizon, self.control_min, self.control_max)
+
     def general(self) -> MultibodySceneSpec:
         """This scene in the general schema, which the one builder reads (the translation):
 
@@ -254,6 +259,16 @@ class SceneSpec(CommonSpec):
     __hash__ = None  # type: ignore[assignment]  # holds arrays; equality is by value
 
 
+def read_initial_controls(val: Any, name: str, m: int, H: int, lower: np.ndarray | None,
+                          upper: np.ndarray | None) -> np.ndarray:
+    """A satellite scene's initial controls (``[solver].initial_controls``, or the keyword of
+    :func:`geoddp.solve_scene`): an (H, m) sequence of body torques (N m) inside [lower, upper]
+    (the ``[limits]``, (m,) each or None); InputError naming ``name``."""
+    U0 = v.finite_array(val, name, shape=(H, m))
+    initial_in_limits(U0, lower, upper, name)
+    return U0
+
+
 @functools.lru_cache(maxsize=32)
 def _one_body(urdf: str) -> pin.Model:
     """A one-body URDF on a spherical root (cached: read only, by the constraint tables' checks and
@@ -316,8 +331,8 @@ def parse(data: Mapping[str, Any], source: str, base_dir: Path, default_name: st
     solver = r.table("solver")
     U0 = None
     if "initial_controls" in solver:
-        U0 = r.check(v.finite_array, solver["initial_controls"], "[solver].initial_controls", shape=(H, m))
-        r.check(initial_in_limits, U0, common["control_min"], common["control_max"], "[solver].initial_controls")
+        U0 = r.check(read_initial_controls, solver["initial_controls"], "[solver].initial_controls", m, H,
+                     common["control_min"], common["control_max"])
 
     return SceneSpec(
         name=name, description=description, source=source, inertia=inertia, actuation=act, urdf=urdf,

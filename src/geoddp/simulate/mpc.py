@@ -1,8 +1,9 @@
 """Model predictive control: re-solve a receding horizon from the measured state, warm-started.
 
-The problem is built once. :class:`MPC` keeps a shallow copy of the plan's problem (the same
-model, costs and compiled backends: nothing is re-read, re-parsed or re-validated) whose
-initial state (``q0``, ``v0``) and ``horizon`` it sets in place before each re-solve.
+The problem is built once. :class:`MPC` makes the window's problem from the plan's (the same
+model, costs and compiled backends: nothing is re-read or re-parsed) once per window length, and
+each re-solve starts it from the measured state with
+:meth:`geoddp.problem.Problem.with_initial_state`, which validates the state and nothing else.
 
 Every ``every`` plan steps (k = 0, every, 2 every, ...):
 
@@ -19,17 +20,19 @@ Every ``every`` plan steps (k = 0, every, 2 every, ...):
 Between re-solves the policy is the latest solution's feedback law u = u_j - K_j zeta_j at j
 steps into it (at j = 0 the measured state is the window's initial state, so u = u_0).
 
-Costs must be time-invariant (one reference per term): a per-node reference cannot slide with a
-window (InputError "policy").
+Costs and control limits must be time-invariant (one reference per term, one bound per input): a
+per-node reference or bound cannot slide with a window (InputError "policy").
 """
 from __future__ import annotations
 
 import copy
+import dataclasses
 import time
 from typing import Any
 
 import numpy as np
 
+from ..problem import ControlLimits, Problem
 from ..solver.result import Result
 from ..solver import SolverOptions, solve
 from ..validate import InputError, positive_int
@@ -47,11 +50,24 @@ def _check_time_invariant(problem: Any) -> None:
                                      f"{np.shape(ref)[0]} per-node references")
 
 
+def _window_limits(problem: Problem) -> ControlLimits | None:
+    """The plan's control limits as one (m,) bound per input, which every window takes; InputError
+    "policy" where they differ between nodes."""
+    bounds = problem.control_bounds()
+    if bounds is None:
+        return None
+    lo, hi = bounds
+    if not (np.all(lo == lo[0]) and np.all(hi == hi[0])):
+        raise InputError("policy", "MPC needs time-invariant control limits (one bound per input); the problem's "
+                         "differ between nodes")
+    return ControlLimits(lo[0].copy(), hi[0].copy())
+
+
 class MPC:
     """Receding-horizon re-solves of ``problem`` (see the module docstring).
 
     Args:
-        problem: the plan's problem (not modified: a shallow copy is updated in place).
+        problem: the plan's :class:`~geoddp.problem.Problem` (not modified).
         horizon: H_mpc, steps per window (default min(100, H)).
         every: re-solve every this many plan steps (>= 1).
         max_iter: iteration cap per re-solve (default 3).
@@ -65,10 +81,11 @@ class MPC:
 
     def __init__(self, problem: Any, *, horizon: int | None = None, every: int = 1, max_iter: int = DEFAULT_MAX_ITER,
                  shrink: bool = False, plan: Result | None = None, options: SolverOptions | None = None) -> None:
-        if not all(hasattr(problem, a) for a in ("running", "terminal", "horizon", "model")):
+        if not isinstance(problem, Problem):
             raise InputError("problem", f"expected the plan's geoddp Problem (its model, costs and horizon), got "
                              f"{type(problem).__name__}")
         _check_time_invariant(problem)
+        limits = _window_limits(problem)
         H = int(problem.horizon) if plan is None else plan.horizon
         self.H_mpc = min(100, H) if horizon is None else positive_int(horizon, "mpc.horizon")
         self.every = positive_int(every, "mpc.every")
@@ -83,9 +100,11 @@ class MPC:
         base = options or SolverOptions()
         self.options = copy.copy(base)
         self.options.max_iter, self.options.verbose = self.max_iter, False
-        # the one problem every re-solve uses: same model and costs, horizon and x0 set in place
-        self.problem = copy.copy(problem)
-        self.problem.horizon = self.H_mpc
+        # the window's problem: the plan's model and costs over H_mpc steps (a shrinking window's
+        # shorter ones are made when first needed); each re-solve starts it from the measured state
+        self._windows: dict[int, Problem] = {}
+        self._plan_problem, self._limits = problem, limits
+        self.problem = self._window_problem(self.H_mpc)
         m = problem.nu
         U0 = np.zeros((H, m)) if plan is None else np.asarray(plan.controls, dtype=float)
         self._first = np.vstack([U0, np.repeat(U0[-1:], max(0, self.H_mpc - len(U0)), axis=0)])[: self.H_mpc]
@@ -98,6 +117,13 @@ class MPC:
         self.solve_times: list[float] = []
         self.iterations: list[int] = []
         self.windows: list[int] = []
+
+    def _window_problem(self, h: int) -> Problem:
+        """The plan's problem over h steps (made once per h; shares the model and the costs)."""
+        p = self._windows.get(h)
+        if p is None:
+            p = self._windows[h] = dataclasses.replace(self._plan_problem, horizon=h, limits=self._limits)
+        return p
 
     def _window(self, k: int) -> int:
         if self.shrink and k < self.plan_horizon:
@@ -116,11 +142,9 @@ class MPC:
     def control(self, k: int, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """u at plan step k for the measured state (q, v); re-solves when k is a multiple of ``every``."""
         if self._sol is None or k - self._k_sol >= self.every:
-            p = self.problem
             h = self._window(k)
             U = self._warm_start(k, h)
-            p.horizon = h
-            p.q0, p.v0 = np.array(q, dtype=float), np.array(v, dtype=float)  # in place: no re-validation
+            p = self._window_problem(h).with_initial_state(q, v)  # validates the state only
             t0 = time.perf_counter()
             self._sol = solve(p, self.options, initial_controls=U)
             self.solve_times.append(time.perf_counter() - t0)

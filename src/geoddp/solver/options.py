@@ -74,7 +74,9 @@ class SolverOptions:
         reg_init, reg_min, reg_max: Q_uu regularisation lambda (start, floor, ceiling).
         reg_increase: factor on lambda when Q_uu is not positive definite (paper: 1.9).
         step_factor: line-search factor h (paper: 1/3); min_step: smallest gamma tried.
-        verbose: print the per-iteration table.
+        verbose: print the per-iteration table and the final line (on ``stream``); False by
+            default: a solve from Python is silent unless asked (the command line prints the
+            table unless ``--quiet``).
         record_controls: keep the controls of every iterate in the result.
         stream: where the table goes (sys.stdout when None).
         callbacks: objects whose hooks the solve calls as it runs, after the history recorder and
@@ -99,7 +101,7 @@ class SolverOptions:
     reg_increase: float = DEFAULT_REG_INCREASE
     step_factor: float = DEFAULT_STEP_FACTOR
     min_step: float = DEFAULT_MIN_STEP
-    verbose: bool = True
+    verbose: bool = False
     record_controls: bool = False
     stream: TextIO | None = field(default=None, repr=False)
     callbacks: tuple[Any, ...] = field(default=(), repr=False)
