@@ -29,7 +29,7 @@ print(f"J* = {result.cost:.12f} in {result.iterations} iterations, {1e3 * result
 print(f"tool0 ends {1e3 * err['position_error_m']:.1f} mm and {err['rotation_error_deg']:.3f} deg from the target")
 
 assert result.converged and result.iterations == 6
-assert abs(result.cost - 0.850648648517) < 1e-9 * result.cost
+assert abs(result.cost - 0.850648648465) < 1e-9 * result.cost
 assert err["position_error_m"] < 5e-3 and err["rotation_error_deg"] < 0.05
 
 # %%
