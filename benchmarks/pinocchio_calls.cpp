@@ -1,10 +1,10 @@
 // Per-call cost of the Pinocchio algorithms the compiled core runs per node (issue 12): ABA as
-// instantiated in this program at -O2 (what cpp/ did before cpp/aba_compiled.hpp) against the
+// instantiated in this program at -O2 (what cpp/ did before cpp/rigid_body/aba_compiled.hpp) against the
 // instantiation inside the pin wheel's libpinocchio_default (called through Eigen::Ref arguments),
 // computeABADerivatives (the first-order expansion) and ComputeRNEASecondOrderDerivatives (the
-// exact second-order expansion), and geoddp's kinetic-energy Hessian (cpp/kinetic_hessian.cpp, the
+// exact second-order expansion), and geoddp's kinetic-energy Hessian (cpp/rigid_body/kinetic_hessian.cpp, the
 // variational step's second order) against the second-order RNEA it replaces at (q, 0, y), and
-// RNEA's second order contracted with mu by the recursion (cpp/rnea_hessian.cpp, the contracted
+// RNEA's second order contracted with mu by the recursion (cpp/rigid_body/rnea_hessian.cpp, the contracted
 // pass's, since 2026-12-01) against that RNEA, whole and its part in the pass. Built and run by
 // benchmarks/pinocchio_calls.py.
 //
@@ -19,8 +19,8 @@
 #include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
 #include <pinocchio/multibody.hpp>
 
-#include "kinetic_hessian.cpp"
-#include "rnea_hessian.cpp"
+#include "rigid_body/kinetic_hessian.cpp"
+#include "rigid_body/rnea_hessian.cpp"
 
 #include <algorithm>
 #include <chrono>
@@ -94,7 +94,7 @@ int main() {
         [&] { ComputeRNEASecondOrderDerivatives(model, data, q, zero, v); },  // what the variational step ran
         [&] { geoddp::dyn::kinetic_hessian(model, data, kw, q, v, H); },
         [&] { geoddp::dyn::mass_tensors(model, data, kw, q, v, dM.data(), T.data()); },  // its tensors
-        // RNEA's second order contracted with mu (cpp/rnea_hessian.hpp), what the contracted pass runs
+        // RNEA's second order contracted with mu (cpp/rigid_body/rnea_hessian.hpp), what the contracted pass runs
         [&] { geoddp::dyn::rnea_hessian(model, rw, q.data(), v.data(), a.data(), mu.data(), r4.data(), r4.data() + nn,
                                         r4.data() + 2 * nn, r4.data() + 3 * nn); },
         // its part that needs mu, which the pass runs (the rest runs in the expansion, node-parallel)

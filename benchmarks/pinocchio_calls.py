@@ -3,15 +3,15 @@
 Compiles ``benchmarks/pinocchio_calls.cpp`` with CMakeLists.txt's flags (-O2, the wheel's
 template-instantiation and Boost limits, never -march=native) against the installed pin's headers
 and libpinocchio_default and cmeel-eigen, runs it, and prints one table: ABA instantiated in the
-program against the wheel's own instantiation (why cpp/aba_compiled.hpp calls through
+program against the wheel's own instantiation (why cpp/rigid_body/aba_compiled.hpp calls through
 Eigen::Ref), computeABADerivatives (a first-order node) and ComputeRNEASecondOrderDerivatives (an
 exact second-order node), medians of 7 interleaved rounds; the RNEA column's ratio is the floor
 Pinocchio sets under the second-order expansion's cost relative to the first-order one. The last
-two columns time geoddp's kinetic-energy Hessian (cpp/kinetic_hessian.cpp) against the
+two columns time geoddp's kinetic-energy Hessian (cpp/rigid_body/kinetic_hessian.cpp) against the
 second-order RNEA at (q, 0, y) from which the variational step had contracted it, and the last two
 its tensors dM/dq and d/dq D(q, y) (mass_tensors, the same file) against that RNEA, which had
 given them at the variational step's base points. The last three: RNEA's second order contracted
-with a vector by the recursion (cpp/rnea_hessian.cpp) against ComputeRNEASecondOrderDerivatives at
+with a vector by the recursion (cpp/rigid_body/rnea_hessian.cpp) against ComputeRNEASecondOrderDerivatives at
 (q, v, a), which the contracted pass's expansion had run per node, and the recursion's part that
 needs the vector (rnea_hessian_contract), which runs in the pass.
 Needs g++ and the build requirements; the compile takes about 90 s.

@@ -1,6 +1,6 @@
 """How long the core's idle workers poll before they sleep, interleaved in one process (issue 12).
 
-The compiled passes run on a persistent pool of workers (cpp/pool.hpp). A worker blocked on a
+The compiled passes run on a persistent pool of workers (cpp/runtime/pool.hpp). A worker blocked on a
 condition variable took 50-80 us to wake on the 2-core VM, and a DDP iteration calls the pool
 several times, with sequential work (line-search rollouts, the backward pass, Python) between the
 calls. After each task a worker therefore polls for up to GEODDP_SPIN_US microseconds before it

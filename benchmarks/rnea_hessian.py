@@ -2,14 +2,14 @@
 process (issue 12's stretch goal: the vector-tensor product of Nganga and Wensing).
 
 The contracted backward pass needs RNEA's second derivatives only through mu^T d2tau. With the
-recursion (cpp/rnea_hessian.hpp, the default) the expansion stores each node's (q, v, a) and the
-pass computes the four contractions directly; with ``_core.set_rnea_hessian_recursion(False)`` the
+recursion (cpp/rigid_body/rnea_hessian.hpp, the default) the expansion stores each node's (q, v, a) and the
+pass computes the four contractions directly; with ``_core.testing.set_rnea_hessian_recursion(False)`` the
 expansion stores Pinocchio's four nv^3 tensors (ComputeRNEASecondOrderDerivatives per node) and
 the pass contracts them, as before 2026-12-01. Same solver, same problem: this script times the two
 side by side, alternating per solve, and checks that the histories agree.
 
 Per case (benchmarks/robots.py's builders; default the articulated ones, where it applies: the
-one-body scenes keep their shortcut, cpp/one_body.hpp) and expansion (first, second, switch): one
+one-body scenes keep their shortcut, cpp/rigid_body/one_body.hpp) and expansion (first, second, switch): one
 warm-up round then ``--runs`` rounds of [tensors, recursion]; medians. Reported: iterations, ms per
 solve and per iteration (solve_time_s / iterations, the closing check included), the ratio
 recursion / tensors, second order's time per iteration over first order's, and the largest relative
@@ -44,7 +44,7 @@ EXPANSIONS = ("first", "second", "switch")
 
 
 def _solve(p, U0, expansion: str, recursion: bool, max_iter: int):
-    core.set_rnea_hessian_recursion(recursion)
+    core.testing.set_rnea_hessian_recursion(recursion)
     time.sleep(0.01)  # let the pool's workers stop polling between solves (as robots.py does)
     return solve(p, SolverOptions(expansion=expansion, verbose=False, max_iter=max_iter), initial_controls=U0)
 
@@ -70,7 +70,7 @@ def solves(case: robots.Case, runs: int, max_iter: int = 200) -> list[str]:
         rows.append(f"| {case.name} | {p.model.nv} | {exp} | {b.iterations} / {a.iterations} | {1e3 * t[False]:.2f} | "
                     f"{1e3 * t[True]:.2f} | {1e3 * per_it[exp][False]:.3f} | {1e3 * per_it[exp][True]:.3f} | "
                     f"{t[True] / t[False]:.2f}x | {ratio2} | {diff:.1e} |")
-    core.set_rnea_hessian_recursion(True)
+    core.testing.set_rnea_hessian_recursion(True)
     return rows
 
 
@@ -82,7 +82,7 @@ def pieces(case: robots.Case, runs: int) -> str:
     lin1 = []
     for i in range(10 * runs + 1):
         for recursion in (False, True):
-            core.set_rnea_hessian_recursion(recursion)
+            core.testing.set_rnea_hessian_recursion(recursion)
             t0 = time.perf_counter()
             lin = p.linearise(traj, 2)
             backward(lin, ws, 1e3)
@@ -92,7 +92,7 @@ def pieces(case: robots.Case, runs: int) -> str:
         backward(p.linearise(traj, 1), ws, 1e3)
         if i:
             lin1.append(time.perf_counter() - t0)
-    core.set_rnea_hessian_recursion(True)
+    core.testing.set_rnea_hessian_recursion(True)
     m = {c: 1e3 * statistics.median(v) for c, v in ts.items()}
     m1 = 1e3 * statistics.median(lin1)
     return (f"| {case.name} | {p.model.nv} | {p.horizon} | {m1:.2f} | {m[False]:.2f} | {m[True]:.2f} | "

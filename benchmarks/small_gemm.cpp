@@ -1,7 +1,7 @@
-// The Riccati node products (cpp/riccati_blocks.hpp's q_blocks and value update, dense) with
-// Eigen's product against cpp/small_gemm.hpp's two builds, interleaved in one process. Built and
+// The Riccati node products (cpp/riccati/riccati_blocks.hpp's q_blocks and value update, dense) with
+// Eigen's product against cpp/linalg/small_gemm.hpp's two builds, interleaved in one process. Built and
 // run by benchmarks/small_gemm.py; prints one line per (n, m, variant).
-#include "small_gemm.hpp"
+#include "linalg/small_gemm.hpp"
 
 #include <Eigen/Core>
 #include <algorithm>

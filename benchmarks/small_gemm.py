@@ -1,4 +1,4 @@
-"""The Riccati node products: Eigen's against cpp/small_gemm.hpp's two builds (issue 12).
+"""The Riccati node products: Eigen's against cpp/linalg/small_gemm.hpp's two builds (issue 12).
 
 Compiles ``benchmarks/small_gemm.cpp`` with the flags CMakeLists.txt gives each file (module code
 -O2, kernels -O3, the AVX2 kernel -mavx2 -mfma) against cmeel-eigen's headers, runs it, and prints
@@ -25,9 +25,9 @@ def main() -> int:
         t = Path(tmp)
         base = ["g++", "-std=c++17", "-DNDEBUG", f"-I{cpp}", f"-I{eigen}", "-DGEODDP_GEMM_AVX2=1"]
         steps = [
-            base + ["-O3", "-c", str(cpp / "small_gemm_base.cpp"), "-o", str(t / "b.o")],
-            base + ["-O3", "-mavx2", "-mfma", "-c", str(cpp / "small_gemm_avx2.cpp"), "-o", str(t / "a.o")],
-            base + ["-O2", "-c", str(cpp / "small_gemm.cpp"), "-o", str(t / "s.o")],
+            base + ["-O3", "-c", str(cpp / "linalg" / "small_gemm_base.cpp"), "-o", str(t / "b.o")],
+            base + ["-O3", "-mavx2", "-mfma", "-c", str(cpp / "linalg" / "small_gemm_avx2.cpp"), "-o", str(t / "a.o")],
+            base + ["-O2", "-c", str(cpp / "linalg" / "small_gemm.cpp"), "-o", str(t / "s.o")],
             base + ["-O2", "-c", str(ROOT / "benchmarks" / "small_gemm.cpp"), "-o", str(t / "h.o")],
             ["g++", str(t / "h.o"), str(t / "s.o"), str(t / "a.o"), str(t / "b.o"), "-o", str(t / "h")],
         ]

@@ -1,5 +1,5 @@
 """The tests' oracle of the multibody cost terms: the Python code geoddp ran before its compiled
-kernels (cpp/costs.cpp), kept here to check them against.
+kernels (cpp/costs/costs.cpp), kept here to check them against.
 
 It evaluates the package's own term objects (:mod:`geoddp.costs.multibody`: their models, frames,
 references and weights) in numpy over Pinocchio's Python calls, node by node. Residual terms

@@ -1,4 +1,4 @@
-"""The tests' oracle of the RKMK4 step (cpp/rkmk4.cpp runs it in geoddp): the fourth-order
+"""The tests' oracle of the RKMK4 step (cpp/dynamics/rkmk4.cpp runs it in geoddp): the fourth-order
 Runge-Kutta-Munthe-Kaas step on a Pinocchio state space, and its Jacobian, in numpy.
 
 The continuous dynamics are q^-1 dq/dt = v (body-frame velocity, per joint group) and

@@ -1,4 +1,4 @@
-"""The tests' oracle of the forward variational Euler step (cpp/variational.cpp runs it in geoddp):
+"""The tests' oracle of the forward variational Euler step (cpp/dynamics/variational_step.cpp runs it in geoddp):
 the step by Newton's method and its derivatives by implicit differentiation, in numpy over
 Pinocchio's Python calls, with the kinetic-energy Hessian and R_ww as central differences (the
 core differences once, from Pinocchio's second-order RNEA). The equations are in

@@ -226,7 +226,7 @@ def _child_expansion(conn, case):
 
 
 def test_worker_pool_survives_fork():
-    """The core's persistent worker pool (cpp/pool.hpp) after a fork: the child builds its own."""
+    """The core's persistent worker pool (cpp/runtime/pool.hpp) after a fork: the child builds its own."""
     import multiprocessing as mp
 
     mb, Q, V, U, _ = _setup(CASES[0], "euler", H=40)
@@ -243,7 +243,7 @@ def test_worker_pool_survives_fork():
 
 
 def test_pool_spin_changes_timing_only():
-    """How long idle workers poll before sleeping (cpp/pool.hpp, GEODDP_SPIN_US) changes when a
+    """How long idle workers poll before sleeping (cpp/runtime/pool.hpp, GEODDP_SPIN_US) changes when a
     worker wakes, never what it computes: the two-worker expansions of orders 1 and 2 are bitwise
     equal for 0 (sleep at once), the default and 100000 us; out-of-range values are refused, at the
     bound the Python check of GEODDP_SPIN_US uses too."""
@@ -464,7 +464,7 @@ def _revolute_tree(path, parents):
 @pytest.mark.parametrize("root", ["fixed", "free_flyer"])
 def test_branched_tree_terms_do_not_depend_on_recycled_buffers(tmp_path, root):
     """Pinocchio's second-order recursion never writes the entries that couple dofs on different
-    branches, and the contracted expansion's tensor buffers are recycled (cpp/dynamics.hpp, Buffer)
+    branches, and the contracted expansion's tensor buffers are recycled (cpp/runtime/buffers.hpp, Buffer)
     holding whatever the last user left. A chain writes every entry, so expanding a chain of the
     same size first leaves its numbers in the buffers the tree's expansion takes next: the tree's
     contraction must still equal its dense expansion (from Pinocchio's own zeroed tensors)."""

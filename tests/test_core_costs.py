@@ -1,4 +1,4 @@
-"""The compiled cost kernels (geoddp._core, cpp/costs.cpp) against the Python oracle
+"""The compiled cost kernels (geoddp._core, cpp/costs/costs.cpp) against the Python oracle
 (tests/oracle_costs.py) and against differences of their own gradient.
 
 Models: the space manipulator URDF on a free-flyer root, a fixed base and a spherical root, the
@@ -431,21 +431,21 @@ def test_kernels_check_sizes_themselves():
     nx = 2 * model.nv
     ok = dict(l=np.zeros(2), lx=np.zeros((2, nx)), lxx=np.zeros((2, nx * nx)))
     with pytest.raises(ValueError, match="refs"):
-        CORE.cost_frame_term(model, fid, 2, Q, np.zeros((3, 3)), np.eye(3), False, True, **ok)
+        CORE.testing.cost_frame_term(model, fid, 2, Q, np.zeros((3, 3)), np.eye(3), False, True, **ok)
     with pytest.raises(ValueError, match="lxx"):
-        CORE.cost_frame_term(model, fid, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, ok["l"], ok["lx"],
+        CORE.testing.cost_frame_term(model, fid, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, ok["l"], ok["lx"],
                              np.zeros((2, nx)))
     with pytest.raises(ValueError, match="frame_id"):
-        CORE.cost_frame_term(model, 10_000, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, **ok)
+        CORE.testing.cost_frame_term(model, 10_000, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, **ok)
     with pytest.raises(ValueError, match="W"):
-        CORE.cost_state_regularisation(model, Q, np.zeros((2, model.nv)), Q[:1], np.zeros((1, model.nv)),
+        CORE.testing.cost_state_regularisation(model, Q, np.zeros((2, model.nv)), Q[:1], np.zeros((1, model.nv)),
                                        np.eye(3), False, True, **ok)
     with pytest.raises(TypeError, match="pinocchio.Model"):
-        CORE.cost_frame_term("robot", fid, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, **ok)
+        CORE.testing.cost_frame_term("robot", fid, 2, Q, np.zeros((1, 3)), np.eye(3), False, True, **ok)
 
 
 # --------------------------------------------------------------------------------------
-# the whole sum in one call (cpp/cost_sum.cpp)
+# the whole sum in one call (cpp/bindings/bind_cost_sum.cpp)
 
 
 class _term_by_term:
@@ -464,15 +464,15 @@ class _term_by_term:
         rows = (lambda A: A.reshape(N, -1)) if d is not None else (lambda A: e)
         for t in self.sum.terms:
             if type(t) is ControlRegularisation:
-                CORE.cost_control_regularisation(np.ascontiguousarray(U), t.u_ref, t.W, d is not None, d.l if d else
+                CORE.testing.cost_control_regularisation(np.ascontiguousarray(U), t.u_ref, t.W, d is not None, d.l if d else
                                                  self.l, rows(d.lu) if d else e, rows(d.luu) if d else e)
             elif type(t) is StateRegularisation:
-                CORE.cost_state_regularisation(t.model, Q, V, t.q_ref, t.v_ref, t.W, t.gauss_newton or gauss_newton,
+                CORE.testing.cost_state_regularisation(t.model, Q, V, t.q_ref, t.v_ref, t.W, t.gauss_newton or gauss_newton,
                                                d is not None, d.l if d else self.l, rows(d.lx) if d else e,
                                                rows(d.lxx) if d else e)
             else:
                 code, refs, W = _FRAME_KINDS[type(t)](t)
-                CORE.cost_frame_term(t.model, t.frame_id, code, Q, refs, W, t.gauss_newton or gauss_newton,
+                CORE.testing.cost_frame_term(t.model, t.frame_id, code, Q, refs, W, t.gauss_newton or gauss_newton,
                                      d is not None, d.l if d else self.l, rows(d.lx) if d else e,
                                      rows(d.lxx) if d else e)
 

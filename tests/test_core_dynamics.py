@@ -10,10 +10,10 @@
   near pi, and the exact SE(3) dJr equals high-order differences of the closed-form Jr;
 * Theta, Gamma, Xi equal the Python reconstruction fed the same exact F2 (tight), and the Python
   oracle (at the oracle's accuracy);
-* rk4 (cpp/rkmk4.cpp): rollouts and Phi, B equal the Python RKMK4 to 1e-12, its second order
+* rk4 (cpp/dynamics/rkmk4.cpp): rollouts and Phi, B equal the Python RKMK4 to 1e-12, its second order
   (central differences of the analytic step Jacobian, as in Python) equals the Python one and
   second differences of the compiled step; threads do not change a bit; a solve equals Python's;
-* variational (cpp/variational.cpp): rollouts equal the Python step to 1e-12, F1 equals the Python
+* variational (cpp/dynamics/variational_*.cpp): rollouts equal the Python step to 1e-12, F1 equals the Python
   implicit differentiation (whose kinetic-energy Hessian is differenced) to 1e-10, and F2 (one
   difference of the analytic residual Jacobian) equals Richardson differences of the compiled F1
   tightly and the Python oracle (a difference of a difference) at its accuracy; a solve equals
@@ -158,7 +158,7 @@ def test_velocity_second_derivatives_exact(case):
     py, cc = _models(case)
     for seed in (5, 6):
         q, v, u = _state(py, seed)
-        F1c, F2c = core.velocity_derivatives(cc.pin_model, cc.actuation, cc.dt, q[None], v[None], u[None], 2, 1)
+        F1c, F2c = core.testing.velocity_derivatives(cc.pin_model, cc.actuation, cc.dt, q[None], v[None], u[None], 2, 1)
         F1p, F2p = py.velocity_derivatives(q[None], v[None], u[None], order=2)
         assert _rel(F1c, F1p) < 1e-13
         scale = max(1.0, float(np.abs(F2c).max()))
@@ -200,7 +200,7 @@ def test_closed_forms_equal_python(angle):
         g = model.groups[0]
         axis = rng.normal(size=3)
         omega[g.idx_v + g.nv - 3 : g.idx_v + g.nv] = angle * axis / np.linalg.norm(axis)
-        A, J, D = core.block_ad_jr(model.pin_model, omega)
+        A, J, D = core.testing.block_ad_jr(model.pin_model, omega)
         Ap, Jp = cfg.block_Ad_Jr(model.groups, nv, omega)
         assert np.abs(A - Ap).max() < 1e-14 and np.abs(J - Jp).max() < 1e-14
         Dp, _ = cfg.second_order_tensors(model.groups, nv, omega)
@@ -219,7 +219,7 @@ def test_closed_forms_equal_python(angle):
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 1e-2, 0.3, 0.59, 0.61, 1.0, 2.0, 3.1, np.pi - 1e-6])
 def test_se3_djr_transpose_apply_equals_the_derivative(angle):
     """The variational step's dK^T terms take (dJr(x)/dx_l)^T s of SE(3) from closed-form gradients of
-    s^T Q(r, p) (cpp/lie.hpp, se3_djr_transpose_apply) instead of forming dJr: equal to the dual-number
+    s^T Q(r, p) (cpp/lie/right_jacobians.hpp, se3_djr_transpose_apply) instead of forming dJr: equal to the dual-number
     dJr of block_ad_jr applied to s to round-off, and to O(h^4) differences of the Python closed-form
     Jr, from the identity through both sides of the coupling's series branch (|w| = 0.6) to near pi."""
     ff = Multibody(urdf_file("spacecraft.urdf"), root="free_flyer", dt=0.01)
@@ -228,8 +228,8 @@ def test_se3_djr_transpose_apply_equals_the_derivative(angle):
         x, s = rng.normal(size=6), rng.normal(size=6)
         axis = rng.normal(size=3)
         x[3:] = angle * axis / np.linalg.norm(axis)
-        N = core.se3_djr_transpose_apply(x, s)
-        _, _, D = core.block_ad_jr(ff.pin_model, x)
+        N = core.testing.se3_djr_transpose_apply(x, s)
+        _, _, D = core.testing.block_ad_jr(ff.pin_model, x)
         expected = np.einsum("ijl,i->jl", D, s)
         assert np.abs(N - expected).max() <= 1e-14 * max(1.0, np.abs(expected).max())
         h = 1e-3
@@ -243,7 +243,7 @@ def test_se3_djr_transpose_apply_equals_the_derivative(angle):
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 1e-2, 0.3, 0.59, 0.61, 1.0, 1.49, 1.51, 2.0, 3.1, np.pi - 1e-6])
 def test_jr_transpose_hessian_equals_the_derivative_of_djr(angle):
     """The variational second order's exact d/dx terms of d/dx[Jr(x)^-T p] rest on E[i, a, b] =
-    d^2 (Jr(x)^T u)_i / dx_a dx_b in closed form (cpp/lie.hpp, jr_transpose_hessian): equal to O(h^4)
+    d^2 (Jr(x)^T u)_i / dx_a dx_b in closed form (cpp/lie/right_jacobians.hpp, jr_transpose_hessian): equal to O(h^4)
     differences of the first derivatives, for SO(3) the Python closed form dJr
     (SO3.right_jacobian_derivative_batch) and for SE(3) se3_djr_transpose_apply (checked above against
     the Python Jr), from the identity through both sides of every series branch (|w| = 0.6 and 1.5) to
@@ -254,12 +254,12 @@ def test_jr_transpose_hessian_equals_the_derivative_of_djr(angle):
         axis = rng.normal(size=3)
         w = angle * axis / np.linalg.norm(axis)
         u3, x6, u6 = rng.normal(size=3), np.concatenate([rng.normal(size=3), w]), rng.normal(size=6)
-        E3, E6 = core.jr_transpose_hessian(w, u3), core.jr_transpose_hessian(x6, u6)
+        E3, E6 = core.testing.jr_transpose_hessian(w, u3), core.testing.jr_transpose_hessian(x6, u6)
 
         def g3(x):  # (dJr(x)/dx_l)^T u, (3, 3) over (i, l)
             return np.einsum("jil,j->il", cfg.SO3.right_jacobian_derivative_batch(x[None])[0], u3)
 
-        for E, g, x, u in ((E3, g3, w, u3), (E6, lambda y: core.se3_djr_transpose_apply(y, u6), x6, u6)):
+        for E, g, x, u in ((E3, g3, w, u3), (E6, lambda y: core.testing.se3_djr_transpose_apply(y, u6), x6, u6)):
             n = len(x)
             for b in range(n):
                 e = h * np.eye(n)[b]
@@ -268,7 +268,7 @@ def test_jr_transpose_hessian_equals_the_derivative_of_djr(angle):
             assert np.abs(E - np.swapaxes(E, 1, 2)).max() <= 1e-15 * max(1.0, np.abs(E).max())
         assert np.abs(E6[:, :3, :3]).max() == 0.0 and np.abs(E6[:3, :, :3]).max() == 0.0
     with pytest.raises(ValueError, match="x: expected shape"):
-        core.jr_transpose_hessian(np.zeros(4), np.zeros(4))
+        core.testing.jr_transpose_hessian(np.zeros(4), np.zeros(4))
 
 
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
@@ -295,7 +295,7 @@ def test_expansion_equals_python(case, integrator, monkeypatch):
         assert a.shape == b.shape
         assert _rel(a, b) < 2e-8  # the oracle's differencing error
     # the reconstruction alone, tight: the Python assembly fed the core's exact F1, F2
-    exact = core.velocity_derivatives(cc.pin_model, cc.actuation, cc.dt, Q[:-1], V[:-1], U, 2, 1)
+    exact = core.testing.velocity_derivatives(cc.pin_model, cc.actuation, cc.dt, Q[:-1], V[:-1], U, 2, 1)
     monkeypatch.setattr(OracleMultibody, "velocity_derivatives", lambda self, *a, **k: exact)
     ef = py.expansion(Q, V, U, order=2)
     for name in ("Theta", "Gamma", "Xi"):
@@ -366,7 +366,7 @@ def test_scene_solves_equal_python(scene, monkeypatch):
     assert np.max(np.abs(a.cost_history - b.cost_history) / np.abs(b.cost_history)) < 1e-6
 
 
-# ---------------------------------------------------------------------------- rk4 (cpp/rkmk4.cpp)
+# ---------------------------------------------------------------------------- rk4 (cpp/dynamics/rkmk4.cpp)
 def _second_order_scale(e):
     return max(np.abs(e.Theta).max(), np.abs(e.Gamma).max(), np.abs(e.Xi).max())
 
@@ -460,9 +460,9 @@ def test_solve_equals_python(integrator, monkeypatch):
     assert np.max(np.abs(a.cost_history - b.cost_history) / np.abs(b.cost_history)) < 1e-9
 
 
-# ---------------------------------------------------------------------------- variational (cpp/variational.cpp)
+# ---------------------------------------------------------------------------- variational (cpp/dynamics/variational_*.cpp)
 def _var_F(cc, Q, V, Vn, order=2, threads=1):
-    return core.variational_velocity_derivatives(cc.pin_model, cc.actuation, cc.dt, Q, V, Vn, order, threads)
+    return core.testing.variational_velocity_derivatives(cc.pin_model, cc.actuation, cc.dt, Q, V, Vn, order, threads)
 
 
 @pytest.mark.parametrize("case", CASES, ids=IDS)
@@ -570,7 +570,7 @@ def test_variational_step_that_cannot_converge_raises_or_rejects_the_trial():
 
 
 def test_compiled_joint_classification_is_the_python_one():
-    """cpp/joint_groups.hpp and geoddp.lie.product.joint_groups accept and refuse the same joints:
+    """cpp/lie/joint_groups.hpp and geoddp.lie.product.joint_groups accept and refuse the same joints:
     thirteen joint types of pin, one per model on a fixed base (a structural rule, nq == nv means
     R^k, would accept the helical and universal joints that the Python rule refuses)."""
     makers = {
@@ -594,7 +594,7 @@ def test_compiled_joint_classification_is_the_python_one():
         except ValueError:
             python_ok = False
         try:
-            core.block_ad_jr(model, np.zeros(model.nv))
+            core.testing.block_ad_jr(model, np.zeros(model.nv))
             compiled_ok = True
         except ValueError as exc:
             assert "is not supported" in str(exc) and "'j'" in str(exc), str(exc)

@@ -1,5 +1,5 @@
 """The kinetic energy's configuration Hessian and gradient by spatial-vector recursions
-(cpp/kinetic_hessian.hpp).
+(cpp/rigid_body/kinetic_hessian.hpp).
 
 H = 1/2 d2/dq2 (y^T M(q) y), trivialised (entry (k, l): the gradient's k-th entry differenced
 along q exp(eps e_l)), is what the variational step's second order takes from it. Checked against
@@ -116,7 +116,7 @@ def test_kinetic_hessian_equals_pinocchio(name):
     model = MODELS[name]()
     free = _free(model)
     for q, y in _states(model, seed=len(name)):
-        H = core.kinetic_hessian(model, q, y)
+        H = core.testing.kinetic_hessian(model, q, y)
         ref = _reference(free, q, y)
         scale = max(1.0, np.abs(ref).max())
         assert np.abs(H - ref).max() <= 1e-12 * scale, name
@@ -141,7 +141,7 @@ def test_kinetic_gradient_equals_pinocchio_and_differences(name):
         return 0.5 * y @ M @ y
 
     for q, y in _states(model, seed=7 + len(name)):
-        g = core.kinetic_gradient(model, q, y)
+        g = core.testing.kinetic_gradient(model, q, y)
         ref = _half_gradient(free, data, q, y)
         scale = max(1.0, np.abs(ref).max())
         assert np.abs(g - ref).max() <= 1e-12 * scale, name
@@ -173,7 +173,7 @@ def test_mass_tensors_equal_pinocchio_and_differences(name):
 
     roots = [model.idx_vs[j] + d for j in range(1, model.njoints) if model.parents[j] == 0 for d in range(model.nvs[j])]
     for q, y in _states(model, seed=11 + len(name)):
-        dM, T = core.mass_tensors(model, q, y)
+        dM, T = core.testing.mass_tensors(model, q, y)
         Iqq, _, _, dM_ref = core.rnea_second_order(free, q, np.zeros(nv), y, False)
         for got, ref in ((dM, dM_ref), (T, Iqq)):
             scale = max(1.0, np.abs(ref).max())
@@ -208,7 +208,7 @@ def test_mass_velocity_derivative_equals_pinocchio_and_differences(name):
 
     roots = [model.idx_vs[j] + d for j in range(1, model.njoints) if model.parents[j] == 0 for d in range(model.nvs[j])]
     for q, y in _states(model, seed=13 + len(name)):
-        D = core.mass_velocity_derivative(model, q, y)
+        D = core.testing.mass_velocity_derivative(model, q, y)
         pin.computeRNEADerivatives(free, data, q, np.zeros(nv), y)
         ref = data.dtau_dq.copy()
         scale = max(1.0, np.abs(ref).max())
@@ -224,7 +224,7 @@ def test_mass_velocity_derivative_equals_pinocchio_and_differences(name):
 def test_gravity_plays_no_part():
     model = MODELS["free_flyer_arm"]()
     q, y = next(_states(model, seed=1))
-    assert np.array_equal(core.kinetic_hessian(model, q, y), core.kinetic_hessian(_free(model), q, y))
+    assert np.array_equal(core.testing.kinetic_hessian(model, q, y), core.testing.kinetic_hessian(_free(model), q, y))
 
 
 def test_joint_with_moving_subspace_refused():
@@ -233,4 +233,4 @@ def test_joint_with_moving_subspace_refused():
     j = model.addJoint(0, pin.JointModelSphericalZYX(), pin.SE3.Identity(), "zyx")
     model.appendBodyToJoint(j, _inertia(np.random.default_rng(0)), pin.SE3.Identity())
     with pytest.raises(ValueError, match="'zyx' of type JointModelSphericalZYX is not supported"):
-        core.kinetic_hessian(model, pin.neutral(model), np.ones(model.nv))
+        core.testing.kinetic_hessian(model, pin.neutral(model), np.ones(model.nv))

@@ -1,4 +1,4 @@
-"""The one-body shortcut for RNEA's second-order tensors (cpp/one_body.hpp) against Pinocchio's
+"""The one-body shortcut for RNEA's second-order tensors (cpp/rigid_body/one_body.hpp) against Pinocchio's
 ComputeRNEASecondOrderDerivatives.
 
 For one rigid body on a free-flyer or spherical root, the expansions take d2tau/dv2 (constant),
@@ -69,7 +69,7 @@ MODELS = {
 @pytest.mark.parametrize("name", list(MODELS))
 def test_one_body_tensors_equal_pinocchio(name, seed):
     model = MODELS[name](seed)
-    assert core.one_body_applies(model)
+    assert core.testing.one_body_applies(model)
     rng = np.random.default_rng(100 + seed)
     for q, v, a in _states(model, rng):
         ref = core.rnea_second_order(model, q, v, a, False)
@@ -96,7 +96,7 @@ def test_spherical_tensor_under_gravity_is_not_zero():
 def test_shortcut_refuses_other_models():
     two = _one_body(pin.JointModelFreeFlyer(), 5)
     two.appendBodyToJoint(1, _body(np.random.default_rng(0)), pin.SE3.Identity())  # still one joint: applies
-    assert core.one_body_applies(two)
+    assert core.testing.one_body_applies(two)
     j2 = two.addJoint(1, pin.JointModelRZ(), pin.SE3.Identity(), "wheel")
     two.appendBodyToJoint(j2, _body(np.random.default_rng(1)), pin.SE3.Identity())
     revolute = pin.Model()
@@ -106,7 +106,7 @@ def test_shortcut_refuses_other_models():
     angular.gravity = pin.Motion(np.array([0.0, 0.0, -9.81]), np.array([0.0, 0.1, 0.0]))
     fixed = Multibody(urdf_file("space_manipulator.urdf"), root="fixed", dt=0.01).pin_model
     for model in (two, revolute, angular, fixed):
-        assert not core.one_body_applies(model)
+        assert not core.testing.one_body_applies(model)
         nq, nv = model.nq, model.nv
         with pytest.raises(ValueError, match="one-body"):
             core.rnea_second_order(model, pin.neutral(model), np.zeros(nv), np.zeros(nv), True)
@@ -123,4 +123,4 @@ def test_built_in_models_that_take_it(urdf, root, gravity, applies):
     """Which of the scenes' models the expansions take the shortcut for (the speed-up the README
     reports for the docking and quadrotor scenes rests on it)."""
     mb = Multibody(urdf_file(urdf), root=root, dt=0.01, gravity=gravity)
-    assert core.one_body_applies(mb.pin_model) == applies
+    assert core.testing.one_body_applies(mb.pin_model) == applies

@@ -119,7 +119,7 @@ def test_backward_pass_rejects_wrong_shapes():
 
 
 def test_passes_refuse_bad_outputs_and_box_arrays():
-    """The bindings' checks (cpp/binding_checks.hpp): a wrong shape, a read-only or a Fortran-order
+    """The bindings' checks (cpp/bindings/checks.hpp): a wrong shape, a read-only or a Fortran-order
     output, and the box pass's bounds and outputs are refused naming the array; the same call with
     the right arrays runs and keeps the feedforward in its box."""
     rng = np.random.default_rng(4)

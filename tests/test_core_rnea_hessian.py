@@ -1,7 +1,7 @@
 """RNEA's second derivatives contracted with a vector by a spatial-vector recursion
-(cpp/rnea_hessian.hpp), the contracted backward pass's second order for articulated models.
+(cpp/rigid_body/rnea_hessian.hpp), the contracted backward pass's second order for articulated models.
 
-For phi(q, v) = mu^T RNEA(q, v, a) at fixed a and mu, _core.rnea_hessian gives
+For phi(q, v) = mu^T RNEA(q, v, a) at fixed a and mu, _core.testing.rnea_hessian gives
 Hqq = d_l d_j phi (trivialised, iterated), Hvv, Hqv = d_j dphi/dv_l and Dm = d_l (M mu)_j. Checked
 
 * against Pinocchio's ComputeRNEASecondOrderDerivatives (what it replaces) contracted with mu,
@@ -15,7 +15,7 @@ type, a spherical root carrying a chain, a branching tree with mid-tree spherica
 prismatic and unaligned joints, the UR5 and Solo12), gravity on and off, near the identity and at
 random configurations. Then the pass that uses it: the contracted S, the backward pass and whole
 solves equal those from Pinocchio's tensors (the form before, kept behind
-_core.set_rnea_hessian_recursion(False)) to round-off.
+_core.testing.set_rnea_hessian_recursion(False)) to round-off.
 """
 import numpy as np
 import pinocchio as pin
@@ -76,7 +76,7 @@ def test_rnea_hessian_equals_pinocchio_and_differences(name, gravity):
     if not gravity:
         model.gravity.setZero()
     for q, v, a, mu in _states(model, seed=len(name) + gravity):
-        got = core.rnea_hessian(model, q, v, a, mu)
+        got = core.testing.rnea_hessian(model, q, v, a, mu)
         ref = _contracted_pinocchio(model, q, v, a, mu)
         fd = _differenced(model, q, v, a, mu)
         for label, x, r, d in zip(NAMES, got, ref, fd):
@@ -92,9 +92,9 @@ def test_rnea_hessian_refuses_bad_input():
     model = MODELS["free_flyer_arm"]()
     q, v = pin.neutral(model), np.zeros(model.nv)
     with pytest.raises(ValueError, match="mu"):
-        core.rnea_hessian(model, q, v, v, np.zeros(model.nv + 1))
+        core.testing.rnea_hessian(model, q, v, v, np.zeros(model.nv + 1))
     with pytest.raises(ValueError, match="q"):
-        core.rnea_hessian(model, q[:-1], v, v, v)
+        core.testing.rnea_hessian(model, q[:-1], v, v, v)
 
 
 CASES = [
@@ -110,9 +110,9 @@ IDS = [f"{u.split('.')[0]}-{r}-{'g' if g else 'nog'}" for u, r, g in CASES]
 def tensor_form():
     """Runs the body with Pinocchio's tensors in the contracted pass; the recursion after."""
     def use(on):
-        core.set_rnea_hessian_recursion(not on)
+        core.testing.set_rnea_hessian_recursion(not on)
     yield use
-    core.set_rnea_hessian_recursion(True)
+    core.testing.set_rnea_hessian_recursion(True)
 
 
 @pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
@@ -126,7 +126,7 @@ def test_contracted_terms_equal_pinocchio_form(case, integrator, tensor_form):
     q0 = pin.integrate(mb.pin_model, mb.neutral(), 0.7 * rng.normal(size=mb.nv))
     U = rng.normal(size=(8, mb.nu))
     Q, V = mb.rollout(q0, rng.normal(size=mb.nv), U)
-    assert core.rnea_hessian_recursion()
+    assert core.testing.rnea_hessian_recursion()
     t = mb.expansion(Q, V, U, order=2, contracted=True).terms
     tensor_form(True)
     ref = mb.expansion(Q, V, U, order=2, contracted=True).terms

@@ -1,4 +1,4 @@
-"""The regularisation ladder's search (geoddp.solver.ladder; its C++ twin in cpp/ladder.hpp):
+"""The regularisation ladder's search (geoddp.solver.ladder; its C++ twin in cpp/riccati/ladder.hpp):
 against the one-rung loop on monotone outcomes, on arbitrary ones, and rung for rung between the
 two languages."""
 from __future__ import annotations
@@ -90,7 +90,7 @@ def test_any_outcomes_end_on_a_rung_that_factorises_above_one_that_fails(two):
 
 @pytest.mark.parametrize("two", [False, True], ids=["one_at_a_time", "two_a_round"])
 def test_the_compiled_search_probes_the_same_rungs(two):
-    """cpp/ladder.hpp (regularised_contracted's search) rung for rung against the Python one, on
+    """cpp/riccati/ladder.hpp (regularised_contracted's search) rung for rung against the Python one, on
     monotone and arbitrary outcome tables."""
     rng = np.random.default_rng(11)
     tables = [[j >= t for j in range(top)] for top in (1, 7, 40) for t in range(1, top + 1)]
@@ -98,7 +98,7 @@ def test_the_compiled_search_probes_the_same_rungs(two):
         top = int(rng.integers(1, 60))
         tables.append([False] + list(rng.random(top - 1) < rng.random()))
     for table in tables:
-        rounds, hi, found = _core.ladder_search(len(table), two, table)
+        rounds, hi, found = _core.testing.ladder_search(len(table), two, table)
         assert ([tuple(r) for r in rounds], hi, found) == run(len(table), two, table), table
     with pytest.raises(ValueError, match="factorises"):
-        _core.ladder_search(3, two, [False, True])
+        _core.testing.ladder_search(3, two, [False, True])

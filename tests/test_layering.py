@@ -32,6 +32,7 @@ taught otherwise:
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -314,3 +315,133 @@ def test_a_synthetic_source_tree_with_a_lazy_circle_fails(tmp_path):
     found = problems(import_graph(tmp_path), FLOORS)
     assert found == ["upward import: geoddp.validate (floor 0) imports geoddp.viz (floor 5)",
                      "import circle: geoddp.sweep -> geoddp.viz -> geoddp.sweep"], found
+
+
+
+# ------------------------------------------------------------------ the compiled core's layers (cpp/)
+# The same rule for the C++ sources: every file sits in a layer folder of cpp/, and a file includes
+# (#include "folder/file") only files of its own folder or of a lower layer; no set of files
+# includes itself round in a circle. Includes are written from the cpp/ root (the include path the
+# build gives), so each one names its folder. cpp/README.md describes the layers.
+
+CPP = Path(__file__).resolve().parents[1] / "cpp"
+
+LAYERS: dict[str, int] = {
+    "runtime": 0,     # arrays, the worker pool, the node split, recycled buffers
+    "linalg": 1,      # the Riccati products (small_gemm) and Cholesky
+    "lie": 1,         # SO(3)/SE(3) right Jacobians, joint groups, block-diagonal joint operators
+    "rigid_body": 2,  # Pinocchio-level recursions: ABA call, one-body tensors, kinetic and RNEA Hessians
+    "costs": 2,       # cost terms over N nodes
+    "tso3": 2,        # the satellite's closed forms
+    "dynamics": 3,    # the integrators, rollouts, expansions, the factored second order
+    "riccati": 4,     # the backward passes (dense, box, contracted) and the regularisation ladder
+    "bindings": 5,    # the Python module: argument checks and bind_* per area
+}
+
+_INCLUDE = re.compile(r'^\s*#\s*include\s*"([^"]+)"', re.MULTILINE)
+_SYSTEM_INCLUDE = re.compile(r"^\s*#\s*include\s*<([^>]+)>", re.MULTILINE)
+
+
+def cpp_sources(root: Path = CPP) -> list[str]:
+    """Every C++ source under ``root``, as a path relative to it (``dynamics/euler.cpp``)."""
+    return sorted(p.relative_to(root).as_posix() for p in root.rglob("*") if p.suffix in (".cpp", ".hpp"))
+
+
+def cpp_include_graph(root: Path = CPP) -> tuple[dict[str, set[str]], list[str]]:
+    """File -> the files it includes with quotes; and the quoted includes that name no file of ``root``."""
+    graph: dict[str, set[str]] = {}
+    unresolved = []
+    for rel in cpp_sources(root):
+        graph[rel] = set()
+        for name in _INCLUDE.findall((root / rel).read_text(encoding="utf-8")):
+            if (root / name).is_file():
+                graph[rel].add(name)
+            else:
+                unresolved.append(f'{rel}: #include "{name}" is not a file of cpp/ (write it from the cpp/ root)')
+    return graph, unresolved
+
+
+def layer_of(rel: str, layers: dict[str, int]) -> int | None:
+    """The layer of a file: its top folder's (None at the root or in an unknown folder)."""
+    folder, sep, _ = rel.partition("/")
+    return layers.get(folder) if sep else None
+
+
+def cpp_problems(graph: dict[str, set[str]], layers: dict[str, int]) -> list[str]:
+    """Unplaced files, includes of a higher or another same-layer folder, and circles (empty: it holds)."""
+    out = []
+    for f in sorted(graph):
+        if layer_of(f, layers) is None:
+            out.append(f"{f}: not in a layer folder (add its folder to LAYERS in tests/test_layering.py)")
+    for f in sorted(graph):
+        lf = layer_of(f, layers)
+        for t in sorted(graph[f]):
+            lt = layer_of(t, layers)
+            if lf is None or lt is None or f.partition("/")[0] == t.partition("/")[0]:
+                continue
+            if lt > lf:
+                out.append(f"upward include: {f} (layer {lf}) includes {t} (layer {lt})")
+            elif lt == lf:
+                out.append(f"sideways include: {f} includes {t}, another folder of layer {lf}")
+    for path in circles(graph):
+        out.append("include circle: " + " -> ".join(path))
+    return out
+
+
+def test_the_cpp_tree_is_read():
+    """The scan sees the sources (an empty graph cannot pass) and the includes it should."""
+    graph, _ = cpp_include_graph()
+    assert {"bindings/module.cpp", "dynamics/euler.cpp", "lie/joint_blocks.hpp", "riccati/contracted.cpp"} <= set(graph)
+    assert "dynamics/second_order_terms.hpp" in graph["riccati/contracted.hpp"]
+    assert "lie/joint_groups.hpp" in graph["lie/joint_blocks.hpp"]
+    assert "dynamics/euler.cpp" in graph["dynamics/core_algorithms.cpp"]  # the unity file's .cpp includes
+
+
+def test_no_upward_include_no_circle_every_file_in_a_layer():
+    graph, unresolved = cpp_include_graph()
+    found = unresolved + cpp_problems(graph, LAYERS)
+    assert not found, "\n".join(found)
+
+
+def test_every_cpp_folder_has_a_layer_and_the_table_names_no_ghosts():
+    folders = {p.name for p in CPP.iterdir() if p.is_dir()}
+    assert folders == set(LAYERS), (sorted(folders - set(LAYERS)), sorted(set(LAYERS) - folders))
+
+
+def test_only_the_bindings_include_python_and_the_avx2_build_includes_no_eigen():
+    """pybind11 and Python headers only in bindings/ (the kernels stay callable without Python); the
+    AVX2/FMA build of the products (compiled with -mavx2 -mfma) includes no Eigen or Pinocchio header,
+    whose inline functions would otherwise be compiled twice with different instruction sets."""
+    found = []
+    for rel in cpp_sources():
+        system = _SYSTEM_INCLUDE.findall((CPP / rel).read_text(encoding="utf-8"))
+        if not rel.startswith("bindings/") and any(s.startswith(("pybind11/", "Python.h", "boost/python")) for s in system):
+            found.append(f"{rel} includes Python headers")
+    for rel in ("linalg/small_gemm_avx2.cpp", "linalg/small_gemm_impl.hpp"):
+        text = (CPP / rel).read_text(encoding="utf-8")
+        if any(s.startswith(("Eigen", "pinocchio")) for s in _SYSTEM_INCLUDE.findall(text)) or _INCLUDE.findall(text) != (
+                ["linalg/small_gemm_impl.hpp"] if rel.endswith(".cpp") else []):
+            found.append(f"{rel} includes more than the kernel")
+    assert not found, found
+
+
+def test_an_upward_or_sideways_cpp_include_and_a_circle_are_caught():
+    graph = {"lie/a.hpp": {"dynamics/b.hpp"}, "dynamics/b.hpp": {"dynamics/c.hpp"},
+             "dynamics/c.hpp": {"dynamics/b.hpp"}, "linalg/d.hpp": {"lie/a.hpp"}, "e.hpp": set()}
+    found = cpp_problems(graph, LAYERS)
+    assert found == ["e.hpp: not in a layer folder (add its folder to LAYERS in tests/test_layering.py)",
+                     "upward include: lie/a.hpp (layer 1) includes dynamics/b.hpp (layer 3)",
+                     "sideways include: linalg/d.hpp includes lie/a.hpp, another folder of layer 1",
+                     "include circle: dynamics/b.hpp -> dynamics/c.hpp -> dynamics/b.hpp"], found
+
+
+def test_the_cpp_reader_on_files(tmp_path):
+    """End to end on files: quoted includes from the root count, system includes and comments do not,
+    and an include that names no file is reported."""
+    (tmp_path / "lie").mkdir()
+    (tmp_path / "dynamics").mkdir()
+    (tmp_path / "lie" / "g.hpp").write_text('#pragma once\n#include <vector>\n// #include "dynamics/s.hpp"\n')
+    (tmp_path / "dynamics" / "s.hpp").write_text('#include "lie/g.hpp"\n  #  include "s.hpp"\n')
+    graph, unresolved = cpp_include_graph(tmp_path)
+    assert graph == {"dynamics/s.hpp": {"lie/g.hpp"}, "lie/g.hpp": set()}, graph
+    assert unresolved == ['dynamics/s.hpp: #include "s.hpp" is not a file of cpp/ (write it from the cpp/ root)']

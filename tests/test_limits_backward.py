@@ -53,7 +53,7 @@ def test_box_qp_matches_exhaustive_active_set_search(seed):
     if seed % 5 == 0:  # an input fixed by lower == upper
         hi[0] = lo[0] = 0.3
     x0 = rng.normal(size=m)  # any warm start
-    x, clamped, it = _core.box_qp(H, q, lo, hi, x0)
+    x, clamped, it = _core.testing.box_qp(H, q, lo, hi, x0)
     assert it >= 0
     ref = exhaustive_box_qp(H, q, lo, hi)
     np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10 * (1 + np.abs(ref).max()))
@@ -71,11 +71,11 @@ def test_box_qp_inside_box_is_the_newton_point_and_reports_indefinite():
     A = rng.normal(size=(4, 4))
     H = A @ A.T + np.eye(4)
     q = rng.normal(size=4)
-    x, cl, _ = _core.box_qp(H, q, np.full(4, -1e6), np.full(4, 1e6), np.zeros(4))
+    x, cl, _ = _core.testing.box_qp(H, q, np.full(4, -1e6), np.full(4, 1e6), np.zeros(4))
     np.testing.assert_allclose(x, np.linalg.solve(H, q), rtol=1e-12)
     assert not cl.any()
     # indefinite H on a free set: failure is reported, not a wrong answer
-    _, _, it = _core.box_qp(np.diag([1.0, -1.0]), np.ones(2), np.full(2, -1.0), np.full(2, 1.0), np.zeros(2))
+    _, _, it = _core.testing.box_qp(np.diag([1.0, -1.0]), np.ones(2), np.full(2, -1.0), np.full(2, 1.0), np.zeros(2))
     assert it == -1
 
 
@@ -268,7 +268,7 @@ def test_contracted_box_pass_equals_the_dense_one():
         for workers in (2, 2, 2, 0, 0, 0):
             two = run(False, r, workers=workers)
             assert two[0] == one[0] and all(np.array_equal(a, b) for a, b in zip(two[1:], one[1:]))
-    for workers in (-1, 3):  # the same check as the unconstrained pass (binding_checks.hpp)
+    for workers in (-1, 3):  # the same check as the unconstrained pass (bindings/checks.hpp)
         with pytest.raises(ValueError, match="workers: expected 0"):
             run(False, reg, workers=workers)
     outs = [run(False, reg)[:5], run(True, reg)[:5]]

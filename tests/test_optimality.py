@@ -75,7 +75,7 @@ def test_panda_badly_scaled_optimum_is_converged(tmp_path):
     r = solve_scene(path, verbose=False, expansion="second")
     o = _opt(r)
     # Where this non-convex solve stops is set by round-off (2.5e-3 measured with Eigen's products,
-    # 1.9e-5 with the AVX2/FMA ones of cpp/small_gemm.hpp); either is 1e4 times and more the
+    # 1.9e-5 with the AVX2/FMA ones of cpp/linalg/small_gemm.hpp); either is 1e4 times and more the
     # default grad_tol (1e-10), so a raw gradient test would not have stopped here.
     assert r.grad_norm > 1e4 * DEFAULT_GRAD_TOL
     assert r.converged and o["newton_decrease"] < 1e-12 and o["min_quu_eigenvalue"] > 0
@@ -109,7 +109,7 @@ def test_panda_tells_a_stall_from_a_badly_scaled_optimum(tmp_path):
     # The stopping iterate of this 200+ iteration non-convex solve is set by round-off: scaling Theta
     # by 1 +- 2^-52 moved it from 219 to 237 / 230 iterations and ||dJ/dU|| from 6.4e-2 to 0.20 /
     # 0.014 (measured); the contracted second order stops at 232 with 6.9e-3, and with the AVX2/FMA
-    # Riccati products (cpp/small_gemm.hpp) at 5.7e-4. Hence 1e4 times the default grad_tol (as the
+    # Riccati products (cpp/linalg/small_gemm.hpp) at 5.7e-4. Hence 1e4 times the default grad_tol (as the
     # badly scaled test): a raw gradient test would not stop here, where the decrement is at round-off.
     assert second.grad_norm > 1e4 * DEFAULT_GRAD_TOL and o["newton_decrease"] < 1e-10 and o["hessian_positive_definite"]
     assert second.cost < limit.cost  # non-convex: second order reaches a lower minimum

@@ -1,4 +1,4 @@
-"""The Riccati products' kernels (cpp/small_gemm.hpp) against numpy, in both builds.
+"""The Riccati products' kernels (cpp/linalg/small_gemm.hpp) against numpy, in both builds.
 
 The backward passes (plain, box-constrained, contracted) form their Q blocks and value updates
 with these kernels; a wrong edge case (a row or column tail, the transposed operand, the
@@ -33,7 +33,7 @@ def test_every_tail_against_numpy(variant):
             B = rng.standard_normal((K, N))
             C0 = rng.standard_normal((M, N))
             C = C0.copy() if accumulate else np.full((M, N), np.nan)  # overwritten, even NaN
-            _core.gemm(variant, trans_a, -1.5, A, B, accumulate, C)
+            _core.testing.gemm(variant, trans_a, -1.5, A, B, accumulate, C)
             ref = _reference(trans_a, -1.5, A, B, C0, accumulate)
             scale = 1.0 + np.abs(ref).max()
             worst = max(worst, np.abs(C - ref).max() / scale)
@@ -49,11 +49,11 @@ def test_node_sized_products(variant, n, m):
     P = rng.standard_normal((n, n))
     B = rng.standard_normal((n, m))
     VP = np.empty((n, n))
-    _core.gemm(variant, False, 1.0, V, P, False, VP)
+    _core.testing.gemm(variant, False, 1.0, V, P, False, VP)
     np.testing.assert_allclose(VP, V @ P, rtol=0, atol=1e-13 * np.abs(V @ P).max())
     Q = rng.standard_normal((m, n))
     Q0 = Q.copy()
-    _core.gemm(variant, True, 1.0, B, VP, True, Q)
+    _core.testing.gemm(variant, True, 1.0, B, VP, True, Q)
     np.testing.assert_allclose(Q, Q0 + B.T @ VP, rtol=0, atol=1e-13 * np.abs(B.T @ VP).max())
 
 
@@ -61,14 +61,14 @@ def test_builds_agree_to_rounding_and_isa_is_reported():
     rng = np.random.default_rng(7)
     A, B = rng.standard_normal((36, 36)), rng.standard_normal((36, 36))
     C0, C1 = np.empty((36, 36)), np.empty((36, 36))
-    _core.gemm(0, True, 1.0, A, B, False, C0)
-    _core.gemm(1, True, 1.0, A, B, False, C1)
+    _core.testing.gemm(0, True, 1.0, A, B, False, C0)
+    _core.testing.gemm(1, True, 1.0, A, B, False, C1)
     assert np.abs(C0 - C1).max() <= 1e-13 * np.abs(C0).max()
-    assert _core.gemm_isa() == "avx2+fma" if _core.has_avx2_fma() else _core.gemm_isa() in ("x86-64", "generic")
+    assert _core.gemm_isa() == "avx2+fma" if _core.testing.has_avx2_fma() else _core.gemm_isa() in ("x86-64", "generic")
 
 
 def test_shape_mismatch_is_refused():
     with pytest.raises(ValueError, match="shapes"):
-        _core.gemm(0, False, 1.0, np.ones((3, 4)), np.ones((5, 2)), False, np.empty((3, 2)))
+        _core.testing.gemm(0, False, 1.0, np.ones((3, 4)), np.ones((5, 2)), False, np.empty((3, 2)))
     with pytest.raises(TypeError):
-        _core.gemm(0, False, 1.0, np.ones((3, 4)), np.ones((4, 2)), False, np.empty((3, 2), dtype=np.float32))
+        _core.testing.gemm(0, False, 1.0, np.ones((3, 4)), np.ones((4, 2)), False, np.empty((3, 2), dtype=np.float32))

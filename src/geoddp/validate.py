@@ -91,13 +91,13 @@ def threads_from_environment() -> int:
 
 
 SPIN_ENV = "GEODDP_SPIN_US"
-SPIN_US_MAX = 100_000  # the core's bound (cpp/pool.hpp, geoddp._core.SPIN_US_MAX)
+SPIN_US_MAX = 100_000  # the core's bound (cpp/runtime/pool.hpp, geoddp._core.SPIN_US_MAX)
 
 
 def spin_from_environment() -> int | None:
     """How long the compiled core's idle workers poll for the next task before they sleep, in
     microseconds, from the environment variable GEODDP_SPIN_US (the core reads it itself, once, at
-    its first parallel call; cpp/pool.hpp); None when it is unset or empty (the core's default,
+    its first parallel call; cpp/runtime/pool.hpp); None when it is unset or empty (the core's default,
     1000 us).
 
     Raises:

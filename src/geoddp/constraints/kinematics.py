@@ -9,7 +9,7 @@ the tangent coordinates dq of ``pin.integrate`` and the contracted Hessian
 which is exactly what a residual cost 1/2 r^T W r needs beyond J_r^T W J_r (with w = W r), and
 what the augmented Lagrangian needs with w = the multiplier estimate (geoddp.constraints.augmented).
 
-The one expansion all of them rest on (the derivation of the compiled cost kernels, cpp/costs.cpp):
+The one expansion all of them rest on (the derivation of the compiled cost kernels, cpp/costs/costs.cpp):
 along q(s) = q exp(s dq) the frame moves as
 
     oMf(q(s)) = oMf exp(xi(s)),   xi(s) = s J dq + s^2 / 2 Hk(dq, dq) + O(s^3),

@@ -25,7 +25,7 @@ Residual costs l = 1/2 r^T W r with a residual r(q) and Jacobian J_r = dr/d(dq) 
     l_x  = J_r^T W r
     l_xx = J_r^T W J_r  (Gauss-Newton part)  +  sum_k (W r)_k Hess r_k  (second-order part).
 
-The compiled kernels of ``geoddp._core`` (cpp/costs.cpp, cpp/cost_sum.cpp) evaluate every term of
+The compiled kernels of ``geoddp._core`` (cpp/costs/costs.cpp, cpp/bindings/bind_cost_sum.cpp) evaluate every term of
 this module: the second-order parts are exact (Pinocchio's kinematic Hessians and the exact
 derivative of the closed-form right Jacobians, no differences), skipped (hence exactly zero) where
 W r = 0, so the exact and the Gauss-Newton Hessians coincide there bit for bit;

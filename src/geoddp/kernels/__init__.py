@@ -19,8 +19,8 @@ Conventions for every kernel below:
 * "out" arguments are filled in place (allocated by the caller, any initial content unless
   "added into"); "in" arguments are not modified.
 
-Riccati (``cpp/riccati.cpp``, ``cpp/tso3.cpp``)
------------------------------------------------
+Riccati (``cpp/riccati/riccati.cpp``, ``cpp/tso3/tso3.cpp``)
+------------------------------------------------------------
 ``backward_pass(Phi, B, lx, lu, lxx, lux, luu, Vx_final, Vxx_final, Theta, Gamma, Xi, second_order,
 reg, k_ff, K_fb, Quu_min_eig_proxy) -> (failed_node: int, d1: float, d2: float)``
     in: Phi (H,n,n), B (H,n,m), lx (H,n), lu (H,m), lxx (H,n,n), lux (H,m,n), luu (H,m,m),
@@ -33,16 +33,16 @@ reg, k_ff, K_fb, Quu_min_eig_proxy) -> (failed_node: int, d1: float, d2: float)`
 ``gradient(Phi, B, lx, lu, lx_final, out) -> None``
     in: Phi (H,n,n), B (H,n,m), lx (H,n), lu (H,m), lx_final (n,); out: out (H,m) = dJ/du.
 
-Lie numerics (``cpp/tso3.cpp``, ``cpp/lie.hpp``)
-------------------------------------------------
+Lie numerics (``cpp/tso3/tso3.cpp``, ``cpp/lie/right_jacobians.hpp``)
+---------------------------------------------------------------------
 ``so3_exp(x0, x1, x2, out) -> None``: x0..x2 floats (rad); out (3,3) = exp(hat(x)).
 ``so3_log(R, out) -> None``: in R (3,3) rotation; out (3,) rotation vector, angle in [0, pi].
 ``so3_log_batch(R, out) -> None``: in R (N,3,3); out (N,3).
 ``so3_right_jacobian(x, inverse) -> (3,3)``: in x (3,); Jr(x) or, if inverse, Jr(x)^-1 (new array).
 ``se3_right_jacobian(x, inverse) -> (6,6)``: in x (6,) [linear; angular]; Jr(x) or Jr(x)^-1.
 
-Rigid body (``cpp/tso3.cpp``)
------------------------------
+Rigid body (``cpp/tso3/tso3.cpp``)
+----------------------------------
 ``satellite_rollout(R0, Om0, R_bar, Om_bar, u_bar, k_ff, K_fb, gamma, use_feedback, inertia,
 inertia_inv, actuation, dt, semi_implicit, R_out, Om_out, u_out) -> bool`` (False: non-finite state)
     in: R0 (3,3), Om0 (3,) rad/s, R_bar (H+1,3,3), Om_bar (H+1,3), u_bar (H,m), k_ff (H,m),
@@ -60,8 +60,8 @@ Theta, Gamma, Xi) -> None``
     out: Phi (H,6,6), B (H,6,m); when second_order also Theta (H,6,6,6), Gamma (H,6,6,m),
     Xi (H,6,m,m) (otherwise they are not touched and may be empty).
 
-Costs (``cpp/tso3.cpp``)
-------------------------
+Costs (``cpp/tso3/tso3.cpp``)
+-----------------------------
 ``geodesic_attitude_derivatives(E, W, l, g, Hs) -> None``
     in: E (N,3,3) = R_d^T R, W (3,3) symmetric weight; added into: l (N,), g (N,3), Hs (N,3,3).
 

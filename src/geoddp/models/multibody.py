@@ -10,7 +10,7 @@ Dynamics (Pinocchio is the source of truth)::
     q+ = integrate(q, dt w),  w = v  (explicit Euler, paper eq. disceq)
                               w = v+ (semi-implicit Euler, Crocoddyl's).
 
-or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step (cpp/rkmk4.hpp, where the
+or, with integrator "rk4", the fourth-order Runge-Kutta-Munthe-Kaas step (cpp/dynamics/rkmk4.hpp, where the
 scheme is written out; second-order terms by central differences of its analytic step Jacobian,
 symmetrised), or the forward variational Euler step ("variational", :mod:`geoddp.models.variational`).
 

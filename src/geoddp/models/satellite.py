@@ -7,7 +7,7 @@ R+ = R exp(dt Omega) (explicit Euler, paper eq. disceqs) or R+ = R exp(dt Omega+
 
 This is the TSO(3) backend of a one-body model (spherical root, no gravity): the rollout, the
 closed-loop pass and the exact first- and second-order expansion run as closed forms in C++
-(``cpp/tso3.cpp``, through :mod:`geoddp.kernels`). Any other structure runs the general path
+(``cpp/tso3/tso3.cpp``, through :mod:`geoddp.kernels`). Any other structure runs the general path
 (:class:`geoddp.models.multibody.Multibody`). The numpy and Pinocchio finite-difference versions
 of the same quantities are the tests' oracles (tests/oracle_satellite.py).
 """

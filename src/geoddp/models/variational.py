@@ -26,13 +26,13 @@ and z = (eta, delta v, delta u),
     d2y/dz2    = -R_y^-1 [P^T R_ww P],   P = dw/dz = [I 0; 0 I; dy/dz]   (R is affine in u).
 
 R_z and R_y are analytic (Pinocchio's RNEA and gravity derivatives, closed-form Jr per joint
-group); the compiled core (cpp/variational.cpp) takes the kinetic-energy Hessian from Pinocchio's
+group); the compiled core (cpp/dynamics/variational_*.cpp) takes the kinetic-energy Hessian from Pinocchio's
 second-order RNEA and R_ww as one central difference of the analytic Jacobian (q through
 ``integrate``), symmetrised to the (0)-connection Hessian. The tests' numpy oracle of all this is
 tests/oracle_variational.py.
 
 This module holds what the compiled step shares with that oracle: Newton's stopping constants
-(cpp/variational.cpp uses the same) and the error a step that does not converge raises.
+(cpp/dynamics/variational_step.cpp uses the same) and the error a step that does not converge raises.
 """
 from __future__ import annotations
 

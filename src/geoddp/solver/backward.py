@@ -10,7 +10,7 @@ from ..validate import threads_from_environment
 from .ladder import LadderSearch, ladder
 from .options import SolverOptions
 
-# Every pass is compiled (geoddp._core, cpp/riccati.cpp, reached through geoddp.kernels): the
+# Every pass is compiled (geoddp._core, cpp/riccati/riccati.cpp, reached through geoddp.kernels): the
 # dense one (at nx = 6, the satellite's TSO(3) state, with its sizes fixed at compile time), and,
 # for a second-order Linearisation whose terms are factored (lin.second_order, compiled multibody
 # models), _core.backward_pass_contracted, which contracts them with V_x' node by node instead of
@@ -72,7 +72,7 @@ def backward(lin: Linearisation, ws: Workspace, reg: float, u_bar: np.ndarray | 
     (or its failure at a node where Q_uu + reg I is not positive definite) are the box pass's, bit
     for bit the unconstrained solver's (inactive limits change nothing). The
     unconstrained attempt is skipped while the last box pass had inputs on a bound. Otherwise
-    the compiled box pass (geoddp._core.backward_pass_box, cpp/riccati.cpp, for every model)
+    the compiled box pass (geoddp._core.backward_pass_box, cpp/riccati/riccati.cpp, for every model)
     recomputes the gains: box QP per node by projected Newton, warm-started from its previous
     feedforward; the active set goes to ws.active.
 

@@ -14,7 +14,7 @@ Where factorising is monotone in lambda (a pass that factorises at lambda factor
 larger one, the usual case: lambda I only adds to Q_uu, and the value functions it feeds back
 stay positive semidefinite) the rung found is exactly the one the one-rung restarts reached, so
 lambda, the gains and (d1, d2) are those of the paper's loop (tested). Otherwise it is a rung
-that factorises directly above one that does not. ``cpp/contracted.cpp``'s
+that factorises directly above one that does not. ``cpp/riccati/contracted.cpp``'s
 ``regularised_contracted`` runs the same search (the same probes in the same order) in C++.
 """
 from __future__ import annotations

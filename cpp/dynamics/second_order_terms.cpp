@@ -1,0 +1,105 @@
+// The factored second-order terms' storage and the pass's RNEA contraction per node (see
+// second_order_terms.hpp). Compiled inside dynamics/core_algorithms.cpp.
+#include "dynamics/second_order_terms.hpp"
+
+#include <atomic>
+#include <memory>
+#include <vector>
+
+#include "rigid_body/rnea_hessian.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+namespace {
+std::atomic<bool> RECURSION{true};
+std::atomic<unsigned long long> TERMS_ID{0};
+}  // namespace
+
+void set_rnea_hessian_recursion(bool on) { RECURSION = on; }
+bool rnea_hessian_recursion() { return RECURSION; }
+
+void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, bool semi_, bool variational_,
+                              bool recursion_, bool one_body_, bool one_body_gravity_) {
+  const Model& model = model_;
+  this->model = &model_;
+  id = ++TERMS_ID;
+  recursion = recursion_ && !variational_;
+  one_body = one_body_ && !variational_ && !recursion;
+  one_body_gravity = one_body && one_body_gravity_;
+  N = N_;
+  nv = model.nv;
+  m = m_;
+  dt = dt_;
+  semi = semi_;
+  variational = variational_;
+  groups.clear();
+  for (const JointGroup& g : joint_groups(model))
+    if (g.kind == SO3 || g.kind == SE3) groups.push_back(g);
+  const int nz = 2 * nv + m;
+  gJ = gD = gW = 0;
+  for (const JointGroup& g : groups) {
+    gJ += g.nv * g.nv;
+    gD += g.nv * g.nv * g.nv;
+    gW += g.nv * nz;
+  }
+  const size_t n3 = variational || recursion ? 0 : (size_t)N * nv * nv * nv;
+  rnea.resize(recursion ? (size_t)N * rnea_hessian_node_size(model) : 0);
+  if (one_body) {
+    Iqq.resize(one_body_gravity ? n3 : 0);
+    Ivv.resize((size_t)nv * nv * nv);
+    Iqv.resize(0);
+    dM.resize(0);
+  } else {
+    for (auto* x : {&Iqq, &Ivv, &Iqv, &dM}) x->resize(n3);
+  }
+  Minv.resize((size_t)N * nv * nv);
+  az.resize(variational || one_body ? 0 : (size_t)N * nv * nz);  // one body: read only with dM = 0
+  Ts.resize(variational ? (size_t)N * variational_upper_size(nv) * nv : 0);
+  F1.resize((size_t)N * nv * nz);
+  Jr.resize((size_t)N * gJ);
+  Dsym.resize((size_t)N * gD);
+  As.resize((size_t)N * gJ);
+  JWs.resize((size_t)N * gW);
+}
+
+// What a Data and RneaHessianWork depend on: the tree's shape and its joints' kinds.
+static std::vector<int> model_structure(const Model& model) {
+  std::vector<int> x{model.njoints, model.nq, model.nv};
+  for (int j = 0; j < model.njoints; ++j) {
+    x.push_back((int)model.parents[j]);
+    x.push_back(model.nvs[j]);
+    x.push_back(model.nqs[j]);
+    x.push_back(model.joints[j].toVariant().which());
+  }
+  return x;
+}
+
+void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4) {
+  // One work (and Data) per thread: the pass may contract on the pool's second worker, and two
+  // passes may run side by side (riccati/ladder.hpp's speculation). Every linearisation makes new terms
+  // (a new id); a work is rebuilt only if their model is another (a Data costs more than a node).
+  struct Cache {
+    std::unique_ptr<RneaHessianWork> work;
+    const Model* model = nullptr;
+    std::vector<int> structure;
+    unsigned long long served = 0;
+  };
+  thread_local Cache c;
+  const Model& model = *t.model;
+  if (c.served != t.id) {
+    std::vector<int> structure = model_structure(model);
+    if (!c.work || c.model != &model || c.structure != structure) {
+      c.work = std::make_unique<RneaHessianWork>(model);
+      c.model = &model;
+      c.structure = std::move(structure);
+    }
+    c.served = t.id;
+  }
+  const size_t nn = (size_t)model.nv * model.nv;
+  rnea_hessian_contract(model, *c.work, t.rnea.data() + (size_t)k * rnea_hessian_node_size(model), mu, r4, r4 + nn,
+                        r4 + 2 * nn, r4 + 3 * nn);
+}
+
+}  // namespace dyn
+}  // namespace geoddp
