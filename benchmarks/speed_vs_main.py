@@ -1,4 +1,4 @@
-"""This checkout's solver against another checkout's (main), interleaved in ONE process (issue 12).
+"""This checkout's solver against another checkout's (main), interleaved in ONE process.
 
 The other checkout's package (its ``src`` directory, with its built ``geoddp/_core*.so`` for the
 same pin) is copied to a temporary directory as the package ``geoddp_ref`` (every internal import
@@ -73,6 +73,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ref", type=Path, default=Path("/work/main"), help="the other checkout (default /work/main)")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--cases", nargs="*", default=["ur5", "panda", "solo12", "quadrotor"], choices=list(robots.CASES))
+    ap.add_argument("--tol", type=float, default=None,
+                    help="an absolute stopping tol for both (e.g. 1e-8: the default of a checkout from before "
+                         "the relative test, so that both stop by the same rule); default: each its own defaults")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         ref = load_reference(args.ref.resolve(), Path(tmp))
@@ -95,8 +98,9 @@ def main(argv: list[str] | None = None) -> int:
             for exp in EXPANSIONS:
                 rec = {"ref": [], "new": []}
                 for i in range(args.runs + 1):
-                    r_ref = ref_solve(pr, RefOptions(expansion=exp, verbose=False), initial_controls=ref_case.U0)
-                    r_new = solve(pn, SolverOptions(expansion=exp, verbose=False), initial_controls=new_case.U0)
+                    stop = {} if args.tol is None else {"tol": args.tol}
+                    r_ref = ref_solve(pr, RefOptions(expansion=exp, verbose=False, **stop), initial_controls=ref_case.U0)
+                    r_new = solve(pn, SolverOptions(expansion=exp, verbose=False, **stop), initial_controls=new_case.U0)
                     if i:
                         rec["ref"].append(r_ref)
                         rec["new"].append(r_new)
