@@ -15,6 +15,11 @@ the largest relative difference per array, and exits 1 if any case differs beyon
 
 Scenes: the built-in satellite, hard, multibody and robot scenes (the robots need
 example-robot-data); ``--quick`` skips the 3000-step horizon and the 1e-4 s step.
+
+``--old-defaults`` gives each scene the solver defaults of a checkout from before the relative
+stopping test and the quasi-static start: ``tol = 1e-8`` where the scene's ``[solver]`` table sets
+neither ``tol`` nor ``rtol``, and ``initial_controls = "zero"`` for a multibody scene that sets no
+start. Save the newer checkout with it to compare like for like with an older one.
 """
 from __future__ import annotations
 
@@ -62,7 +67,23 @@ def record(result) -> dict[str, np.ndarray]:
     return out
 
 
-def save(path: str, quick: bool, only: list[str] | None) -> None:
+def old_defaults(scene: Path) -> dict:
+    """The options that give ``scene`` the defaults of a checkout from before the relative
+    stopping test (absolute tol 1e-8) and the quasi-static start (zero controls)."""
+    import tomllib
+
+    table = tomllib.loads(scene.read_text())
+    solver = table.get("solver", {})
+    out: dict = {}
+    if "tol" not in solver and "rtol" not in solver:
+        out["tol"] = 1e-8
+    multibody = table.get("model", {}).get("kind", "satellite") != "satellite"
+    if multibody and "initial_controls" not in solver and "initial_controls" not in table:
+        out["initial_controls"] = "zero"
+    return out
+
+
+def save(path: str, quick: bool, only: list[str] | None, old: bool = False) -> None:
     solve_scene = _solve_scene()
     arrays: dict[str, np.ndarray] = {}
     for f in scene_files():
@@ -72,7 +93,7 @@ def save(path: str, quick: bool, only: list[str] | None) -> None:
             continue
         for exp in EXPANSIONS:
             try:
-                r = solve_scene(str(f), expansion=exp, verbose=False)
+                r = solve_scene(str(f), expansion=exp, verbose=False, **(old_defaults(f) if old else {}))
             except Exception as exc:  # a robot scene without example-robot-data
                 print(f"{f.stem:32s} {exp:7s} skipped: {type(exc).__name__}: {exc}", file=sys.stderr)
                 continue
@@ -123,6 +144,8 @@ def main() -> int:
     s.add_argument("path")
     s.add_argument("--quick", action="store_true")
     s.add_argument("--only", nargs="*")
+    s.add_argument("--old-defaults", action="store_true",
+                   help="absolute tol 1e-8 and zero start where the scene sets neither (see above)")
     c = sub.add_parser("compare")
     c.add_argument("before")
     c.add_argument("after")
@@ -130,7 +153,7 @@ def main() -> int:
     args = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     if args.cmd == "save":
-        save(args.path, args.quick, args.only)
+        save(args.path, args.quick, args.only, args.old_defaults)
         return 0
     return compare(args.before, args.after, args.rtol)
 
