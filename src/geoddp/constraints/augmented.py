@@ -148,8 +148,12 @@ class AugmentedLagrangianProblem:
                 hess += Hw
             run = p.nodes < H
             k = p.nodes[run]
-            np.add.at(l_x, k, grad[run])
-            np.add.at(l_xx, k, hess[run])
+            if np.unique(k).size == k.size:  # distinct nodes (path 1..H, terminal H): a fancy-indexed
+                l_x[k] += grad[run]             # += adds each row once, as np.add.at, without its loop
+                l_xx[k] += hess[run]
+            else:
+                np.add.at(l_x, k, grad[run])
+                np.add.at(l_xx, k, hess[run])
             if not run.all():
                 lf_x += grad[~run].sum(axis=0)
                 lf_xx += hess[~run].sum(axis=0)
