@@ -148,9 +148,11 @@ class AugmentedLagrangianProblem:
                 hess += Hw
             run = p.nodes < H
             k = p.nodes[run]
-            if np.unique(k).size == k.size:  # distinct nodes (path 1..H, terminal H): a fancy-indexed
-                l_x[k] += grad[run]             # += adds each row once, as np.add.at, without its loop
-                l_xx[k] += hess[run]
+            if k.size and k[-1] - k[0] + 1 == k.size and np.all(np.diff(k) == 1):
+                # consecutive nodes (a path constraint: 1..H-1 here): added through a slice, row by
+                # row as np.add.at would, without its per-element loop
+                l_x[k[0]:k[-1] + 1] += grad[run]
+                l_xx[k[0]:k[-1] + 1] += hess[run]
             else:
                 np.add.at(l_x, k, grad[run])
                 np.add.at(l_xx, k, hess[run])
