@@ -80,9 +80,10 @@ assert np.linalg.norm(pose_error) <= 1e-8 * np.sqrt(6)
 # %%
 # The detour and the limits
 # -------------------------
-# The tool goes round the sphere, above and beside it (its path in the x-z and x-y planes, the
-# sphere as its outline), and the pan and elbow joints run at their speed limit for much of the
-# motion.
+# The tool passes over the sphere and touches it (its path in the x-z and x-y planes, the sphere
+# as its outline), and the pan and elbow joints run at their speed limit for much of the motion.
+# (The task has a second local optimum passing under the sphere, J* = 0.91425, which a first
+# penalty of 1e3 instead of 1e2 reaches: ``geoddp.constraints.ConstraintOptions``.)
 fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
 t = np.linspace(0.0, 2.0 * np.pi, 200)
 for a, (i, j, label) in zip(ax[:2], [(0, 2, "z"), (0, 1, "y")]):
