@@ -28,7 +28,7 @@ extensions = [
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
-exclude_patterns = ["_build", "figures", "guide/_incoming"]  # drafts waiting to be folded into the guide
+exclude_patterns = ["_build", "figures"]
 root_doc = "index"
 
 # MyST: $...$ math, ::: fences, and headings as link targets for cross-page links.

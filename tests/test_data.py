@@ -25,7 +25,7 @@ SATELLITE = ("satellite_authors_code", "satellite_keep_out", "satellite_paper", 
              "satellite_wheel_limits")
 MULTIBODY = ("quadrotor", "quadrotor_thrust_limits", "space_manipulator", "spacecraft_docking")
 HARD = tuple(sorted(p.stem for p in (PACKAGE / "data" / "scenes" / "hard").glob("*.toml")))
-ROBOTS = ("hector_fly", "solo12_reorient", "ur5_reach")  # example-robot-data's robots by name
+ROBOTS = ("hector_fly", "solo12_reorient", "ur5_constraints", "ur5_reach")  # example-robot-data's robots by name
 
 QUAD_SCENE = (data.scene_dir() / "multibody" / "quadrotor.toml").read_text()
 
@@ -126,7 +126,7 @@ def test_the_build_ships_every_data_file():
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     backend = cfg["build-system"]["build-backend"]
     files = _data_files()
-    assert len(files) == 4 + 22 + 3 + 3  # 4 URDFs; 22 scenes (2 with control limits, 1 with constraints); 3 robots; 3 sweeps
+    assert len(files) == 4 + 22 + 4 + 3  # 4 URDFs; 22 scenes (2 with control limits, 1 with constraints); 4 robots (1 with constraints); 3 sweeps
     if backend.startswith("setuptools"):
         globs = cfg["tool"]["setuptools"]["package-data"]["geoddp"]
         missing = [f for f in files if not any(f.match(g) and len(f.parts) == len(PurePosixPath(g).parts)

@@ -148,8 +148,14 @@ class AugmentedLagrangianProblem:
                 hess += Hw
             run = p.nodes < H
             k = p.nodes[run]
-            np.add.at(l_x, k, grad[run])
-            np.add.at(l_xx, k, hess[run])
+            if k.size and k[-1] - k[0] + 1 == k.size and np.all(np.diff(k) == 1):
+                # consecutive nodes (a path constraint: 1..H-1 here): added through a slice, row by
+                # row as np.add.at would, without its per-element loop
+                l_x[k[0]:k[-1] + 1] += grad[run]
+                l_xx[k[0]:k[-1] + 1] += hess[run]
+            else:
+                np.add.at(l_x, k, grad[run])
+                np.add.at(l_xx, k, hess[run])
             if not run.all():
                 lf_x += grad[~run].sum(axis=0)
                 lf_xx += hess[~run].sum(axis=0)

@@ -24,8 +24,10 @@ Besides the model: optional frame-target triads (``vis["frame_targets"]``, from
 :func:`geoddp.viz.model.frame_targets`), an optional trail (``vis["trail"]``: a line through the
 positions of the root or of a named frame, with a bead at each time step) and a camera that frames
 the box of everything drawn over the whole trajectory (:func:`camera_view`).
-A ``scale`` other than 1 sits on ``vis["robot"]``, ``vis["target_ghost"]``, ``vis["frame_targets"]``
-and ``vis["trail"]`` themselves.
+A constrained result's keep-out cones, obstacles (spheres, half-spaces) and terminal poses sit
+under ``vis["constraints"]`` (:mod:`geoddp.viz.constraint_shapes`).
+A ``scale`` other than 1 sits on ``vis["robot"]``, ``vis["target_ghost"]``, ``vis["frame_targets"]``,
+``vis["trail"]`` and ``vis["constraints"]`` themselves.
 
 Pinocchio's own ``pin.visualize.MeshcatVisualizer`` is not reused: it draws one configuration at a
 time through its own ``meshcat.Visualizer`` (``display(q)``) and records animations only as videos,
@@ -51,6 +53,7 @@ from meshcat.animation import Animation
 from ..solver.result import Result
 from ..validate import InputError, positive_float
 from .compact_mesh import CompactMeshObject, MeshData, read_mesh
+from .constraint_shapes import CONSTRAINTS, constraint_shapes, draw_constraints
 from .model import (VisualModel, check_replayable, frame_positions, frame_targets, ghost_configuration,
                     load_visual_model, mesh_bytes, mesh_file, placements_at, replay_description,
                     satellite_description, trajectory_corners)
@@ -337,7 +340,9 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
                 max_mesh_mb: float | None = MAX_MESH_MB, prepared: tuple | None = None,
                 plan: Result | None = None) -> Animation:
     """The whole replay scene of any result: backdrop, the model's visuals at q_0, the target
-    ghost, frame-target triads, the trail, the camera, and the trajectory animation, in that order.
+    ghost, frame-target triads, the trail, the constraints' shapes (keep-out cones, obstacles and
+    terminal poses of a constrained solve: :mod:`geoddp.viz.constraint_shapes`), the camera, and
+    the trajectory animation, in that order.
 
     Args:
         vis: live or recording visualizer.
@@ -374,7 +379,7 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
     visual, Q, q_ghost, targets, path = prepared
     placements = placements_at(visual, Q)
     # A visualizer may be replayed into again: nothing of an earlier scene may remain.
-    for group in (ROBOT, GHOST, TARGETS, TRAIL, PLAN):
+    for group in (ROBOT, GHOST, TARGETS, TRAIL, PLAN, CONSTRAINTS):
         vis[group].delete()
     set_backdrop(vis)
     drawn = _draw(vis[ROBOT], visual, placements[0], scale)
@@ -406,9 +411,21 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
         vis[TRAIL].set_transform(np.diag([scale, scale, scale, 1.0]))
         _draw_trail(vis[TRAIL], path, bead=0.006 * float(np.max(upper - lower)) + 1e-3)
         points.append(path)
+    moving: dict = {}
+    shapes = constraint_shapes(result)
+    if shapes:
+        vis[CONSTRAINTS].set_transform(np.diag([scale, scale, scale, 1.0]))
+        length = triad_length(lower, upper)
+        extra, moving = draw_constraints(vis[CONSTRAINTS], shapes, visual, Q, lower, upper,
+                                         lambda node, M: _draw_triad(node, M, length))
+        points.extend(extra)
     target, position, _ = camera_view(np.vstack(points), scale)
     _set_camera(vis, target, position)
     anim = model_animation(vis, visual, placements, result.dt, drawn)
+    for node, keys in moving.items():  # a keep-out cone whose apex follows a moving frame
+        for k in range(keys.shape[0]):
+            with anim.at_frame(node, k) as frame:
+                frame.set_transform(keys[k])
     if plan_placements is not None:
         for i in drawn:
             node = vis[PLAN][visual.names[i]]
@@ -464,6 +481,6 @@ def build_satellite(vis: meshcat.Visualizer, scale: float = 1.0) -> None:
     _draw(vis[GHOST], visual, identity, scale, ghost=True)
 
 
-__all__ = ["BACKGROUND_RGB", "GHOST", "MAX_MESH_MB", "PLAN", "ROBOT", "SHAPE", "TARGETS", "TRAIL", "build_satellite",
+__all__ = ["BACKGROUND_RGB", "CONSTRAINTS", "GHOST", "MAX_MESH_MB", "PLAN", "ROBOT", "SHAPE", "TARGETS", "TRAIL", "build_satellite",
            "build_scene", "camera_view", "check_mesh_size", "check_replayable", "model_animation", "prepare_scene",
            "set_backdrop"]
