@@ -53,10 +53,10 @@ def anymal_gait(gait: str, robot=None) -> ContactProblem:
 
 
 def anymal_walk(robot=None) -> ContactProblem:
-    """Crocoddyl's ANYmal walk: 0.25 m steps, 0.15 m high, dt 0.01 s, 25 + 2 knots (H = 114)."""
+    """Crocoddyl's ANYmal walk: 0.25 m steps, 0.15 m high, dt 0.01 s, 25 + 2 knots (H = 108: 4 impulse nodes)."""
     return anymal_gait("walk", robot)
 
 
 def anymal_trot(robot=None) -> ContactProblem:
-    """Crocoddyl's ANYmal trot: 0.15 m steps, 0.1 m high, dt 0.01 s, 25 + 2 knots (H = 56)."""
+    """Crocoddyl's ANYmal trot: 0.15 m steps, 0.1 m high, dt 0.01 s, 25 + 2 knots (H = 56: 2 impulse nodes)."""
     return anymal_gait("trot", robot)
