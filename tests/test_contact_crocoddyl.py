@@ -110,3 +110,21 @@ def test_rollouts_match(robot, gait):
     assert abs(J - ours.trajectory_cost(traj)) <= 1e-10 * abs(J)
     for k, d in enumerate(croc.runningDatas):
         assert np.max(np.abs(d.xnext - xs[k + 1])) < 1e-10, k
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_geoddp_solution_in_crocoddyls_problem(gait):
+    """geoddp (first expansion, from the quasi-static start) converges; Crocoddyl's problem costs its
+    trajectory at geoddp's J* (1e-6 relative) with every transition consistent with Crocoddyl's
+    node models (1e-6); and that J* is at most FDDP's from the example's start (round-off aside)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import legged_vs_fddp as bench
+
+    ours, theirs = bench.geoddp(gait, "first"), bench.fddp(gait)
+    assert ours["converged"] and theirs["converged"]
+    assert abs(ours["J_crocoddyl"] - ours["J"]) <= 1e-6 * ours["J"]
+    assert ours["max_gap"] < 1e-6
+    assert ours["J"] <= theirs["J"] * (1 + 1e-12), (ours["J"], theirs["J"])

@@ -33,7 +33,8 @@ from ..validate import InputError, finite_array
 from .contract import Linearisation, Trajectory
 
 KINDS = ("contact", "impulse")
-FD_STEP = 1e-5  # central differences of the analytic first derivatives (second order)
+FD_STEP = 1e-4  # central differences of the analytic first derivatives (second order); 1e-5 let the
+# round-off of the KKT solves, times a value gradient of 2.7e3, make the walk's exact check indefinite
 
 
 @dataclass
