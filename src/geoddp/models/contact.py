@@ -5,8 +5,9 @@ Two node models over Pinocchio, as Crocoddyl's (same arithmetic, same next state
 * **Contact node** (Crocoddyl's ``DifferentialActionModelContactFwdDynamics`` with 3D point contacts
   expressed ``LOCAL_WORLD_ALIGNED``, under ``IntegratedActionModelEuler``): the feet in contact have
   zero classical acceleration up to Baumgarte stabilisation,
-  ``J_c a + a_0 = 0``, ``a_0 = oRf (alpha_f + Kp oRf^T (p_f - p_ref) + Kd v_f)`` (alpha_f the frame's
-  classical linear acceleration at a = 0, v_f its linear velocity, both in the foot frame), and the
+  ``J_c a + a_0 = 0``, ``a_0 = oRf (alpha_f + Kp oRf^T p_f + Kd v_f)`` (alpha_f the frame's
+  classical linear acceleration at a = 0, v_f its linear velocity, both in the foot frame; the
+  position term's reference is the origin, as in Crocoddyl's gaits, where Kp = 0), and the
   accelerations and contact forces solve the KKT system ``M a = tau - b + J_c^T lambda`` (Pinocchio's
   ``forwardDynamics``), ``tau = S u`` (S: the floating base unactuated). Then semi-implicit Euler:
   ``v+ = v + dt a``, ``q+ = integrate(q, dt v+)``.
@@ -20,10 +21,11 @@ forces as external forces and ``getFrameAccelerationDerivatives`` / ``getFrameVe
 for the constraint rows, put through the KKT matrix (implicit differentiation); forces are handled
 in the foot frame (where they move with the body) and rotated to the world at the end.
 
-Second order (for the ``second`` and ``switch`` expansions): :func:`node_second_order` takes central
-differences of these analytic first derivatives, symmetrised (as the ``rk4`` integrator does for its
-step), of the whole node map ``zeta -> difference(x_bar+, f(x_bar (+) zeta, u_bar + du))``, so the
-Lie-group terms of the chart are in it.
+Second order (for the ``second`` and ``switch`` expansions):
+:meth:`geoddp.problem.legged.ContactProblem.second_order_node` takes central differences of these
+analytic first derivatives, symmetrised (as the ``rk4`` integrator does for its step), of the whole
+node map ``zeta -> difference(x_bar+, f(x_bar (+) zeta, u_bar + du))``, so the Lie-group terms of
+the chart are in it.
 """
 from __future__ import annotations
 
