@@ -32,8 +32,9 @@ def crocoddyl_problem(robot, gait):
     q0 = robot.model.referenceConfigurations["standing"].copy()
     x0 = np.concatenate([q0, np.zeros(robot.model.nv)])
     builder = SimpleQuadrupedalGaitProblem(robot.model, *FEET)  # fresh: its first half step
-    make = {"walk": builder.createWalkingProblem, "trot": builder.createTrottingProblem}[gait]
-    return make(x0, *PARAMS[gait]), x0
+    make = {"walk": builder.createWalkingProblem, "trot": builder.createTrottingProblem,
+            "jump": builder.createJumpingProblem}[gait]
+    return make(x0, *[list(a) if isinstance(a, tuple) else a for a in PARAMS[gait]]), x0  # it edits the jump's length
 
 
 def crocoddyl_cost(croc, problem, q, v, u) -> tuple[float, float]:

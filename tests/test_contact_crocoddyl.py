@@ -1,6 +1,6 @@
 """Contact and impulse node models against Crocoddyl's, node for node on its ANYmal gaits.
 
-geoddp's anymal_walk / anymal_trot against the problems Crocoddyl's SimpleQuadrupedalGaitProblem
+geoddp's anymal_walk / anymal_trot / anymal_jump against the problems Crocoddyl's SimpleQuadrupedalGaitProblem
 builds (a fresh instance per problem, as its example quadrupedal_gaits_fwddyn.py's first gait):
 the same node kinds and feet, and at random states and controls the same next state (1e-12), the
 same node cost (1e-10 relative) and the same quasi-static controls. Needs the bench environment
@@ -32,8 +32,9 @@ def crocoddyl_problem(robot, gait):
     q0 = robot.model.referenceConfigurations["standing"].copy()
     x0 = np.concatenate([q0, np.zeros(robot.model.nv)])
     builder = SimpleQuadrupedalGaitProblem(robot.model, *FEET)  # fresh: its first (half) step
-    make = {"walk": builder.createWalkingProblem, "trot": builder.createTrottingProblem}[gait]
-    return make(x0, *GAITS[gait])
+    make = {"walk": builder.createWalkingProblem, "trot": builder.createTrottingProblem,
+            "jump": builder.createJumpingProblem}[gait]
+    return make(x0, *[list(a) if isinstance(a, tuple) else a for a in GAITS[gait]])  # it edits the jump's length
 
 
 def random_state(model, q0, rng):
@@ -47,7 +48,7 @@ def test_friction_cone_is_crocoddyls():
     assert np.array_equal(A, cone.A) and np.array_equal(lb, cone.lb) and np.array_equal(ub, cone.ub)
 
 
-@pytest.mark.parametrize("gait", ["walk", "trot"])
+@pytest.mark.parametrize("gait", ["walk", "trot", "jump"])
 def test_nodes_match_crocoddyl(robot, gait):
     croc = crocoddyl_problem(robot, gait)
     ours = anymal_gait(gait, robot)
@@ -74,7 +75,7 @@ def test_nodes_match_crocoddyl(robot, gait):
             worst_c = max(worst_c, abs(cost - data.cost) / max(abs(data.cost), 1.0))
     assert worst_x < 1e-12, worst_x
     assert worst_c < 1e-10, worst_c
-    assert kinds.count("impulse") == (4 if gait == "walk" else 2)
+    assert kinds.count("impulse") == {"walk": 4, "trot": 2, "jump": 1}[gait]
     # terminal node: Crocoddyl's calc(x) of its four-foot support model
     tm = croc.terminalModel
     for _ in range(3):
@@ -85,7 +86,7 @@ def test_nodes_match_crocoddyl(robot, gait):
         assert abs(cost - data.cost) <= 1e-10 * max(abs(data.cost), 1.0)
 
 
-@pytest.mark.parametrize("gait", ["walk", "trot"])
+@pytest.mark.parametrize("gait", ["walk", "trot", "jump"])
 def test_quasi_static_controls_are_crocoddyls(robot, gait):
     croc = crocoddyl_problem(robot, gait)
     ours = anymal_gait(gait, robot)
@@ -97,7 +98,7 @@ def test_quasi_static_controls_are_crocoddyls(robot, gait):
         assert np.allclose(U[k], expect, rtol=0, atol=1e-9), k
 
 
-@pytest.mark.parametrize("gait", ["walk", "trot"])
+@pytest.mark.parametrize("gait", ["walk", "trot", "jump"])
 def test_rollouts_match(robot, gait):
     """A whole rollout from the quasi-static start: every transition and the total cost are
     Crocoddyl's (its problem's calc at geoddp's states)."""

@@ -14,7 +14,8 @@ tracking 1e6, state regularisation 10 toward the default posture (weights (0, 0,
 500, 0.01 per joint, 10 x 6, 1 per joint velocity), squared), control regularisation 0.1, a
 state-bounds quadratic barrier 1e3 (joint position and velocity limits). Impulse node: foot
 tracking 1e7 of the feet that land, state regularisation 10 (weights 1 x 6, 10 per joint, 10 x nv).
-Terminal node: the state terms of a four-foot support node (Crocoddyl's terminal model is one).
+Terminal node: the terms of its node that depend on the state alone (state regularisation and
+bounds, CoM and foot tracking), undivided by dt (Crocoddyl's terminal ``calc(x)``).
 
 Controls are (H, nu) at every node; at impulse nodes they act on nothing and stay zero (a unit
 quadratic on them keeps the node's control Hessian invertible and costs exactly 0 there), so a
@@ -176,21 +177,22 @@ class ContactProblem:
         if derivatives:
             g[:] += c.bounds * (Jb.T @ ex)
             Hs[:] += c.bounds * (Jb.T @ (mask[:, None] * Jb))
+        # CoM and swing-foot terms depend on x alone: the terminal node keeps them (Crocoddyl's calc(x))
+        if node.com is not None:
+            com = pin.centerOfMass(m, d, q)
+            Jc = np.zeros((3, nz))
+            if derivatives:
+                Jc[:, :nv] = pin.jacobianCenterOfMass(m, d, q)
+            add(c.com, com - node.com, Jc)
+        for f, p in node.swing:
+            Jf = np.zeros((3, nz))
+            if derivatives:
+                Jf[:, :nv] = d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3]
+            add(c.foot, d.oMf[f].translation - p, Jf)
         if not terminal:
             uJ = np.zeros((nu, nz))
             uJ[:, 2 * nv:] = np.eye(nu)
             add(c.control, u, uJ)
-            if node.com is not None:
-                com = pin.centerOfMass(m, d, q)
-                Jc = np.zeros((3, nz))
-                if derivatives:
-                    Jc[:, :nv] = pin.jacobianCenterOfMass(m, d, q)
-                add(c.com, com - node.com, Jc)
-            for f, p in node.swing:
-                Jf = np.zeros((3, nz))
-                if derivatives:
-                    Jf[:, :nv] = d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3]
-                add(c.foot, d.oMf[f].translation - p, Jf)
             A, lb, ub = self.cone
             for i in range(len(node.feet)):
                 r = A @ ev.forces[3 * i:3 * i + 3]
@@ -425,3 +427,29 @@ class QuadrupedGait:
         nodes += self._footstep(com, [prf, plh], 0.5 * length, height, knots, [lf, rh], [rf, lh])
         nodes += ds + self._footstep(com, [plf, prh], length, height, knots, [rf, lh], [lf, rh])
         return nodes, ds[0]
+
+    def jump(self, q0, height: float, length, ground_knots: int, flying_knots: int) -> tuple[list[Node], Node]:
+        """Crocoddyl's createJumpingProblem: ``ground_knots`` on four feet, ``flying_knots`` rising
+        to the CoM apex (half of ``length`` (3,) m plus ``height`` m up), ``flying_knots`` falling,
+        the landing impulse with the feet at their start plus ``length``, then ``ground_knots`` on
+        four feet (the last one terminal) with the CoM target moved by ``length`` (its z: the
+        height change of the feet)."""
+        lf, rf, lh, rh = self.ids
+        feet = (lf, rf, lh, rh)
+        (plf, prf, plh, prh), _ = self._start(q0)
+        length = np.asarray(length, dtype=float).copy()
+        df = length[2] - prf[2]
+        for p in (plf, prf, plh, prh):
+            p[2] = 0.0
+        m = self.model
+        d = m.createData()
+        com = (prf + prh + plf + plh) / 4
+        com[2] = pin.centerOfMass(m, d, q0)[2]
+        nodes = [Node("contact", feet) for _ in range(ground_knots)]
+        apex = np.array([length[0] / 2.0, length[1] / 2.0, length[2] / 2.0 + height])
+        nodes += [Node("contact", (), com=apex * (k + 1) / flying_knots + com) for k in range(flying_knots)]
+        nodes += [Node("contact", ()) for _ in range(flying_knots)]
+        nodes.append(Node("impulse", feet, swing=tuple((f, p + length) for f, p in zip(feet, (plf, prf, plh, prh)))))
+        landed_com = com + np.array([length[0], length[1], df])
+        landed = [Node("contact", feet, com=landed_com) for _ in range(ground_knots)]
+        return nodes + landed[:-1], landed[-1]

@@ -2,6 +2,8 @@
 
 * :func:`anymal_walk`: step length 0.25 m, height 0.15 m, dt 0.01 s, 25 step knots, 2 support knots.
 * :func:`anymal_trot`: 0.15 m, 0.1 m, 0.01 s, 25, 2.
+* :func:`anymal_jump`: jump height 0.15 m, length (0, 0.3, 0) m, dt 0.01 s, 10 ground knots, 20
+  flying knots.
 
 ANYmal comes from example-robot-data (``pip install example-robot-data``), posture "standing";
 the problems are those Crocoddyl's ``SimpleQuadrupedalGaitProblem`` builds from a fresh instance,
@@ -19,7 +21,8 @@ from ..problem.legged import ContactProblem, QuadrupedGait
 from ..validate import InputError
 
 FEET = ("LF_FOOT", "RF_FOOT", "LH_FOOT", "RH_FOOT")
-GAITS = {"walk": (0.25, 0.15, 0.01, 25, 2), "trot": (0.15, 0.1, 0.01, 25, 2)}
+GAITS = {"walk": (0.25, 0.15, 0.01, 25, 2), "trot": (0.15, 0.1, 0.01, 25, 2),
+         "jump": (0.15, (0.0, 0.3, 0.0), 0.01, 10, 20)}  # jump: height, length (3,), dt, ground, flying knots
 
 
 def load_anymal():
@@ -33,16 +36,20 @@ def load_anymal():
 
 
 def anymal_gait(gait: str, robot=None) -> ContactProblem:
-    """The ContactProblem of Crocoddyl's ANYmal ``gait`` ("walk" or "trot") from "standing" at rest."""
+    """The ContactProblem of Crocoddyl's ANYmal ``gait`` ("walk", "trot" or "jump") from "standing" at rest."""
     if gait not in GAITS:
         raise InputError("gait", f"expected one of {tuple(GAITS)}, got {gait!r}")
     robot = robot or load_anymal()
     model = robot.model
-    length, height, dt, knots, support = GAITS[gait]
     q0 = model.referenceConfigurations["standing"].copy()
     v0 = np.zeros(model.nv)
     builder = QuadrupedGait(model, FEET)
-    nodes, terminal = getattr(builder, gait)(q0, length, height, knots, support)
+    if gait == "jump":
+        height, length, dt, ground, flying = GAITS[gait]
+        nodes, terminal = builder.jump(q0, height, length, ground, flying)
+    else:
+        length, height, dt, knots, support = GAITS[gait]
+        nodes, terminal = getattr(builder, gait)(q0, length, height, knots, support)
     urdf = Path(robot.urdf) if getattr(robot, "urdf", None) else None
     desc = {"kind": "multibody", "root": "free_flyer", "nq": model.nq, "nv": model.nv, "dt": dt,
             "integrator": "semi_implicit", "pin_model": model.saveToString()}
@@ -60,3 +67,9 @@ def anymal_walk(robot=None) -> ContactProblem:
 def anymal_trot(robot=None) -> ContactProblem:
     """Crocoddyl's ANYmal trot: 0.15 m steps, 0.1 m high, dt 0.01 s, 25 + 2 knots (H = 56: 2 impulse nodes)."""
     return anymal_gait("trot", robot)
+
+
+def anymal_jump(robot=None) -> ContactProblem:
+    """Crocoddyl's ANYmal jump: 0.3 m sideways (y), CoM apex 0.15 m up, dt 0.01 s, 10 ground knots,
+    20 + 20 flying knots, the landing impulse (H = 60: 1 impulse node)."""
+    return anymal_gait("jump", robot)
