@@ -1,6 +1,7 @@
 """geoddp solves Crocoddyl's ANYmal trot (geoddp.scene.legged) and the answer is physical.
 
-From the quasi-static start with the first-order expansion: converged (certified by the exact
+From the quasi-static start with the first-order expansion (and the switch expansion, to the same
+J*): converged (certified by the exact
 second-order check), the stance feet do not slide (under 0.05 mm per step: semi-implicit Euler
 with Baumgarte damping, not an exact constraint on positions), every stance force pushes
 (f_z > 0) and stays in the friction cone up to the soft barrier's slack (under 1 % of f_z), the
@@ -63,3 +64,13 @@ def test_result_json_shapes(solved, tmp_path):
     assert U.shape == (H, 12)
     assert problem.impulse_rows.sum() == 2 and np.all(U[problem.impulse_rows] == 0.0)
     assert np.all(np.any(U[~problem.impulse_rows] != 0.0, axis=1))
+
+
+def test_switch_expansion_reaches_the_same_minimum(solved):
+    """The switch expansion (its second-order steps on the terms of geoddp.problem.legged's
+    differences) ends at the first expansion's J* to round-off, certified too."""
+    problem, first = solved
+    res = solve(problem, SolverOptions(expansion="switch"))
+    assert res.converged, res.message
+    assert "second" in res.expansion_history
+    assert res.cost == pytest.approx(first.cost, rel=1e-12)
