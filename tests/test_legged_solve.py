@@ -1,11 +1,11 @@
 """geoddp solves Crocoddyl's ANYmal trot (geoddp.scene.legged) and the answer is physical.
 
 From the quasi-static start with the first-order expansion (and the switch expansion, to the same
-J*): converged (certified by the exact
-second-order check), the stance feet do not slide (under 0.05 mm per step: semi-implicit Euler
-with Baumgarte damping, not an exact constraint on positions), every stance force pushes
-(f_z > 0) and stays in the friction cone up to the soft barrier's slack (under 1 % of f_z), the
-result JSON has Crocoddyl's shapes with zero control rows at the impulse nodes.
+J*): converged (certified by the exact second-order check), the stance feet do not slide (under
+0.05 mm per step: semi-implicit Euler with Baumgarte damping, not an exact constraint on
+positions), every stance force pushes (f_z > 0) and stays in the friction cone up to the soft
+barrier's slack (under 1 % of f_z), the result JSON has Crocoddyl's shapes with zero control rows
+at the impulse nodes.
 """
 import json
 
