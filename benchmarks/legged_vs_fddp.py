@@ -1,0 +1,104 @@
+"""geoddp (first, second, switch) against Crocoddyl FDDP on the ANYmal gaits, each solve in its own
+process (in one process their threads compete).
+
+Both start from the example's quasi-static controls (Crocoddyl's ``quasiStatic``; FDDP also from
+its example's states xs = [x0] * (T + 1)). Per solver and gait: iterations, J* (geoddp's as
+Crocoddyl's problem costs geoddp's trajectory), wall time of the solve. Needs the bench
+environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data).
+
+    .venv-bench/bin/python benchmarks/legged_vs_fddp.py            # all, results log
+    .venv-bench/bin/python benchmarks/legged_vs_fddp.py one fddp trot
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+SOLVERS = ("fddp", "first", "second", "switch")
+GAITS = ("walk", "trot")
+
+
+def crocoddyl_problem(robot, gait):
+    from crocoddyl.utils.quadruped import SimpleQuadrupedalGaitProblem
+
+    from geoddp.scene.legged import FEET
+    from geoddp.scene.legged import GAITS as PARAMS
+
+    q0 = robot.model.referenceConfigurations["standing"].copy()
+    x0 = np.concatenate([q0, np.zeros(robot.model.nv)])
+    builder = SimpleQuadrupedalGaitProblem(robot.model, *FEET)  # fresh: its first half step
+    make = {"walk": builder.createWalkingProblem, "trot": builder.createTrottingProblem,
+            "jump": builder.createJumpingProblem}[gait]
+    return make(x0, *[list(a) if isinstance(a, tuple) else a for a in PARAMS[gait]]), x0  # it edits the jump's length
+
+
+def crocoddyl_cost(croc, problem, q, v, u) -> tuple[float, float]:
+    """(J of Crocoddyl's problem at the trajectory, largest transition gap |f(x_k, u_k) - x_k+1|)."""
+    xs = [np.concatenate([a, b]) for a, b in zip(q, v)]
+    us = [np.zeros(0) if problem.impulse_rows[k] else u[k] for k in range(problem.horizon)]
+    J = croc.calc(xs, us)
+    gap = max(float(np.max(np.abs(d.xnext - xs[k + 1]))) for k, d in enumerate(croc.runningDatas))
+    return float(J), gap
+
+
+def fddp(gait: str, max_iter: int = 200) -> dict:
+    import crocoddyl
+
+    from geoddp.scene.legged import load_anymal
+
+    croc, x0 = crocoddyl_problem(load_anymal(), gait)
+    solver = crocoddyl.SolverFDDP(croc)
+    xs = [x0] * (croc.T + 1)
+    us = croc.quasiStatic([x0] * croc.T)
+    t = time.perf_counter()
+    converged = solver.solve(xs, us, max_iter, False)
+    elapsed = time.perf_counter() - t
+    return {"solver": "fddp", "gait": gait, "iterations": int(solver.iter), "J": float(solver.cost),
+            "converged": bool(converged), "time_s": elapsed}
+
+
+def geoddp(gait: str, expansion: str, max_iter: int = 200) -> dict:
+    from geoddp.scene.legged import anymal_gait, load_anymal
+    from geoddp.solver import SolverOptions, solve
+
+    robot = load_anymal()
+    problem = anymal_gait(gait, robot)
+    t = time.perf_counter()
+    res = solve(problem, SolverOptions(expansion=expansion, max_iter=max_iter))
+    elapsed = time.perf_counter() - t
+    out = {"solver": expansion, "gait": gait, "iterations": int(res.iterations), "J": float(res.cost),
+           "converged": bool(res.converged), "status": res.status, "time_s": elapsed}
+    try:
+        croc, _ = crocoddyl_problem(robot, gait)
+        out["J_crocoddyl"], out["max_gap"] = crocoddyl_cost(croc, problem, res.q, res.v, res.controls)
+    except ImportError:
+        pass
+    return out
+
+
+def one(solver: str, gait: str) -> dict:
+    return fddp(gait) if solver == "fddp" else geoddp(gait, solver)
+
+
+def main(argv: list[str]) -> None:
+    if argv and argv[0] == "one":
+        print(json.dumps(one(argv[1], argv[2])))
+        return
+    rows = []
+    for gait in GAITS:
+        for solver in SOLVERS:
+            out = subprocess.run([sys.executable, __file__, "one", solver, gait], capture_output=True, text=True,
+                                 check=True)
+            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            print(json.dumps(rows[-1]), flush=True)
+    log = Path(__file__).resolve().parent / "results" / "legged_vs_fddp.log"
+    log.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,273 @@
+"""Rigid point contacts and impulses on a floating-base multibody: the node dynamics of legged robots.
+
+Two node models over Pinocchio, as Crocoddyl's (same arithmetic, same next state to round-off):
+
+* **Contact node** (Crocoddyl's ``DifferentialActionModelContactFwdDynamics`` with 3D point contacts
+  expressed ``LOCAL_WORLD_ALIGNED``, under ``IntegratedActionModelEuler``): the feet in contact have
+  zero classical acceleration up to Baumgarte stabilisation,
+  ``J_c a + a_0 = 0``, ``a_0 = oRf (alpha_f + Kp oRf^T p_f + Kd v_f)`` (alpha_f the frame's
+  classical linear acceleration at a = 0, v_f its linear velocity, both in the foot frame; the
+  position term's reference is the origin, as in Crocoddyl's gaits, where Kp = 0), and the
+  accelerations and contact forces solve the KKT system ``M a = tau - b + J_c^T lambda`` (Pinocchio's
+  ``forwardDynamics``), ``tau = S u`` (S: the floating base unactuated). Then semi-implicit Euler:
+  ``v+ = v + dt a``, ``q+ = integrate(q, dt v+)``.
+* **Impulse node** (Crocoddyl's ``ActionModelImpulseFwdDynamics``, a node with no controls): at
+  touch-down the velocity jumps to the one that stops the new feet, ``M (v+ - v) = J_c^T Lambda``,
+  ``J_c v+ = 0`` (Pinocchio's ``impulseDynamics``, restitution 0); ``q+ = q``.
+
+Perturbations are geoddp's (right/local: ``q = integrate(q_bar, dq)``, ``v = v_bar + dv``), so the
+Jacobians are those of Pinocchio's analytic derivatives: ``computeRNEADerivatives`` with the contact
+forces as external forces and ``getFrameAccelerationDerivatives`` / ``getFrameVelocityDerivatives``
+for the constraint rows, put through the KKT matrix (implicit differentiation); forces are handled
+in the foot frame (where they move with the body) and rotated to the world at the end.
+
+Second order (for the ``second`` and ``switch`` expansions):
+:meth:`geoddp.problem.legged.ContactProblem.second_order_node` takes central differences of these
+analytic first derivatives, symmetrised (as the ``rk4`` integrator does for its step), of the whole
+node map ``zeta -> difference(x_bar+, f(x_bar (+) zeta, u_bar + du))``, so the Lie-group terms of
+the chart are in it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from ..validate import InputError
+
+LOCAL = pin.ReferenceFrame.LOCAL
+
+
+def skew(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def friction_cone(mu: float, facets: int = 4, min_force: float = 0.0, max_force: float = np.inf
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Crocoddyl's linearised friction cone (outer approximation, flat ground, normal +z):
+    (A (facets + 1, 3), lb, ub) with lb <= A f <= ub meaning f inside the cone, f_z in
+    [min_force, max_force] (N)."""
+    if facets % 2 or facets < 2:
+        raise InputError("facets", f"expected an even number >= 2, got {facets!r}")
+    A = np.zeros((facets + 1, 3))
+    lb, ub = np.full(facets + 1, -np.inf), np.zeros(facets + 1)
+    theta = 2.0 * np.pi / facets
+    mu_n = np.array([0.0, 0.0, -mu])
+    row = 0
+    for i in range(facets // 2):
+        t = np.array([np.cos(theta * i), np.sin(theta * i), 0.0])
+        A[row], A[row + 1] = mu_n + t, mu_n - t
+        row += 2
+    A[facets] = [0.0, 0.0, 1.0]
+    lb[facets], ub[facets] = min_force, max_force
+    return A, lb, ub
+
+
+@dataclass
+class NodeEval:
+    """One node evaluated: next state, accelerations / velocity jump, contact forces in the world
+    frame (3 per foot, N at a contact node, N s at an impulse node) and, when asked, the Jacobians
+    in z = (dq, dv, du) (nv + nv + m columns): Fz (2 nv, nz) of (q+, v+) in the tangent at (q+, v+),
+    Lz (3 nc, nz) of the world forces."""
+
+    q_next: np.ndarray
+    v_next: np.ndarray
+    forces: np.ndarray
+    Fz: np.ndarray | None = None
+    Lz: np.ndarray | None = None
+
+
+@dataclass
+class ContactDynamics:
+    """Contact and impulse node dynamics of a floating-base ``pin.Model``.
+
+    Attributes:
+        model: the robot (free-flyer root; joints after it actuated one to one).
+        dt: time step of the contact nodes, s.
+        gains: Baumgarte gains (Kp 1/s^2, Kd 1/s) of every point contact (Crocoddyl's (0, 50) in
+            its quadruped gaits).
+        impulse_damping: Pinocchio's inv_damping of the impulse KKT solve (Crocoddyl's 1e-12).
+    """
+
+    model: pin.Model
+    dt: float
+    gains: tuple[float, float] = (0.0, 50.0)
+    impulse_damping: float = 1e-12
+    data: pin.Data = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.model, pin.Model) or self.model.njoints < 2 or \
+                self.model.joints[1].shortname() != "JointModelFreeFlyer":
+            raise InputError("model", "expected a pinocchio.Model with a free-flyer root joint")
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise InputError("dt", f"expected a positive time step (s), got {self.dt!r}")
+        self.gains = (float(self.gains[0]), float(self.gains[1]))
+        self.data = self.model.createData()
+        nv = self.model.nv
+        self.S = np.zeros((nv, nv - 6))
+        self.S[6:] = np.eye(nv - 6)
+
+    @property
+    def nv(self) -> int:
+        return int(self.model.nv)
+
+    @property
+    def nu(self) -> int:
+        return int(self.model.nv) - 6
+
+    # ------------------------------------------------------------------ contact node
+    def _contact_terms(self, feet: tuple[int, ...]):
+        """After computeAllTerms: per foot (local Jacobian (6, nv), oRf, local velocity, a0_local)."""
+        m, d = self.model, self.data
+        Kp, Kd = self.gains
+        out = []
+        for f in feet:
+            J = pin.getFrameJacobian(m, d, f, LOCAL)
+            R = d.oMf[f].rotation
+            vf = pin.getFrameVelocity(m, d, f, LOCAL)
+            a0 = pin.getFrameClassicalAcceleration(m, d, f, LOCAL).linear.copy()
+            dp_local = None
+            if Kp != 0.0:
+                dp_local = R.T @ d.oMf[f].translation
+                a0 += Kp * dp_local
+            if Kd != 0.0:
+                a0 += Kd * vf.linear
+            out.append((J, R.copy(), vf, a0, dp_local))
+        return out
+
+    def contact(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, feet: tuple[int, ...],
+                derivatives: bool = False) -> NodeEval:
+        """Contact node at (q, v, u) with ``feet`` (frame ids) on the ground."""
+        m, d, dt, nv = self.model, self.data, self.dt, self.nv
+        pin.computeAllTerms(m, d, q, v)
+        pin.updateFramePlacements(m, d)
+        terms = self._contact_terms(feet)
+        tau = self.S @ u
+        if feet:
+            Jc = np.vstack([R @ J[:3] for J, R, *_ in terms])
+            a0 = np.concatenate([R @ a0 for _, R, _, a0, _ in terms])
+            a = pin.forwardDynamics(m, d, tau, Jc, a0, 0.0).copy()
+            lam = d.lambda_c.copy()
+        else:
+            a = pin.aba(m, d, q, v, tau).copy()
+            lam = np.zeros(0)
+        v_next = v + a * dt
+        w = v * dt + a * (dt * dt)  # Crocoddyl's dx (= dt v+)
+        q_next = pin.integrate(m, q, w)
+        ev = NodeEval(q_next, v_next, lam)
+        if not derivatives:
+            return ev
+        nc, nu = 3 * len(feet), self.nu
+        lam_local = [R.T @ lam[3 * i:3 * i + 3] for i, (_, R, *_r) in enumerate(terms)]
+        fext = [pin.Force.Zero() for _ in range(m.njoints)]
+        for f, ll in zip(feet, lam_local):
+            fr = m.frames[f]
+            fext[fr.parentJoint] += fr.placement.act(pin.Force(ll, np.zeros(3)))
+        dtau_dq, dtau_dv, M = pin.computeRNEADerivatives(m, d, q, v, a, fext)
+        M = np.triu(M) + np.triu(M, 1).T
+        nz = 2 * nv + nu
+        F1 = np.zeros((nv, nz))
+        F1[:, :nv], F1[:, nv:2 * nv], F1[:, 2 * nv:] = dtau_dq, dtau_dv, -self.S
+        K = np.zeros((nv + nc, nv + nc))
+        K[:nv, :nv] = M
+        rhs = np.zeros((nv + nc, nz))
+        rhs[:nv] = F1
+        if feet:
+            Kp, Kd = self.gains
+            pin.computeForwardKinematicsDerivatives(m, d, q, v, a)
+            for i, (f, (J, R, vf, _, dp_local)) in enumerate(zip(feet, terms)):
+                v_dq, a_dq, a_dv, _ = pin.getFrameAccelerationDerivatives(m, d, f, LOCAL)
+                wx, vx = skew(vf.angular), skew(vf.linear)
+                r = slice(nv + 3 * i, nv + 3 * i + 3)
+                h_q = a_dq[:3] + wx @ v_dq[:3] - vx @ v_dq[3:]
+                h_v = a_dv[:3] + wx @ J[:3] - vx @ J[3:]
+                if Kp != 0.0:
+                    h_q = h_q + Kp * (skew(dp_local) @ J[3:] + J[:3])
+                if Kd != 0.0:
+                    h_q = h_q + Kd * v_dq[:3]
+                    h_v = h_v + Kd * J[:3]
+                K[:nv, r] = -J[:3].T
+                K[r, :nv] = J[:3]
+                rhs[r, :nv], rhs[r, nv:2 * nv] = h_q, h_v
+        sol = -np.linalg.solve(K, rhs)
+        da, dlam = sol[:nv], sol[nv:]
+        Lz = np.empty((nc, nz))
+        for i, (J, R, *_r) in enumerate(terms):
+            rows = slice(3 * i, 3 * i + 3)
+            Lz[rows] = R @ dlam[rows]
+            Lz[rows, :nv] -= R @ skew(lam_local[i]) @ J[3:]
+        dvn = dt * da
+        dvn[:, nv:2 * nv] += np.eye(nv)
+        Dq = pin.dIntegrate(m, q, w, pin.ArgumentPosition.ARG0)
+        Dw = pin.dIntegrate(m, q, w, pin.ArgumentPosition.ARG1)
+        Fz = np.empty((2 * nv, nz))
+        Fz[:nv] = dt * (Dw @ dvn)
+        Fz[:nv, :nv] += Dq
+        Fz[nv:] = dvn
+        ev.Fz, ev.Lz = Fz, Lz
+        return ev
+
+    # ------------------------------------------------------------------ impulse node
+    def impulse(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], derivatives: bool = False) -> NodeEval:
+        """Impulse node at (q, v): ``feet`` touch down (v jumps, q stays). Jacobian columns as a
+        contact node's with m = nu (the control columns zero)."""
+        m, d, nv = self.model, self.data, self.nv
+        pin.computeAllTerms(m, d, q, v)
+        pin.updateFramePlacements(m, d)
+        Js = [pin.getFrameJacobian(m, d, f, LOCAL) for f in feet]
+        Rs = [d.oMf[f].rotation.copy() for f in feet]
+        Jc = np.vstack([R @ J[:3] for J, R in zip(Js, Rs)])
+        pin.impulseDynamics(m, d, v, Jc, 0.0, self.impulse_damping)  # M from computeAllTerms, as Crocoddyl
+        v_next, imp = d.dq_after.copy(), d.impulse_c.copy()
+        ev = NodeEval(q.copy(), v_next, imp)
+        if not derivatives:
+            return ev
+        nc, nu = 3 * len(feet), self.nu
+        nz = 2 * nv + nu
+        imp_local = [R.T @ imp[3 * i:3 * i + 3] for i, R in enumerate(Rs)]
+        fext = [pin.Force.Zero() for _ in range(m.njoints)]
+        for f, ll in zip(feet, imp_local):
+            fr = m.frames[f]
+            fext[fr.parentJoint] += fr.placement.act(pin.Force(ll, np.zeros(3)))
+        # F1 = M(q) (v+ - v) - J(q)^T Lambda = rnea(q, 0, v+ - v, fext) - g(q)
+        dtau_dq, _, M = pin.computeRNEADerivatives(m, d, q, np.zeros(nv), v_next - v, fext)
+        dtau_dq = dtau_dq.copy()
+        M = np.triu(M) + np.triu(M, 1).T
+        dg_dq = pin.computeGeneralizedGravityDerivatives(m, d, q)
+        K = np.zeros((nv + nc, nv + nc))
+        K[:nv, :nv] = M
+        rhs = np.zeros((nv + nc, nz))
+        rhs[:nv, :nv] = dtau_dq - dg_dq
+        rhs[:nv, nv:2 * nv] = -M
+        pin.computeForwardKinematicsDerivatives(m, d, q, v_next, np.zeros(nv))
+        for i, (f, J) in enumerate(zip(feet, Js)):
+            v_dq, _ = pin.getFrameVelocityDerivatives(m, d, f, LOCAL)
+            r = slice(nv + 3 * i, nv + 3 * i + 3)
+            K[:nv, r] = -J[:3].T
+            K[r, :nv] = J[:3]
+            rhs[r, :nv] = v_dq[:3]
+        sol = -np.linalg.solve(K, rhs)
+        dvn, dimp = sol[:nv], sol[nv:]
+        Lz = np.empty((nc, nz))
+        for i, (J, R) in enumerate(zip(Js, Rs)):
+            rows = slice(3 * i, 3 * i + 3)
+            Lz[rows] = R @ dimp[rows]
+            Lz[rows, :nv] -= R @ skew(imp_local[i]) @ J[3:]
+        Fz = np.zeros((2 * nv, nz))
+        Fz[:nv, :nv] = np.eye(nv)
+        Fz[nv:] = dvn
+        ev.Fz, ev.Lz = Fz, Lz
+        return ev
+
+    # ------------------------------------------------------------------ quasi-static controls
+    def quasi_static(self, q: np.ndarray, feet: tuple[int, ...]) -> np.ndarray:
+        """Crocoddyl's ``quasiStatic`` of a contact node: the (nu,) controls that, with the contact
+        forces, hold q at rest (least squares of smallest norm of [S, J_c^T] (u, lambda) = g(q))."""
+        m, d, nv = self.model, self.data, self.nv
+        pin.computeAllTerms(m, d, q, np.zeros(nv))
+        pin.updateFramePlacements(m, d)
+        g = pin.rnea(m, d, q, np.zeros(nv), np.zeros(nv))
+        cols = [self.S] + [(d.oMf[f].rotation @ pin.getFrameJacobian(m, d, f, LOCAL)[:3]).T for f in feet]
+        sol = np.linalg.pinv(np.hstack(cols)) @ g
+        return sol[:self.nu].copy()

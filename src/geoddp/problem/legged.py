@@ -1,0 +1,455 @@
+"""Legged robots on flat ground: a contact schedule over the nodes, Crocoddyl's gait costs, and the
+problem the solver solves (:class:`ContactProblem`, the solver's contract of
+:mod:`geoddp.problem.contract`).
+
+A schedule is a list of nodes, each either a **contact node** (which feet are on the ground; the
+others swing) or an **impulse node** (the feet that touch down; a node with no controls), plus a
+terminal node. Costs per node are Crocoddyl's ``SimpleQuadrupedalGaitProblem``'s (its example
+quadrupedal_gaits_fwddyn.py), weights included, and costed as Crocoddyl costs them: running costs
+of contact nodes times dt, impulse and terminal nodes' costs as they are.
+
+Contact node (weights): CoM tracking 1e6 (when the node has a CoM target), per support foot a
+friction-cone quadratic barrier 10 (mu = 0.7, 4 facets, f_z >= 0), per swing foot a position
+tracking 1e6, state regularisation 10 toward the default posture (weights (0, 0, 0, 500, 500,
+500, 0.01 per joint, 10 x 6, 1 per joint velocity), squared), control regularisation 0.1, a
+state-bounds quadratic barrier 1e3 (joint position and velocity limits). Impulse node: foot
+tracking 1e7 of the feet that land, state regularisation 10 (weights 1 x 6, 10 per joint, 10 x nv).
+Terminal node: the terms of its node that depend on the state alone (state regularisation and
+bounds, CoM and foot tracking), undivided by dt (Crocoddyl's terminal ``calc(x)``).
+
+Controls are (H, nu) at every node; at impulse nodes they act on nothing and stay zero (a unit
+quadratic on them keeps the node's control Hessian invertible and costs exactly 0 there), so a
+Result has ``controls`` (H, nu) with zero rows at impulse nodes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..models.contact import ContactDynamics, friction_cone
+from ..validate import InputError, finite_array
+from .contract import Linearisation, Trajectory
+
+KINDS = ("contact", "impulse")
+FD_STEP = 1e-4  # central differences of the analytic first derivatives (second order); 1e-5 let the
+# round-off of the KKT solves, times a value gradient of 2.7e3, make the walk's exact check indefinite
+
+
+@dataclass
+class Node:
+    """One node of a contact schedule.
+
+    Attributes:
+        kind: "contact" (integrated contact dynamics, dt) or "impulse" (touch-down, no controls).
+        feet: frame ids on the ground (contact) or touching down (impulse).
+        com: (3,) CoM target, m, or None (contact nodes).
+        swing: ((frame id, (3,) target position, m), ...): foot tracking terms.
+    """
+
+    kind: str
+    feet: tuple[int, ...]
+    com: np.ndarray | None = None
+    swing: tuple[tuple[int, np.ndarray], ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise InputError("kind", f"expected one of {KINDS}, got {self.kind!r}")
+        self.feet = tuple(int(f) for f in self.feet)
+
+
+@dataclass
+class GaitCosts:
+    """Weights of Crocoddyl's quadruped gait costs (see the module docstring)."""
+
+    com: float = 1e6
+    friction_cone: float = 1e1
+    mu: float = 0.7
+    foot: float = 1e6
+    state: float = 1e1
+    control: float = 1e-1
+    bounds: float = 1e3
+    impulse_foot: float = 1e7
+    impulse_state: float = 1e1
+    impulse_control: float = 1.0  # on the controls of an impulse node: they stay 0, so it costs 0
+
+
+def _barrier(r: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(r beyond the bounds, 0 inside; the mask of active entries): Crocoddyl's quadratic barrier
+    0.5 |excess|^2, its gradient excess and Gauss-Newton Hessian diag(active)."""
+    lo, hi = r < lb, r > ub
+    ex = np.where(hi, r - ub, 0.0) + np.where(lo, r - lb, 0.0)
+    return ex, (lo | hi).astype(float)
+
+
+class ContactProblem:
+    """min over controls of the schedule's costs under contact and impulse dynamics from (q0, v0).
+
+    Args:
+        dynamics: :class:`geoddp.models.contact.ContactDynamics` (the robot, dt, Baumgarte gains).
+        nodes: the H running nodes (:class:`Node`); terminal: the terminal node (its state terms).
+        q0 (nq,), v0 (nv,): the initial state.
+        x_ref: (q_ref (nq,), v_ref (nv,)) the default posture of the state regularisation.
+        costs: :class:`GaitCosts`. describe: the model description a Result carries (multibody).
+    """
+
+    def __init__(self, dynamics: ContactDynamics, nodes: list[Node], terminal: Node, q0: np.ndarray,
+                 v0: np.ndarray, x_ref: tuple[np.ndarray, np.ndarray], costs: GaitCosts | None = None,
+                 description: dict | None = None) -> None:
+        if not nodes:
+            raise InputError("nodes", "expected at least one node")
+        self.dyn = dynamics
+        m = dynamics.model
+        self.model = m
+        self.nodes, self.terminal_node = list(nodes), terminal
+        self.q0 = finite_array(q0, "q0", (m.nq,))
+        self.v0 = finite_array(v0, "v0", (m.nv,))
+        if not pin.isNormalized(m, self.q0, 1e-9):
+            raise InputError("q0", "expected a unit quaternion in the free-flyer configuration")
+        self.q_ref = finite_array(x_ref[0], "x_ref.q", (m.nq,))
+        self.v_ref = finite_array(x_ref[1], "x_ref.v", (m.nv,))
+        self.costs = costs or GaitCosts()
+        nv = m.nv
+        self.nx, self.nu, self.horizon, self.dt = 2 * nv, nv - 6, len(self.nodes), dynamics.dt
+        self.impulse_rows = np.array([n.kind == "impulse" for n in self.nodes])
+        nj = nv - 6
+        self.w_state = np.array([0.0] * 3 + [500.0] * 3 + [0.01] * nj + [10.0] * 6 + [1.0] * nj) ** 2
+        self.w_impulse = np.array([1.0] * 6 + [10.0] * nj + [10.0] * nv) ** 2
+        # Crocoddyl's StateMultibody bounds, the residual difference(neutral, q) against q's limits
+        # shifted by one (the free flyer has nq = 7, nv = 6) and the velocity limits
+        lbq = np.concatenate([np.full(7, -np.inf), m.lowerPositionLimit[7:]])
+        ubq = np.concatenate([np.full(7, np.inf), m.upperPositionLimit[7:]])
+        self.lb = np.concatenate([lbq[1:nv + 1], -m.velocityLimit])
+        self.ub = np.concatenate([ubq[1:nv + 1], m.velocityLimit])
+        self.q_neutral = pin.neutral(m)
+        self.cone = friction_cone(self.costs.mu, 4)
+        self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
+                                            "dt": self.dt, "integrator": "semi_implicit"}
+
+    # ------------------------------------------------------------ one node
+    def _state_residual(self, q_ref, q, v, v_ref):
+        d = pin.difference(self.model, q_ref, q)
+        D = pin.dDifference(self.model, q_ref, q, pin.ArgumentPosition.ARG1)
+        return np.concatenate([d, v - v_ref]), D
+
+    def _cost(self, node: Node | None, q, v, u, ev, derivatives: bool, terminal: bool = False):
+        """Cost of one node (dt-scaled for a contact node), its gradient in z = (dq, dv, du) and
+        Gauss-Newton Hessian; ``ev``: the node's dynamics evaluation (forces, their Jacobian)."""
+        m, d, c = self.model, self.dyn.data, self.costs
+        nv, nu = m.nv, self.nu
+        nz = 2 * nv + nu
+        impulse = node is not None and node.kind == "impulse"
+        val, g, Hs = 0.0, np.zeros(nz), np.zeros((nz, nz))
+
+        def add(w, r, Jr, act=None):  # weight, residual, its Jacobian (rows, nz), barrier mask or weights
+            nonlocal val
+            a = np.ones(len(r)) if act is None else act
+            val += 0.5 * w * float(r @ (a * r))
+            if derivatives:
+                g[:] += w * (Jr.T @ (a * r))
+                Hs[:] += w * (Jr.T @ (a[:, None] * Jr))
+
+        pin.forwardKinematics(m, d, q)
+        pin.updateFramePlacements(m, d)
+        # state regularisation
+        rs, D = self._state_residual(self.q_ref, q, v, self.v_ref)
+        Js = np.zeros((2 * nv, nz))
+        Js[:nv, :nv], Js[nv:, nv:2 * nv] = D, np.eye(nv)
+        if impulse:
+            add(c.impulse_state, rs, Js, self.w_impulse)
+            for f, p in node.swing:
+                Jf = np.zeros((3, nz))
+                if derivatives:
+                    Jf[:, :nv] = d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3]
+                add(c.impulse_foot, d.oMf[f].translation - p, Jf)
+            uJ = np.zeros((nu, nz))
+            uJ[:, 2 * nv:] = np.eye(nu)
+            add(c.impulse_control, u, uJ)
+            return val, g, Hs
+        add(c.state, rs, Js, self.w_state)
+        rb, Db = self._state_residual(self.q_neutral, q, v, np.zeros(nv))
+        Jb = np.zeros((2 * nv, nz))
+        Jb[:nv, :nv], Jb[nv:, nv:2 * nv] = Db, np.eye(nv)
+        ex, mask = _barrier(rb, self.lb, self.ub)
+        val += 0.5 * c.bounds * float(ex @ ex)
+        if derivatives:
+            g[:] += c.bounds * (Jb.T @ ex)
+            Hs[:] += c.bounds * (Jb.T @ (mask[:, None] * Jb))
+        # CoM and swing-foot terms depend on x alone: the terminal node keeps them (Crocoddyl's calc(x))
+        if node.com is not None:
+            com = pin.centerOfMass(m, d, q)
+            Jc = np.zeros((3, nz))
+            if derivatives:
+                Jc[:, :nv] = pin.jacobianCenterOfMass(m, d, q)
+            add(c.com, com - node.com, Jc)
+        for f, p in node.swing:
+            Jf = np.zeros((3, nz))
+            if derivatives:
+                Jf[:, :nv] = d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3]
+            add(c.foot, d.oMf[f].translation - p, Jf)
+        if not terminal:
+            uJ = np.zeros((nu, nz))
+            uJ[:, 2 * nv:] = np.eye(nu)
+            add(c.control, u, uJ)
+            A, lb, ub = self.cone
+            for i in range(len(node.feet)):
+                r = A @ ev.forces[3 * i:3 * i + 3]
+                ex, mask = _barrier(r, lb, ub)
+                val += 0.5 * c.friction_cone * float(ex @ ex)
+                if derivatives:
+                    Jr = A @ ev.Lz[3 * i:3 * i + 3]
+                    g[:] += c.friction_cone * (Jr.T @ ex)
+                    Hs[:] += c.friction_cone * (Jr.T @ (mask[:, None] * Jr))
+            val, g, Hs = val * self.dt, g * self.dt, Hs * self.dt
+        return val, g, Hs
+
+    def node(self, k: int, q: np.ndarray, v: np.ndarray, u: np.ndarray, derivatives: bool = False):
+        """Node k at (q, v, u): (dynamics evaluation, cost, gradient, Gauss-Newton Hessian); k = H
+        is the terminal node (no dynamics: None)."""
+        if k == self.horizon:
+            val, g, Hs = self._cost(self.terminal_node, q, v, np.zeros(self.nu), None, derivatives, terminal=True)
+            return None, val, g, Hs
+        node = self.nodes[k]
+        if node.kind == "impulse":
+            ev = self.dyn.impulse(q, v, node.feet, derivatives)
+        else:
+            ev = self.dyn.contact(q, v, u, node.feet, derivatives)
+        val, g, Hs = self._cost(node, q, v, u, ev, derivatives)
+        return ev, val, g, Hs
+
+    # ------------------------------------------------------------ the solver's contract
+    def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
+        """Validated (H, nu) copy; the rows of impulse nodes are set to zero (they act on nothing)."""
+        U = finite_array(controls, name, (self.horizon, self.nu)).copy()
+        U[self.impulse_rows] = 0.0
+        return U
+
+    def quasi_static_controls(self) -> np.ndarray:
+        """Crocoddyl's ``quasiStatic`` at q0 per contact node (zeros at impulse nodes): the
+        example's start."""
+        U = np.zeros((self.horizon, self.nu))
+        for k, n in enumerate(self.nodes):
+            if n.kind == "contact":
+                U[k] = self.dyn.quasi_static(self.q0, n.feet)
+        return U
+
+    def trajectory(self, controls: np.ndarray) -> Trajectory:
+        H = self.horizon
+        U = np.array(controls, dtype=float)
+        U[self.impulse_rows] = 0.0
+        Q, V = np.empty((H + 1, self.model.nq)), np.empty((H + 1, self.model.nv))
+        Q[0], V[0] = self.q0, self.v0
+        for k in range(H):
+            ev, *_ = self.node(k, Q[k], V[k], U[k])
+            Q[k + 1], V[k + 1] = ev.q_next, ev.v_next
+        return Trajectory(Q, V, U)
+
+    def node_costs(self, traj: Trajectory) -> np.ndarray:
+        """(H + 1,) cost of each node along ``traj`` (running nodes dt-scaled, as Crocoddyl's)."""
+        out = np.empty(self.horizon + 1)
+        for k in range(self.horizon):
+            out[k] = self.node(k, traj.q[k], traj.v[k], traj.u[k])[1]
+        out[-1] = self.node(self.horizon, traj.q[-1], traj.v[-1], None)[1]
+        return out
+
+    def trajectory_cost(self, traj: Trajectory) -> float:
+        if not (np.all(np.isfinite(traj.q)) and np.all(np.isfinite(traj.v))):
+            return float("inf")
+        return float(self.node_costs(traj).sum())
+
+    def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
+        H, m = self.horizon, self.model
+        Q, V, U = np.empty_like(traj.q), np.empty_like(traj.v), np.zeros_like(traj.u)
+        Q[0], V[0] = self.q0, self.v0
+        for j in range(H):
+            if not self.impulse_rows[j]:
+                zeta = np.concatenate([pin.difference(m, traj.q[j], Q[j]), V[j] - traj.v[j]])
+                U[j] = traj.u[j] - step * k[j] - K[j] @ zeta
+            ev, *_ = self.node(j, Q[j], V[j], U[j])
+            if not (np.all(np.isfinite(ev.q_next)) and np.all(np.isfinite(ev.v_next))):
+                return None
+            Q[j + 1], V[j + 1] = ev.q_next, ev.v_next
+        return Trajectory(Q, V, U)
+
+    def _node_map(self, k: int, traj: Trajectory, z: np.ndarray):
+        """Jacobian G (nx, nz) of zeta+ = difference(x_bar+, f(x_bar (+) zeta, u_bar + du)) and the
+        cost gradient (nz,) in z = (zeta, du) at z (the chart of the nominal, so that central
+        differences of them are the node map's second derivatives)."""
+        m, nv = self.model, self.model.nv
+        q = pin.integrate(m, traj.q[k], z[:nv])
+        v = traj.v[k] + z[nv:2 * nv]
+        u = traj.u[k] + z[2 * nv:] if k < self.horizon else None
+        ev, _, g, _ = self.node(k, q, v, u, derivatives=True)
+        Rq = pin.dIntegrate(m, traj.q[k], z[:nv], pin.ArgumentPosition.ARG1)
+        gz = g.copy()
+        gz[:nv] = Rq.T @ g[:nv]
+        if ev is None:
+            return None, gz
+        G = ev.Fz.copy()
+        G[:, :nv] = G[:, :nv] @ Rq
+        G[:nv] = pin.dDifference(m, traj.q[k + 1], ev.q_next, pin.ArgumentPosition.ARG1) @ G[:nv]
+        return G, gz
+
+    def second_order_node(self, k: int, traj: Trajectory, h: float = FD_STEP):
+        """(T (nx, nz, nz) second derivatives of zeta+ at node k, cost Hessian (nz, nz)): central
+        differences of the analytic first derivatives, symmetrised. k = H: (None, terminal Hessian)."""
+        nx, nu = self.nx, self.nu
+        nz = nx + nu
+        cols = nx if (k == self.horizon or self.impulse_rows[k]) else nz  # impulse: no control dependence
+        T = None if k == self.horizon else np.zeros((nx, nz, nz))
+        Hc = np.zeros((nz, nz))
+        if k < self.horizon and self.impulse_rows[k]:
+            Hc[nx:, nx:] = self.costs.impulse_control * np.eye(nu)
+        z = np.zeros(nz)
+        for j in range(cols):
+            z[j] = h
+            Gp, gp = self._node_map(k, traj, z)
+            z[j] = -h
+            Gm, gm = self._node_map(k, traj, z)
+            z[j] = 0.0
+            if T is not None:
+                T[:, :, j] = (Gp - Gm) / (2 * h)
+            Hc[:, j] = (gp - gm) / (2 * h)
+        if cols < nz:
+            Hc[:cols, cols:] = Hc[cols:, :cols].T
+        Hc = 0.5 * (Hc + Hc.T)
+        if T is not None:
+            T = 0.5 * (T + T.transpose(0, 2, 1))
+        return T, Hc
+
+    def linearise(self, traj: Trajectory, order: int) -> Linearisation:
+        H, nx, nu = self.horizon, self.nx, self.nu
+        Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
+        lx, lu = np.empty((H, nx)), np.empty((H, nu))
+        lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
+        for k in range(H):
+            ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k], derivatives=True)
+            Phi[k], B[k] = ev.Fz[:, :nx], ev.Fz[:, nx:]
+            lx[k], lu[k] = g[:nx], g[nx:]
+            lxx[k], lux[k], luu[k] = Hs[:nx, :nx], Hs[nx:, :nx], Hs[nx:, nx:]
+        _, _, gf, Hf = self.node(H, traj.q[H], traj.v[H], None, derivatives=True)
+        Theta = Gamma = Xi = None
+        if order == 2:
+            Theta, Gamma, Xi = np.empty((H, nx, nx, nx)), np.empty((H, nx, nx, nu)), np.empty((H, nx, nu, nu))
+            for k in range(H):
+                T, Hc = self.second_order_node(k, traj)
+                Theta[k], Gamma[k], Xi[k] = T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, nx:]
+                lxx[k], lux[k], luu[k] = Hc[:nx, :nx], Hc[nx:, :nx], Hc[nx:, nx:]
+            Hf = self.second_order_node(H, traj)[1]
+        return Linearisation(order=order, Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi, l_x=lx, l_u=lu, l_xx=lxx,
+                             l_ux=lux, l_uu=luu, lf_x=gf[:nx], lf_xx=Hf[:nx, :nx], gauss_newton=order == 1)
+
+    def describe(self) -> dict[str, Any]:
+        return {**self._description, "target_rotation": np.eye(3), "target_angular_velocity": np.zeros(3)}
+
+
+# ------------------------------------------------------------------ Crocoddyl's quadruped gaits
+@dataclass
+class QuadrupedGait:
+    """The schedules of Crocoddyl's ``SimpleQuadrupedalGaitProblem`` (crocoddyl.utils.quadruped),
+    node for node, for a fresh instance (its first half step): :meth:`walk`, :meth:`trot`.
+
+    Attributes:
+        model: the robot (``pin.Model`` with a free-flyer root and a "standing" reference configuration
+            unless ``q_default`` is given); feet: the frame names (LF, RF, LH, RH).
+    """
+
+    model: pin.Model
+    feet: tuple[str, str, str, str]
+    q_default: np.ndarray | None = None
+    ids: tuple[int, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        missing = [f for f in self.feet if not self.model.existFrame(f)]
+        if missing:
+            raise InputError("feet", f"frames {missing} are not in the model")
+        self.ids = tuple(int(self.model.getFrameId(f)) for f in self.feet)
+        if self.q_default is None:
+            if "standing" not in self.model.referenceConfigurations:
+                raise InputError("q_default", "the model has no 'standing' reference configuration; give q_default")
+            self.q_default = self.model.referenceConfigurations["standing"].copy()
+
+    def _start(self, q0):
+        m = self.model
+        d = m.createData()
+        pin.forwardKinematics(m, d, q0)
+        pin.updateFramePlacements(m, d)
+        pos = [d.oMf[i].translation.copy() for i in self.ids]
+        com = sum(pos) / 4
+        com[2] = pin.centerOfMass(m, d, q0)[2]
+        return pos, com
+
+    @staticmethod
+    def _footstep(com0, feet_pos, length, height, knots, support, swing):
+        nodes = []
+        pct = len(swing) / (len(support) + len(swing))
+        ph = knots / 2
+        tasks = ()
+        for k in range(knots):
+            tasks = []
+            for i, p in zip(swing, feet_pos):
+                if k < ph:
+                    dp = np.array([length * (k + 1) / knots, 0.0, height * k / ph])
+                elif k == ph:
+                    dp = np.array([length * (k + 1) / knots, 0.0, height])
+                else:
+                    dp = np.array([length * (k + 1) / knots, 0.0, height * (1 - float(k - ph) / ph)])
+                tasks.append((i, p + dp))
+            com = np.array([length * (k + 1) / knots, 0.0, 0.0]) * pct + com0
+            nodes.append(Node("contact", tuple(support), com=com, swing=tuple(tasks)))
+        nodes.append(Node("impulse", tuple(swing), swing=tuple(tasks)))
+        com0 += [length * pct, 0.0, 0.0]
+        for p in feet_pos:
+            p += [length, 0.0, 0.0]
+        return nodes
+
+    def walk(self, q0, length: float, height: float, knots: int, support_knots: int) -> tuple[list[Node], Node]:
+        """Crocoddyl's createWalkingProblem (first call): RH, RF half steps, then LH, LF steps."""
+        lf, rf, lh, rh = self.ids
+        (plf, prf, plh, prh), com = self._start(q0)
+        ds = [Node("contact", (lf, rf, lh, rh)) for _ in range(support_knots)]
+        nodes = list(ds)
+        nodes += self._footstep(com, [prh], 0.5 * length, height, knots, [lf, rf, lh], [rh])
+        nodes += self._footstep(com, [prf], 0.5 * length, height, knots, [lf, lh, rh], [rf])
+        lh_step = self._footstep(com, [plh], length, height, knots, [lf, rf, rh], [lh])
+        lf_step = self._footstep(com, [plf], length, height, knots, [rf, lh, rh], [lf])
+        nodes += ds + lh_step + lf_step
+        return nodes, ds[0]
+
+    def trot(self, q0, length: float, height: float, knots: int, support_knots: int) -> tuple[list[Node], Node]:
+        """Crocoddyl's createTrottingProblem (first call): RF+LH half step, then LF+RH step."""
+        lf, rf, lh, rh = self.ids
+        (plf, prf, plh, prh), com = self._start(q0)
+        ds = [Node("contact", (lf, rf, lh, rh)) for _ in range(support_knots)]
+        nodes = list(ds)
+        nodes += self._footstep(com, [prf, plh], 0.5 * length, height, knots, [lf, rh], [rf, lh])
+        nodes += ds + self._footstep(com, [plf, prh], length, height, knots, [rf, lh], [lf, rh])
+        return nodes, ds[0]
+
+    def jump(self, q0, height: float, length, ground_knots: int, flying_knots: int) -> tuple[list[Node], Node]:
+        """Crocoddyl's createJumpingProblem: ``ground_knots`` on four feet, ``flying_knots`` rising
+        to the CoM apex (half of ``length`` (3,) m plus ``height`` m up), ``flying_knots`` falling,
+        the landing impulse with the feet at their start plus ``length``, then ``ground_knots`` on
+        four feet (the last one terminal) with the CoM target moved by ``length`` (its z: the
+        height change of the feet)."""
+        lf, rf, lh, rh = self.ids
+        feet = (lf, rf, lh, rh)
+        (plf, prf, plh, prh), _ = self._start(q0)
+        length = np.asarray(length, dtype=float).copy()
+        df = length[2] - prf[2]
+        for p in (plf, prf, plh, prh):
+            p[2] = 0.0
+        m = self.model
+        d = m.createData()
+        com = (prf + prh + plf + plh) / 4
+        com[2] = pin.centerOfMass(m, d, q0)[2]
+        nodes = [Node("contact", feet) for _ in range(ground_knots)]
+        apex = np.array([length[0] / 2.0, length[1] / 2.0, length[2] / 2.0 + height])
+        nodes += [Node("contact", (), com=apex * (k + 1) / flying_knots + com) for k in range(flying_knots)]
+        nodes += [Node("contact", ()) for _ in range(flying_knots)]
+        nodes.append(Node("impulse", feet, swing=tuple((f, p + length) for f, p in zip(feet, (plf, prf, plh, prh)))))
+        landed_com = com + np.array([length[0], length[1], df])
+        landed = [Node("contact", feet, com=landed_com) for _ in range(ground_knots)]
+        return nodes + landed[:-1], landed[-1]
