@@ -1,4 +1,4 @@
-"""geoddp against Crocoddyl FDDP on real robots from example-robot-data (issue 12, item 7).
+"""geoddp against Crocoddyl FDDP on real robots from example-robot-data.
 
 Cases (unmodified URDFs of ``example-robot-data``; semi-implicit Euler in both libraries):
 
@@ -24,9 +24,13 @@ whose thrusters are derived from the columns of geoddp's actuation matrix; the m
 (semi-implicit), running weights / dt (geoddp's running cost is not multiplied by dt). Then
 J(U0) of the initial controls must agree to 1e-9 relative (else the case stops).
 
-Solvers, from the same initial controls, interleaved (one round = FDDP default threads, FDDP one
-thread, geoddp first, second, switch; 10 ms of sleep before each, so that neither library's idle
-threads still poll beside the other's solve), one warm-up round, medians of ``--runs`` rounds:
+Solvers, from the same initial controls, each in a process of its own (in one process
+Crocoddyl's OpenMP threads and geoddp's pool disturb each other: a UR5 ratio swung 0.7x-1.8x),
+alternating: one round = one process per solver (FDDP default threads, FDDP one thread, geoddp
+first, second, switch), each building the case, solving once to warm up and timing
+``--solves`` solves (their median); the reported time is the median over ``--runs`` rounds.
+``--one-process`` times them interleaved in this process instead (10 ms of sleep before each
+solve, one warm-up round; quicker, and biased as said):
 
 * Crocoddyl ``SolverFDDP``, ``th_stop`` 1e-9, ``ShootingProblem.nthreads`` left at its default
   and set to 1; time = wall time of ``solve``;
@@ -44,7 +48,7 @@ that can be simulated (free flight, no gravity, posture regularisation + a frame
 4 iterations each, from zero controls) and saves docs/figures/time_per_iteration_vs_nv.png.
 
 Needs crocoddyl 3.2.1 with pin 4.0.0 and example-robot-data (the bench environment):
-``python benchmarks/robots.py [--runs 5] [--cases ...] [--scaling]``.
+``python benchmarks/robots.py [--runs 5] [--solves 5] [--one-process] [--cases ...] [--scaling]``.
 """
 from __future__ import annotations
 
@@ -344,6 +348,11 @@ def run_case(case: Case, runs: int) -> dict[str, Any]:
                 r = geoddp(p, case.U0, s)
             if i:
                 rec[s].append(r)
+    return summarise(case, chk, rec)
+
+
+def summarise(case: Case, chk: dict[str, Any], rec: dict[str, list]) -> dict[str, Any]:
+    p = case.problem
     out = dict(case=case.name, note=case.note, check=chk, rows={})
     for s in SOLVERS:
         last = rec[s][-1]
@@ -354,6 +363,48 @@ def run_case(case: Case, runs: int) -> dict[str, Any]:
                               iter_s=t / max(last["iterations"], 1), converged=last["converged"],
                               nthreads=last.get("nthreads"), status=last.get("status", ""))
     return out
+
+
+def solve_once(p: Problem, U0: np.ndarray, s: str) -> dict[str, Any]:
+    if s == "fddp":
+        return fddp(p, U0, None)
+    if s == "fddp-1t":
+        return fddp(p, U0, 1)
+    return geoddp(p, U0, s)
+
+
+def worker(name: str, s: str, solves: int, out: str) -> None:
+    """One solver's process: build the case, solve once (warm-up), time ``solves`` solves; the
+    times, the last solve's fields and its controls go to ``out`` (.npz)."""
+    case = CASES[name]()
+    solve_once(case.problem, case.U0, s)
+    rs = []
+    for _ in range(solves):
+        time.sleep(0.01)
+        rs.append(solve_once(case.problem, case.U0, s))
+    last = rs[-1]
+    np.savez(out, U=last["U"], times=np.array([r["time_s"] for r in rs]), iterations=last["iterations"],
+             converged=last["converged"], nthreads=last.get("nthreads") or 0, status=last.get("status", ""))
+
+
+def run_case_processes(case: Case, runs: int, solves: int) -> dict[str, Any]:
+    """As :func:`run_case`, each solver in a process of its own, alternating round by round."""
+    import subprocess
+    import tempfile
+
+    p = case.problem
+    chk = check(case)
+    rec: dict[str, list] = {s: [] for s in SOLVERS}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(runs):
+            for s in SOLVERS:
+                out = str(Path(tmp) / f"{s}.{i}.npz")
+                subprocess.run([sys.executable, __file__, "--worker", case.name, s, str(solves), out], check=True)
+                z = np.load(out)
+                rec[s].append(dict(U=z["U"], time_s=float(np.median(z["times"])), iterations=int(z["iterations"]),
+                                   converged=bool(z["converged"]), nthreads=int(z["nthreads"]) or None,
+                                   status=str(z["status"])))
+    return summarise(case, chk, rec)
 
 
 LABEL = {"fddp": "Crocoddyl FDDP (default threads)", "fddp-1t": "Crocoddyl FDDP (1 thread)",
@@ -518,10 +569,17 @@ def machine() -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=5, help="recorded rounds (after one warm-up round)")
+    ap.add_argument("--solves", type=int, default=5, help="timed solves per solver process (their median)")
+    ap.add_argument("--one-process", action="store_true", help="all solvers interleaved in this process")
+    ap.add_argument("--worker", nargs=4, metavar=("CASE", "SOLVER", "SOLVES", "OUT"), help=argparse.SUPPRESS)
     ap.add_argument("--cases", nargs="*", default=list(ROBOTS) + list(BUILTIN), choices=list(CASES))
     ap.add_argument("--scaling", action="store_true", help="also the time-per-iteration-vs-nv figure")
     ap.add_argument("--scaling-only", action="store_true")
     args = ap.parse_args(argv)
+    if args.worker:
+        name, s, solves, out = args.worker
+        worker(name, s, int(solves), out)
+        return 0
     import crocoddyl
 
     t_start = time.perf_counter()
@@ -531,7 +589,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.scaling_only:
         for name in args.cases:
             case = CASES[name]()
-            res = run_case(case, args.runs)
+            res = run_case(case, args.runs) if args.one_process else run_case_processes(case, args.runs, args.solves)
             c = res["check"]
             print(f"# {name}: {case.note}; Crocoddyl {c['actuation']}; J(U0) geoddp {c['J0']:.15g} crocoddyl "
                   f"{c['J0_croco']:.15g} (rel {c['rel']:.1e}; random U rel {c['rel_random']:.1e}); "
