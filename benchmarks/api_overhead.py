@@ -1,4 +1,4 @@
-"""What the public route costs on top of the solve (issue 11's guard: at most 10 %).
+"""What the public route costs on top of the solve (the guard: at most 10 %).
 
 Three ways to solve the same scene, interleaved round by round (the machine is shared and noisy;
 a ratio measured side by side is what counts):

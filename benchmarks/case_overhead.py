@@ -13,7 +13,7 @@ process (the machine is shared and noisy; ratios side by side are what count):
   directory (``geoddp.models.robots``) swapped for ones that keep nothing: every model built (twice a
   case) and every mesh resolved, as before those memos.
 
-Issue 17's bar is at most 10 % per case over ``direct`` for cases of 20 ms or more.
+The bar is at most 10 % per case over ``direct`` for cases of 20 ms or more.
 
 Usage: python benchmarks/case_overhead.py [--rounds 15] [SCENE ...]   (default: every built-in
 multibody scene and the paper's satellite; the robot scenes need example-robot-data)

@@ -1,4 +1,4 @@
-"""The contracted second order against the formed tensors, interleaved in one process (issue 12).
+"""The contracted second order against the formed tensors, interleaved in one process.
 
 Multibody(contract=True) (the default) keeps the compiled expansion's second-order terms factored
 and contracts them with V_x' inside the backward pass (cpp/contracted.*); contract=False forms

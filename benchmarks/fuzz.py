@@ -1,4 +1,4 @@
-"""Generated-input fuzzing of the CLI and the Python API (issue 13, item 7; byte level: the
+"""Generated-input fuzzing of the CLI and the Python API (and, at the byte level, the
 robustness of bad files).
 
 Two generators, both seeded (case i of seed s is the same everywhere), each case run in a worker

@@ -1,4 +1,4 @@
-"""What control limits cost per solve (issue 15: with limits inactive, at most 10 % more).
+"""What control limits cost per solve (with limits inactive, at most 10 % more).
 
 Solves each problem without limits, with limits that never bind (+-100 N m on the satellite: no
 iterate and no full Newton step reaches them, so the solve is the unconstrained one bit for bit,

@@ -1,4 +1,4 @@
-"""Control limits (issue 15): geoddp's box-constrained DDP against Crocoddyl's BoxFDDP.
+"""Control limits: geoddp's box-constrained DDP against Crocoddyl's BoxFDDP.
 
 Two problems, semi-implicit Euler, the same costs, Crocoddyl's running weights divided by dt
 (its integrator multiplies running costs by dt), Crocoddyl built from C++ actuation models only:

@@ -1,4 +1,4 @@
-"""Closed loop and MPC speed (issue 16): per-step re-solve times, real-time factors, and the
+"""Closed loop and MPC speed: per-step re-solve times, real-time factors, and the
 90-sample Monte Carlo's wall time.
 
 Cases:

@@ -1,4 +1,4 @@
-"""Crocoddyl peer for geoddp's multibody problems (issue 6).
+"""Crocoddyl peer for geoddp's multibody problems.
 
 ``crocoddyl_problem(mb_problem)`` builds the Crocoddyl equivalent of a geoddp
 :class:`geoddp.problem.Problem` integrated with semi-implicit Euler

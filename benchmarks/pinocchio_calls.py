@@ -1,4 +1,4 @@
-"""Per-call cost of the Pinocchio algorithms behind each node of an iteration (issue 12).
+"""Per-call cost of the Pinocchio algorithms behind each node of an iteration.
 
 Compiles ``benchmarks/pinocchio_calls.cpp`` with CMakeLists.txt's flags (-O2, the wheel's
 template-instantiation and Boost limits, never -march=native) against the installed pin's headers

@@ -1,4 +1,4 @@
-"""How long the core's idle workers poll before they sleep, interleaved in one process (issue 12).
+"""How long the core's idle workers poll before they sleep, interleaved in one process.
 
 The compiled passes run on a persistent pool of workers (cpp/runtime/pool.hpp). A worker blocked on a
 condition variable took 50-80 us to wake on the 2-core VM, and a DDP iteration calls the pool

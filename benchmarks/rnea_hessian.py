@@ -1,5 +1,5 @@
 """RNEA's contracted second order by the recursion against Pinocchio's tensors, interleaved in one
-process (issue 12's stretch goal: the vector-tensor product of Nganga and Wensing).
+process (the stretch goal: the vector-tensor product of Nganga and Wensing).
 
 The contracted backward pass needs RNEA's second derivatives only through mu^T d2tau. With the
 recursion (cpp/rigid_body/rnea_hessian.hpp, the default) the expansion stores each node's (q, v, a) and the

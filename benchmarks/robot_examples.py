@@ -1,4 +1,4 @@
-"""Solve time of the three real-robot examples (issue 14, item 5: ``ur5_reach``,
+"""Solve time of the three real-robot examples (``ur5_reach``,
 ``solo12_reorient``, ``hector_fly``), as ``geoddp run NAME`` solves them.
 
 One warm-up solve per example, then ``--runs`` rounds interleaved over the examples; reported per

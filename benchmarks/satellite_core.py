@@ -1,5 +1,5 @@
 """The satellite's TSO(3) kernels: this checkout against another (e.g. the last one on numba),
-interleaved in ONE process (issue 12, item 5: one compiled core).
+interleaved in ONE process (one compiled core).
 
 The other checkout's package (its ``src/geoddp`` with its built ``_core``) is copied to a temporary
 directory as ``geoddp_ref`` (``speed_vs_main.load_package``). Both build every satellite
@@ -8,7 +8,7 @@ file and solve them with the same expansion, alternating per solve: [ref, new] x
 ``--runs``) for first, second and switch on the satellite scenes (timed: medians of the solve's
 wall time), once each on the hard cases (the guard only). Reported per row: iterations, J*, the
 largest relative difference of the J, gradient-norm, regularisation and step histories between the
-two (issue 11's guard: 1e-12; the gradient norm relative to its first value), and for the timed rows ms per solve and new / ref. Timings on a
+two (the guard: 1e-12; the gradient norm relative to its first value), and for the timed rows ms per solve and new / ref. Timings on a
 shared machine mean little: compare the ratios of one run.
 
     python benchmarks/satellite_core.py --ref /tmp/ref_checkout [--runs 11] [--no-hard]

@@ -1,4 +1,4 @@
-"""The Riccati node products: Eigen's against cpp/linalg/small_gemm.hpp's two builds (issue 12).
+"""The Riccati node products: Eigen's against cpp/linalg/small_gemm.hpp's two builds.
 
 Compiles ``benchmarks/small_gemm.cpp`` with the flags CMakeLists.txt gives each file (module code
 -O2, kernels -O3, the AVX2 kernel -mavx2 -mfma) against cmeel-eigen's headers, runs it, and prints

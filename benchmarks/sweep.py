@@ -1,4 +1,4 @@
-"""What a sweep costs on top of its solves, and how it scales (issue 17).
+"""What a sweep costs on top of its solves, and how it scales.
 
 Three measurements, side by side on the same cases (the paper's satellite with a Haar-random
 target, H = 1500 steps, ~20-60 ms per solve: the issue's ">= 20 ms" cases):

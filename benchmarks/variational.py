@@ -5,7 +5,7 @@ grad_tol = 1e-9 as in the benchmarks page's variational table): geoddp first, se
 variational integrator, and second with semi-implicit Euler, all on the compiled core. Runs are
 interleaved (one of each in turn) after one warm-up round; the table gives medians of
 ``Result.solve_time_s``. The ratio is variational second-order time over semi-implicit
-second-order time on the same scene (issue 12's target: at most 3x).
+second-order time on the same scene (the target: at most 3x).
 
 ``--python`` adds one run of the Python oracle's variational switch solve per scene (its second
 order is differences of differences; slow).
