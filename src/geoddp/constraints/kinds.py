@@ -279,6 +279,10 @@ class _PointingFrame(Bound):
         self.nx = 2 * kin.nv
         self.labels = ("cos(angle) - cos(min_angle)",)
 
+    def value(self, q, v):  # the forward kinematics alone; the same c as derivatives()
+        R, _ = self.kin.placements(_configurations(self.model, q))
+        return (R @ self.a @ self.d - self.cos_min)[:, None]
+
     def derivatives(self, q, v, w):
         Q = _configurations(self.model, q)
         frames = self.kin.jacobians(Q)
@@ -377,6 +381,10 @@ class _FramePoint(Bound):
         self.model, self.kin, self.kind = model, kin, kind
         self.nx = 2 * kin.nv
         self.labels = (kind.type,)
+
+    def value(self, q, v):  # the forward kinematics alone; the same c as derivatives()
+        _, p = self.kin.placements(_configurations(self.model, q))
+        return self.kind.point_value(p)[0][:, None]
 
     def derivatives(self, q, v, w):
         Q = _configurations(self.model, q)
@@ -615,6 +623,9 @@ class _Placement(Bound):
     def __init__(self, model: Any, kin: FrameKinematics, M: np.ndarray) -> None:
         self.model, self.kin, self.M = model, kin, M
         self.nx = 2 * kin.nv
+
+    def value(self, q, v):  # the forward kinematics alone; the same r as derivatives()
+        return self.kin.log6_value(_configurations(self.model, q), self.M)
 
     def derivatives(self, q, v, w):
         r, J, H = self.kin.log6(_configurations(self.model, q), self.M, w)
