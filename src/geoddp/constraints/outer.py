@@ -18,6 +18,12 @@ the controls' box limits by projected Newton), warm-started from the previous co
   rtol |J|) the final inner solve runs with the solver's own options (so its certificate is the
   usual one).
 
+Only that final inner solve is certified: the ones before it only warm-start the next, and stop
+at their stopping test without the final check's exact pass (``solve(..., certify=False)``); a
+loop that ends after one of them (infeasible, max_outer_iter, non-finite) runs the final check
+alone at its iterate (:func:`geoddp.solver.loop.check`), so the result's gains, gradient and
+certificate are always those of the returned controls.
+
 It stops at a KKT point: every V_j <= constraint_tol after an inner solve at the full tolerance
 that converged (its certificate: Newton decrement below its threshold with a positive definite
 reduced Hessian, at multipliers lambda whose estimates lhat it then returns: the gradient of the
