@@ -18,6 +18,7 @@ from geoddp.problem import paper_problem
 from geoddp import Result
 from geoddp.scene import build_problem, load_scene
 from geoddp.solver import SolverOptions, cost_gradient, solve
+from geoddp.solver.loop import check
 from geoddp.validate import InputError
 
 D = np.array([0.849, 0.482, 0.215]) / np.linalg.norm([0.849, 0.482, 0.215])
@@ -192,6 +193,12 @@ def test_a_cone_around_the_initial_boresight_is_infeasible():
     assert np.isfinite(r.cost) and np.all(np.isfinite(r.controls))
     text = json.dumps(r.to_dict(), allow_nan=False)  # strict JSON: raises on NaN or inf
     assert "infeasible" in text
+    # the last inner solve is not certified there: the final check alone at its iterate gives the
+    # gains and the certificate (Q_uu positive definite: a minimiser of the last merit)
+    assert np.all(np.isfinite(r.grad_norm_history)) and np.all(np.isfinite(r.feedback))
+    o = r.extra["optimality"]
+    assert o["hessian_positive_definite"] and np.isfinite(o["newton_decrease"])
+    assert r.extra["optimality"]["lagrangian_stationarity"] == r.grad_norm_history[-1]
 
 
 def test_an_unreachable_terminal_state_is_infeasible():
@@ -217,6 +224,27 @@ def test_contradictory_joint_limit_and_terminal_state_are_infeasible():
     # the elbow cannot be both <= 0.3 and = 0.8 at the last node: some row stays >= 0.25 away
     assert r.extra["constraints"]["smallest_violation"] >= 0.25 - 1e-6
     json.dumps(r.to_dict(), allow_nan=False)
+
+
+# ------------------------------------------------------------------ uncertified inner solves
+
+
+def test_an_uncertified_solve_stops_at_its_test_and_the_check_alone_certifies_it():
+    """certify=False (the outer loop's inner solves before the last): the same iterates up to the
+    stopping test, no exact pass; check() at the returned controls is the final check of solve()."""
+    p = paper_problem(horizon=100)
+    opt = _opts(tol=1e-8, expansion="first")
+    a = solve(p, opt)
+    b = solve(p, opt, certify=False)
+    assert a.converged and b.converged and b.extra["optimality"] == {"certified": False}
+    assert b.iterations == a.iterations and np.array_equal(b.controls, a.controls)
+    assert np.array_equal(b.cost_history, a.cost_history)
+    assert np.isnan(b.grad_norm_history[-1]) and b.grad_norm_history.shape == a.grad_norm_history.shape
+    c = check(p, opt, b.controls)
+    assert c.iterations == 0 and np.array_equal(c.controls, a.controls)
+    assert c.extra["optimality"] == a.extra["optimality"]
+    assert np.array_equal(c.feedback, a.feedback) and np.array_equal(c.feedforward, a.feedforward)
+    assert c.grad_norm == a.grad_norm
 
 
 # ------------------------------------------------------------------ the unconstrained path, refusals

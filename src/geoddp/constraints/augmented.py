@@ -136,26 +136,30 @@ class AugmentedLagrangianProblem:
         for p, lam, mu in zip(self.constraints, self.multipliers, self.penalties):
             q, v = p.states(traj)
             eq = p.bound.equality
+            nodes = p.nodes
+            if not eq:
+                # an inequality row with lambda + mu c <= 0 adds nothing (lhat = 0, off the
+                # Gauss-Newton part): only the nodes with an active row are differentiated
+                act = np.flatnonzero(np.any(lam + mu * p.bound.value(q, v) > 0.0, axis=1))
+                if act.size == 0:
+                    continue
+                if act.size < nodes.size:
+                    q, v, lam, nodes = q[act], v[act], lam[act], nodes[act]
             # the Hessian's weights are the multiplier estimates at c: handed over as a function of
             # c, so the constraint evaluates its kinematics once
             c, J, Hw = p.bound.derivatives(q, v, (lambda c_, lam=lam, mu=mu, eq=eq: multiplier_estimate(c_, lam, mu, eq))
                                            if exact else None)
             lhat = multiplier_estimate(c, lam, mu, eq)
-            grad = np.einsum("nij,ni->nj", J, lhat)
-            on = np.ones_like(c) if p.bound.equality else (lam + mu * c > 0.0).astype(float)
-            hess = mu * np.einsum("nia,ni,nib->nab", J, on, J)
+            grad = np.matmul(lhat[:, None, :], J)[:, 0]  # sum_i lhat_i dc_i (N, nx)
+            Jon = J if eq else J * (lam + mu * c > 0.0)[:, :, None]
+            hess = mu * np.matmul(np.swapaxes(Jon, 1, 2), J)  # mu J_c^T J_c on the active rows
             if exact:
                 hess += Hw
-            run = p.nodes < H
-            k = p.nodes[run]
-            if k.size and k[-1] - k[0] + 1 == k.size and np.all(np.diff(k) == 1):
-                # consecutive nodes (a path constraint: 1..H-1 here): added through a slice, row by
-                # row as np.add.at would, without its per-element loop
-                l_x[k[0]:k[-1] + 1] += grad[run]
-                l_xx[k[0]:k[-1] + 1] += hess[run]
-            else:
-                np.add.at(l_x, k, grad[run])
-                np.add.at(l_xx, k, hess[run])
+            run = nodes < H
+            k = nodes[run]
+            # the nodes are distinct: a fancy-indexed += adds each once
+            l_x[k] += grad[run]
+            l_xx[k] += hess[run]
             if not run.all():
                 lf_x += grad[~run].sum(axis=0)
                 lf_xx += hess[~run].sum(axis=0)

@@ -279,6 +279,10 @@ class _PointingFrame(Bound):
         self.nx = 2 * kin.nv
         self.labels = ("cos(angle) - cos(min_angle)",)
 
+    def value(self, q, v):  # the forward kinematics alone; the same c as derivatives()
+        R, _ = self.kin.placements(_configurations(self.model, q))
+        return (R @ self.a @ self.d - self.cos_min)[:, None]
+
     def derivatives(self, q, v, w):
         Q = _configurations(self.model, q)
         frames = self.kin.jacobians(Q)
@@ -377,8 +381,37 @@ class _FramePoint(Bound):
         self.model, self.kin, self.kind = model, kin, kind
         self.nx = 2 * kin.nv
         self.labels = (kind.type,)
+        self.compiled = None
+        if isinstance(kind, FrameSphereKeepOut):
+            # c = (radius^2 - |p - centre|^2) / (2 radius) = radius / 2 - l / radius with
+            # l = 1/2 |p - centre|^2: the compiled frame translation cost (weight 1) gives l, its
+            # gradient and its exact Hessian at all nodes in one call of the kernels (the same
+            # tangent coordinates; the Python path below agrees to round-off)
+            from ..costs.multibody import FrameTranslation, MultibodyCostSum
+
+            self.compiled = MultibodyCostSum([FrameTranslation(kin.model, kind.frame, kind.centre, 1.0)], kin.model,
+                                             terminal=True)
+
+    def _compiled(self, q, v, w):
+        r = self.kind.radius
+        Q, V = _configurations(self.model, q), np.ascontiguousarray(v, dtype=float)
+        if w is False:  # the value alone
+            return (0.5 * r - self.compiled.value(Q, V, None) / r)[:, None]
+        d = self.compiled.derivatives(Q, V, None, gauss_newton=w is None)  # no kinematic Hessians without w
+        c = (0.5 * r - d.l / r)[:, None]
+        w = w(c) if callable(w) else w
+        J = (-d.lx / r)[:, None]
+        return c, J, None if w is None else -(w[:, 0, None, None] / r) * d.lxx
+
+    def value(self, q, v):  # the forward kinematics alone; the same c as derivatives()
+        if self.compiled is not None:
+            return self._compiled(q, v, False)
+        _, p = self.kin.placements(_configurations(self.model, q))
+        return self.kind.point_value(p)[0][:, None]
 
     def derivatives(self, q, v, w):
+        if self.compiled is not None:
+            return self._compiled(q, v, w)
         Q = _configurations(self.model, q)
         frames = self.kin.jacobians(Q)
         c, dc, d2c = self.kind.point_value(frames[1])  # the point first: the Hessian's weights need dc/dp
@@ -615,6 +648,9 @@ class _Placement(Bound):
     def __init__(self, model: Any, kin: FrameKinematics, M: np.ndarray) -> None:
         self.model, self.kin, self.M = model, kin, M
         self.nx = 2 * kin.nv
+
+    def value(self, q, v):  # the forward kinematics alone; the same r as derivatives()
+        return self.kin.log6_value(_configurations(self.model, q), self.M)
 
     def derivatives(self, q, v, w):
         r, J, H = self.kin.log6(_configurations(self.model, q), self.M, w)

@@ -165,6 +165,10 @@ class FrameKinematics:
         cross = -np.einsum("nai,nab,nbj->nij", Ja, hat(u), Jl)
         return p, Jp, sym(cross) + self.hessian_contraction(Q, g6)
 
+    def log6_value(self, Q: np.ndarray, M_ref: np.ndarray) -> np.ndarray:
+        """r = log6(M_ref^-1 oMf) (N, 6) alone (the forward kinematics, no Jacobian): :meth:`log6`'s r."""
+        return _log6_residuals(*self.placements(Q), M_ref)
+
     def log6(self, Q: np.ndarray, M_ref: np.ndarray, w: Weights = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """r = log6(M_ref^-1 oMf) (N, 6) [linear (m); angular (rad)], the residual of the
@@ -175,17 +179,10 @@ class FrameKinematics:
         the weights (the augmented Lagrangian's multiplier estimates depend on r)."""
         N = Q.shape[0]
         R, p, J = self.jacobians(Q)
-        Mref_inv = pin.SE3(M_ref[:3, :3], M_ref[:3, 3]).inverse()
-        r, Jr_res = np.empty((N, 6)), np.empty((N, 6, self.nv))
+        r = _log6_residuals(R, p, M_ref)
+        Jr_res = np.empty((N, 6, self.nv))
         Ji = np.empty((N, 6, 6))
         for n in range(N):
-            if np.array_equal(R[n], M_ref[:3, :3]):
-                # the reference orientation reached exactly: as the cost kernel, the identity
-                # keeps the rotation residual exactly 0 (R_ref^T R would leave round-off)
-                E = pin.SE3(np.eye(3), M_ref[:3, :3].T @ (p[n] - M_ref[:3, 3]))
-            else:
-                E = Mref_inv * pin.SE3(R[n], p[n])
-            r[n] = pin.log6(E).vector
             Ji[n] = kernels.se3_right_jacobian(r[n], True)
             Jr_res[n] = Ji[n] @ J[n]
         if callable(w):
@@ -199,3 +196,18 @@ class FrameKinematics:
             Dg = np.tensordot(g[n], D, axes=1)
             S[n] -= sym(Jr_res[n].T @ Dg @ Jr_res[n])
         return r, Jr_res, S
+
+
+def _log6_residuals(R: np.ndarray, p: np.ndarray, M_ref: np.ndarray) -> np.ndarray:
+    """log6(M_ref^-1 (R_n, p_n)) (N, 6) [linear; angular] of N placements."""
+    Mref_inv = pin.SE3(M_ref[:3, :3], M_ref[:3, 3]).inverse()
+    r = np.empty((R.shape[0], 6))
+    for n in range(R.shape[0]):
+        if np.array_equal(R[n], M_ref[:3, :3]):
+            # the reference orientation reached exactly: as the cost kernel, the identity
+            # keeps the rotation residual exactly 0 (R_ref^T R would leave round-off)
+            E = pin.SE3(np.eye(3), M_ref[:3, :3].T @ (p[n] - M_ref[:3, 3]))
+        else:
+            E = Mref_inv * pin.SE3(R[n], p[n])
+        r[n] = pin.log6(E).vector
+    return r

@@ -18,6 +18,12 @@ the controls' box limits by projected Newton), warm-started from the previous co
   rtol |J|) the final inner solve runs with the solver's own options (so its certificate is the
   usual one).
 
+Only that final inner solve is certified: the ones before it only warm-start the next, and stop
+at their stopping test without the final check's exact pass (``solve(..., certify=False)``); a
+loop that ends after one of them (infeasible, max_outer_iter, non-finite) runs the final check
+alone at its iterate (:func:`geoddp.solver.loop.check`), so the result's gains, gradient and
+certificate are always those of the returned controls.
+
 It stops at a KKT point: every V_j <= constraint_tol after an inner solve at the full tolerance
 that converged (its certificate: Newton decrement below its threshold with a positive definite
 reduced Hessian, at multipliers lambda whose estimates lhat it then returns: the gradient of the
@@ -41,6 +47,7 @@ import numpy as np
 from ..problem.contract import Trajectory
 from ..solver.result import Result
 from ..solver import SolverOptions, solve
+from ..solver.loop import check
 from ..solver.status import STATUS_LINALG, STATUS_MAX_ITER, STATUS_NON_FINITE
 from ..validate import InputError
 from .augmented import multiplier_estimate
@@ -126,7 +133,10 @@ def solve_constrained(problem: Any, options: SolverOptions | None = None,
     for k in range(al.max_outer_iter):
         inner = dataclasses.replace(opt, verbose=False) if final else \
             dataclasses.replace(opt, tol=omega, rtol=None, verbose=False)
-        r = solve(problem.augmented(lam, mu), inner, U)
+        # only the final inner solve is certified (its exact check at the returned iterate): the
+        # others only warm-start the next one, and stop at their stopping test
+        aug = problem.augmented(lam, mu)
+        r = solve(aug, inner, U, certify=final)
         results.append(r)
         U = r.controls
         traj = Trajectory(r.q, r.v, r.controls)
@@ -197,8 +207,16 @@ def solve_constrained(problem: Any, options: SolverOptions | None = None,
         V0 = Vmax if V0 is None else V0
         omega = min(omega, al.inner_tol_initial * Vmax / V0) if V0 > 0 else 0.0
         final = omega <= opt.cost_tolerance(J)
+    # the loop ended after an uncertified inner solve (infeasible, max_outer_iter, non-finite): its
+    # iterate's gains, gradient and certificate by the final check alone
+    last_check = None
+    if not final:
+        try:
+            last_check = check(aug, dataclasses.replace(opt, verbose=False), U)
+        except InputError:  # a non-finite cost there: the last inner solve's gains stay
+            pass
     result = _assemble(problem, opt, results, lam, mu, outer, status, message, converged, best,
-                       time.perf_counter() - t_start)
+                       time.perf_counter() - t_start, last_check)
     if opt.verbose:
         out.write(f"{status} ({message}); J = {result.cost:.12e}, {len(results)} outer and {result.iterations} inner "
                   f"iterations, {result.solve_time_s * 1e3:.1f} ms\n")
@@ -211,10 +229,23 @@ def _name(problem: Any, j: int) -> str:
 
 def _assemble(problem: Any, opt: SolverOptions, results: list[Result], lam: list[np.ndarray], mu: list[float],
               outer: list[dict[str, Any]], status: str, message: str, converged: bool, best: float,
-              solve_time: float) -> Result:
+              solve_time: float, last_check: Result | None = None) -> Result:
     """One Result from the inner solves: the last one's trajectory and gains, the histories one
-    after another, the constraint report and the KKT numbers."""
+    after another, the constraint report and the KKT numbers. An uncertified inner solve that ended
+    at an iterate reached by a step has no gradient there (NaN): the next solve's at the same
+    controls (its merit's, at the updated multipliers) stands in; ``last_check``: the final check
+    at the last iterate when the last inner solve was uncertified (its gains, gradient, certificate)."""
     last = results[-1]
+    grads = [r.grad_norm_history.copy() for r in results]
+    for g, nxt in zip(grads, grads[1:]):
+        if g.size and np.isnan(g[-1]):
+            g[-1] = nxt[0]
+    if last_check is not None:
+        if grads[-1].size and np.isnan(grads[-1][-1]):
+            grads[-1][-1] = last_check.grad_norm
+        gains = last_check
+    else:
+        gains = last
     traj = Trajectory(last.q, last.v, last.controls)
     cs = problem.values(traj)
     t0 = 0.0
@@ -227,19 +258,18 @@ def _assemble(problem: Any, opt: SolverOptions, results: list[Result], lam: list
         for key, val in r.timings.items():
             timings[key] = timings.get(key, 0.0) + float(val)
     report = _report(problem, cs, lam, mu, outer, best)
-    optimality = dict(last.extra.get("optimality") or {})
+    optimality = dict(gains.extra.get("optimality") or {})
     optimality.update(constraint_violation=report["max_violation"], complementarity=report["complementarity"],
-                      lagrangian_stationarity=float(last.grad_norm) if np.isfinite(last.grad_norm) else None)
+                      lagrangian_stationarity=float(grads[-1][-1]) if np.isfinite(grads[-1][-1]) else None)
     records = [r.control_history for r in results]
     extra = {k: v for k, v in last.extra.items() if k != "optimality"}
     extra.update(optimality=optimality, constraints=report)
     return type(last)(  # the kind of the inner results (satellite or multibody)
         times=last.times, q=last.q, v=last.v, model=last.model, controls=last.controls,
-        feedforward=last.feedforward, feedback=last.feedback, cost=float(problem.trajectory_cost(traj)),
+        feedforward=gains.feedforward, feedback=gains.feedback, cost=float(problem.trajectory_cost(traj)),
         iterations=int(sum(r.iterations for r in results)), converged=bool(converged), status=status, message=message,
         cost_history=np.concatenate([results[0].cost_history[:1]] + [r.cost_history[1:] for r in results]),
-        grad_norm_history=np.concatenate([results[0].grad_norm_history[:1]]
-                                         + [r.grad_norm_history[1:] for r in results]),
+        grad_norm_history=np.concatenate([grads[0][:1]] + [g[1:] for g in grads]),
         reg_history=np.concatenate([r.reg_history for r in results]),
         step_history=np.concatenate([r.step_history for r in results]),
         expansion_history=[e for r in results for e in r.expansion_history],

@@ -91,8 +91,9 @@ def cost_gradient(problem: OptimalControlProblem, controls: np.ndarray) -> tuple
 class _Solve:
     """The state of one solve: the iterate, lambda, the counters, the policy, the callbacks and the buffers."""
 
-    def __init__(self, problem: OptimalControlProblem, opt: SolverOptions, U: np.ndarray) -> None:
+    def __init__(self, problem: OptimalControlProblem, opt: SolverOptions, U: np.ndarray, certify: bool = True) -> None:
         self.problem, self.opt = problem, opt
+        self.certify = certify  # False: a passed stopping test ends the solve without the exact pass
         self.t_start = time.perf_counter()
         self.timings = {"derivatives": 0.0, "backward": 0.0, "forward": 0.0, "final_check": 0.0}
         self.traj: Trajectory = problem.trajectory(U)
@@ -270,7 +271,7 @@ class _Solve:
         if not (abs(dJ) <= tol and (undamped or at_roundoff)):
             return True
         message = self.policy.cost_test_message(dJ, self.J)
-        if self.policy.switching():
+        if self.policy.switching() and self.certify:
             # first order has done what it can: second order finishes (quadratically) and
             # the exact check decides, instead of stopping at a linearly converging point ...
             if not self.policy.gauss_newton or not self.certified_deep():
@@ -301,6 +302,8 @@ class _Solve:
         (unless the caller hands in ``lin2`` and its (d1, d2) ``d``, where that very pass just
         succeeded) and, at a saddle, take an escape step as an iteration. True after an escape;
         False means stop (``checked`` then holds the check's linearisation for the final check)."""
+        if lin2 is None and not self.certify:
+            return False  # uncertified: the stopping test ends the solve (final_check adds nothing)
         t0 = time.perf_counter()
         if lin2 is None:
             lin2, failed, d1, d2 = self.exact_pass()
@@ -362,6 +365,14 @@ class _Solve:
           Otherwise: stalled (a small cost change at a linearly convergent step, far from the
           optimum).
         """
+        if not self.certify:
+            # uncertified: no exact pass; the gains are those of the last backward pass, the
+            # gradient that of the last linearisation (NaN when the iterate was reached by a step)
+            self.optimality = {"certified": False}
+            gnorm = self.gnorm if self.gnorm is not None else float("nan")
+            if self.gnorm is None:
+                self.gradient_known(gnorm)
+            return gnorm
         t0 = time.perf_counter()
         # the exact linearisation at the iterate, made once: by the check of a stopping test, or by
         # a first-order cost test whose hand-over max_iter cut short (pending), or here
@@ -496,7 +507,7 @@ def _check_problem(problem: object, options: object) -> None:
 
 
 def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
-          initial_controls: np.ndarray | None = None) -> Result:
+          initial_controls: np.ndarray | None = None, *, certify: bool = True) -> Result:
     """Solve ``problem`` with geometric DDP (Algorithm 1) and return a :class:`Result`.
 
     Args:
@@ -509,6 +520,13 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
             the initial posture against gravity where the actuation can, clipped into the
             limits; zeros (the paper's guess) without gravity, and for a problem that does not
             offer them (then projected into the limits).
+        certify: True (the default): the final check (:meth:`_Solve.final_check`) at the returned
+            iterate, an exact lambda = 0 backward pass that verifies a stopping test and gives the
+            gains. False: a stopping test ends the solve as ``converged`` without it (no saddle
+            escape either): the gains are the last iteration's, ``extra["optimality"]`` is
+            ``{"certified": False}`` and the last gradient NaN unless a gradient test stopped the
+            solve. For a solve whose iterate only warm-starts another (the inner solves of
+            :func:`geoddp.constraints.solve_constrained` before its last, certified, one).
     """
     _check_problem(problem, options)
     opt = options or SolverOptions()
@@ -522,7 +540,7 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
     # Overflow and invalid operations are detected by the explicit finiteness checks of the loop
     # (cost, gradient, backward pass): numpy's warnings would only duplicate them on stderr.
     with np.errstate(all="ignore"):
-        s = _Solve(problem, opt, U)
+        s = _Solve(problem, opt, U, certify)
         try:
             while s.it < opt.max_iter and s.iterate():
                 pass
@@ -535,6 +553,26 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
             gnorm = s.final_check()
         except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
             s.converged = False
+            s.message += f"; the final check failed ({type(exc).__name__}: {exc})"
+            gnorm = float("nan")
+        return s.result(gnorm)
+
+
+def check(problem: OptimalControlProblem, options: SolverOptions | None = None,
+          controls: np.ndarray | None = None) -> Result:
+    """The final check of :func:`solve` alone, at ``controls`` (no iterations): a Result at those
+    controls with the exact lambda = 0 pass's gains, ``extra["optimality"]`` and gradient
+    (``converged`` False: no stopping test ran). What an uncertified solve (``certify=False``)
+    leaves out, for the iterate it returned."""
+    _check_problem(problem, options)
+    opt = options or SolverOptions()
+    U = problem.check_controls(controls, "controls")
+    with np.errstate(all="ignore"):
+        s = _Solve(problem, opt, U)
+        s.stop(STATUS_MAX_ITER, "no iterations (the final check alone)")
+        try:
+            gnorm = s.final_check()
+        except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
             s.message += f"; the final check failed ({type(exc).__name__}: {exc})"
             gnorm = float("nan")
         return s.result(gnorm)
