@@ -351,7 +351,8 @@ class ContactDynamics:
         """y'' (ny, nz, nz) of the KKT unknowns y = (a or v+, lambda) from E(w) = 0, w = (q, v, y):
         E_y y'' = -E_ww[X, X] with X = dw/dz (nw, nz), E_y = [[M, -J_w^T], [J_w, 0]]."""
         nv, nc, nz = self.nv, Jw.shape[0], X.shape[1]
-        rhs = np.einsum("pab,ai,bj->pij", H, X, X, optimize=True)
+        ny, nw = H.shape[0], H.shape[1]
+        rhs = np.matmul(X.T, (H.reshape(ny * nw, nw) @ X).reshape(ny, nw, nz))  # X^T E_ww,p X per row p
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv], K[:nv, nv:], K[nv:, :nv] = M, -Jw.T, Jw
         return -np.linalg.solve(K, rhs.reshape(nv + nc, nz * nz)).reshape(nv + nc, nz, nz)
