@@ -130,6 +130,25 @@ def test_kkt_second_derivatives_against_differences(gaits, gait, which):
         assert np.max(np.abs(a - a.transpose(0, 2, 1))) <= 1e-9 * np.max(np.abs(a))
 
 
+def test_kkt_second_derivatives_with_a_position_gain():
+    """The Baumgarte position term (Kp = 30 1/s^2, zero in Crocoddyl's gaits) in the exact second
+    derivatives, against differences as above."""
+    problem = anymal_gait("walk", load_anymal())
+    problem.dyn.gains = (30.0, 50.0)
+    k = nodes_of(problem)[0]
+    traj = nominal(problem, k, np.random.default_rng(5))
+    q, v, u, node = traj.q[k], traj.v[k], traj.u[k], problem.nodes[k]
+    Y2, _ = problem.dyn.contact_second(q, v, u, node.feet, problem.dyn.contact(q, v, u, node.feet, True))
+    nz, h = problem.nx + problem.nu, 1e-5
+    DY = np.zeros_like(Y2)
+    for j in range(nz):
+        e = np.zeros(nz)
+        e[j] = h
+        DY[:, :, j] = (chart_jacobians(problem, k, traj, e)[0] - chart_jacobians(problem, k, traj, -e)[0]) / (2 * h)
+    DY = 0.5 * (DY + DY.transpose(0, 2, 1))
+    assert np.max(np.abs(Y2 - DY)) / np.max(np.abs(DY)) < 1e-7
+
+
 @pytest.mark.parametrize("gait", ["walk", "trot"])
 @pytest.mark.parametrize("which", [0, 1, 2, 3])
 def test_second_order_terms_against_the_differences(gaits, gait, which):

@@ -21,11 +21,28 @@ forces as external forces and ``getFrameAccelerationDerivatives`` / ``getFrameVe
 for the constraint rows, put through the KKT matrix (implicit differentiation); forces are handled
 in the foot frame (where they move with the body) and rotated to the world at the end.
 
-Second order (for the ``second`` and ``switch`` expansions):
-:meth:`geoddp.problem.legged.ContactProblem.second_order_node` takes central differences of these
-analytic first derivatives, symmetrised (as the ``rk4`` integrator does for its step), of the whole
-node map ``zeta -> difference(x_bar+, f(x_bar (+) zeta, u_bar + du))``, so the Lie-group terms of
-the chart are in it.
+Second order (for the ``second`` and ``switch`` expansions), exact (:meth:`ContactDynamics.contact_second`,
+:meth:`ContactDynamics.impulse_second`): the KKT system differentiated twice. With w = (q, v, y),
+y = (a, lambda) (contact; v+ and Lambda at an impulse) and the equations written as
+``E1 = rnea(q, v, a) - sum_f J_w,f(q)^T lambda_f - S u = 0`` (world forces, J_w the feet's
+world-aligned linear Jacobians) and, per foot, the Baumgarte condition rotated to the world,
+``E2 = p''(q, v, a + Kd v) + Kp p(q) = 0`` (p the foot point's world position; the same solution
+as the foot frame's condition, so the same derivatives), the second derivatives y'' solve
+``E_y y'' = -E_ww[X, X]``, X = dw/dz = (I, I, y'), with the first-order y' the analytic one above.
+E_ww comes from Pinocchio's second-order RNEA derivatives (``ComputeRNEASecondOrderDerivatives``,
+the compiled core's ``rnea_second_order``) of three exact identities, no differences anywhere:
+
+* the robot's own RNEA at (q, v, a) (an impulse: without gravity at (q, 0, v+ - v), M(q) (v+ - v));
+* per foot, the RNEA of the robot with every inertia zero and a unit point mass at the foot is
+  ``J_w^T p''(q, v, a)`` (the point's Newton equation), whose free-flyer translational rows are
+  ``oR_b^T p''``: p'' = oR_b tau[0:3], and its q-q, q-v, q-a, v-v second derivatives follow by the
+  product rule with oR_b(q exp(eta)) = oR_b exp(eta_rot); P_qa = dJ_w/dq gives the q-lambda block;
+* per foot, that model's RNEA at v = a = 0 under the gravity -lambda_f is ``J_w^T lambda_f``: the
+  q-q block of the forces' term.
+
+All chart Hessians are symmetric (Pinocchio's q-q blocks, derivatives of right-trivialised
+Jacobians, symmetrised: the difference is antisymmetric). The semi-implicit Euler step's chart terms
+are added by :func:`geoddp.models.integrators.expand` (:mod:`geoddp.problem.legged`).
 """
 from __future__ import annotations
 

@@ -361,7 +361,7 @@ class ContactProblem:
                 Hs += (c.friction_cone * self.dt) * np.einsum("r,rc,cij->ij", ex, A, L2[rows])
         return Hs
 
-    def second_order_node(self, k: int, traj: Trajectory):
+    def second_order_node(self, k: int, traj: Trajectory, ev=None):
         """(T (nx, nz, nz) second derivatives of zeta+ at node k, cost Hessian (nz, nz)), both
         exact. k = H: (None, terminal Hessian).
 
@@ -369,7 +369,8 @@ class ContactProblem:
         :meth:`geoddp.models.contact.ContactDynamics.contact_second` / ``impulse_second`` (the KKT
         system differentiated twice), put through the semi-implicit Euler step's exact chart terms
         (:func:`geoddp.models.integrators.expand`); an impulse node's q+ = q has none. The cost
-        Hessian: :meth:`_cost_hessian`."""
+        Hessian: :meth:`_cost_hessian`. ``ev``: the node's dynamics already evaluated with
+        derivatives at (traj.q[k], traj.v[k], traj.u[k]), or None."""
         nx, nu, nv, dt = self.nx, self.nu, self.model.nv, self.dt
         nz = nx + nu
         q, v = traj.q[k], traj.v[k]
@@ -379,10 +380,10 @@ class ContactProblem:
         u = traj.u[k]
         T = np.zeros((nx, nz, nz))
         if node.kind == "impulse":
-            ev = self.dyn.impulse(q, v, node.feet, derivatives=True)
+            ev = ev if ev is not None else self.dyn.impulse(q, v, node.feet, derivatives=True)
             T[nv:], L2 = self.dyn.impulse_second(q, v, node.feet, ev)
             return T, self._cost_hessian(k, q, v, u, ev, L2)
-        ev = self.dyn.contact(q, v, u, node.feet, derivatives=True)
+        ev = ev if ev is not None else self.dyn.contact(q, v, u, node.feet, derivatives=True)
         A2, L2 = self.dyn.contact_second(q, v, u, node.feet, ev)
         e = integ.expand(self.groups, dt, ev.v_next[None], ev.Fz[None, nv:], dt * A2[None], True)
         T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, nx:] = e.Theta[0], e.Gamma[0], e.Xi[0]
@@ -392,10 +393,12 @@ class ContactProblem:
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         H, nx, nu = self.horizon, self.nx, self.nu
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
+        evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
         lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
         for k in range(H):
             ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k], derivatives=True)
+            evs.append(ev)
             Phi[k], B[k] = ev.Fz[:, :nx], ev.Fz[:, nx:]
             lx[k], lu[k] = g[:nx], g[nx:]
             lxx[k], lux[k], luu[k] = Hs[:nx, :nx], Hs[nx:, :nx], Hs[nx:, nx:]
@@ -404,7 +407,7 @@ class ContactProblem:
         if order == 2:
             Theta, Gamma, Xi = np.empty((H, nx, nx, nx)), np.empty((H, nx, nx, nu)), np.empty((H, nx, nu, nu))
             for k in range(H):
-                T, Hc = self.second_order_node(k, traj)
+                T, Hc = self.second_order_node(k, traj, evs[k])
                 Theta[k], Gamma[k], Xi[k] = T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, nx:]
                 lxx[k], lux[k], luu[k] = Hc[:nx, :nx], Hc[nx:, :nx], Hc[nx:, nx:]
             Hf = self.second_order_node(H, traj)[1]
