@@ -297,13 +297,7 @@ class ContactDynamics:
         if getattr(self, "_aux", None) is None:
             m0 = pin.Model(self.model)
             m0.gravity = pin.Motion.Zero()
-            feet = {}
-            for f in range(self.model.nframes):
-                fr = self.model.frames[f]
-                if fr.parentJoint == 0:
-                    continue
-                feet[f] = None
-            self._aux = {"zero_gravity": (m0, m0.createData()), "feet": feet}
+            self._aux = {"zero_gravity": (m0, m0.createData()), "feet": {}}
         return self._aux
 
     def _foot_model(self, f: int):
@@ -348,11 +342,10 @@ class ContactDynamics:
         rot = lambda T: np.einsum("ab,bij->aij", R, T)  # noqa: E731
         return R @ w_a, rot(P_qq), rot(P_qv), rot(P_qa), rot(vv[:3])
 
-    def _force_terms(self, H: np.ndarray, q: np.ndarray, feet, forces: np.ndarray, Q: slice, L0: int) -> None:
-        """Subtract from the RNEA rows of H the second derivatives of sum_f J_w,f(q)^T lambda_f (world
-        forces held): the q-q block from the foot's point-mass model under the gravity -lambda_f
-        (its RNEA at v = a = 0 is J_w^T lambda_f); the q-lambda block is -dJ_w/dq, P_qa's
-        transpose (filled by the caller's per-foot loop through ``L0``)."""
+    def _force_terms(self, H: np.ndarray, q: np.ndarray, feet, forces: np.ndarray, Q: slice) -> None:
+        """Subtract from the RNEA rows of H the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
+        (world forces held), from the foot's point-mass model under the gravity -lambda_f (its RNEA
+        at v = a = 0 is J_w^T lambda_f). (The q-lambda block, -dJ_w/dq, is the callers': P_qa.)"""
         nv = self.nv
         zero = np.zeros(nv)
         for i, f in enumerate(feet):
@@ -364,12 +357,18 @@ class ContactDynamics:
                 mf.gravity = pin.Motion.Zero()
             H[:nv, Q, Q] -= 0.5 * (gqq + gqq.transpose(0, 2, 1))
 
-    def _kkt_second(self, H: np.ndarray, X: np.ndarray, M: np.ndarray, Jw: np.ndarray) -> np.ndarray:
-        """y'' (ny, nz, nz) of the KKT unknowns y = (a or v+, lambda) from E(w) = 0, w = (q, v, y):
-        E_y y'' = -E_ww[X, X] with X = dw/dz (nw, nz), E_y = [[M, -J_w^T], [J_w, 0]]."""
-        nv, nc, nz = self.nv, Jw.shape[0], X.shape[1]
-        ny, nw = H.shape[0], H.shape[1]
-        rhs = np.matmul(X.T, (H.reshape(ny * nw, nw) @ X).reshape(ny, nw, nz))  # X^T E_ww,p X per row p
+    def _kkt_second(self, H: np.ndarray, Y1: np.ndarray, M: np.ndarray, Jw: np.ndarray) -> np.ndarray:
+        """y'' (ny, nz, nz) of the KKT unknowns y = (a or v+, lambda) from E(w) = 0, w = (s, y),
+        s = (q, v): E_y y'' = -E_ww[X, X], X = dw/dz = [[I, 0], [Y1]] (s is z's first 2 nv
+        entries; Y1 = dy/dz (ny, nz)), E_y = [[M, -J_w^T], [J_w, 0]]. E is affine in y (E_yy = 0),
+        so E_ww[X, X] = E_ss + E_sy Y1 + its transpose, without forming X."""
+        nv, nc, nz = self.nv, Jw.shape[0], Y1.shape[1]
+        ny, ns = H.shape[0], 2 * nv
+        rhs = np.zeros((ny, nz, nz))
+        rhs[:, :ns, :ns] = H[:, :ns, :ns]
+        C = (H[:, :ns, ns:].reshape(ny * ns, -1) @ Y1).reshape(ny, ns, nz)
+        rhs[:, :ns, :] += C
+        rhs[:, :, :ns] += C.transpose(0, 2, 1)
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv], K[:nv, nv:], K[nv:, :nv] = M, -Jw.T, Jw
         return -np.linalg.solve(K, rhs.reshape(nv + nc, nz * nz)).reshape(nv + nc, nz, nz)
@@ -392,7 +391,7 @@ class ContactDynamics:
         H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
         H[:nv, Q, V], H[:nv, V, Q], H[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
         H[:nv, A, Q], H[:nv, Q, A] = aq, aq.transpose(0, 2, 1)
-        self._force_terms(H, q, feet, ev.forces, Q, 3 * nv)
+        self._force_terms(H, q, feet, ev.forces, Q)
         Jw = np.zeros((nc, nv))
         for i, f in enumerate(feet):
             Jw[3 * i:3 * i + 3], P_qq, P_qv, P_qa, P_vv = self._point_terms(f, q, v, ev.acc + Kd * v)
@@ -404,12 +403,9 @@ class ContactDynamics:
             H[r, Q, A], H[r, A, Q] = P_qa, P_qa.transpose(0, 2, 1)
             H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
             H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
-        X = np.zeros((nw, nz))
-        X[Q, :nv], X[V, nv:2 * nv] = np.eye(nv), np.eye(nv)
-        X[A], X[3 * nv:] = ev.Az, ev.Lz
         M = pin.crba(self.model, self.data, q)
         M = np.triu(M) + np.triu(M, 1).T
-        Y = self._kkt_second(H, X, M, Jw)
+        Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
         return Y[:nv], Y[nv:]
 
     def impulse_second(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], ev: NodeEval
@@ -429,7 +425,7 @@ class ContactDynamics:
         H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
         H[:nv, P, Q], H[:nv, Q, P] = aq, aq.transpose(0, 2, 1)
         H[:nv, V, Q], H[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
-        self._force_terms(H, q, feet, ev.forces, Q, 3 * nv)
+        self._force_terms(H, q, feet, ev.forces, Q)
         Jw = np.zeros((nc, nv))
         for i, f in enumerate(feet):
             Jw[3 * i:3 * i + 3], P_qq, _, P_qa, _ = self._point_terms(f, q, zero, ev.v_next)
@@ -438,12 +434,9 @@ class ContactDynamics:
             H[r, Q, P], H[r, P, Q] = P_qa, P_qa.transpose(0, 2, 1)
             H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
             H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
-        X = np.zeros((nw, nz))
-        X[Q, :nv], X[V, nv:2 * nv] = np.eye(nv), np.eye(nv)
-        X[P], X[3 * nv:] = ev.Az, ev.Lz
         M = pin.crba(self.model, self.data, q)
         M = np.triu(M) + np.triu(M, 1).T
-        Y = self._kkt_second(H, X, M, Jw)
+        Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
         return Y[:nv], Y[nv:]
 
     # ------------------------------------------------------------------ quasi-static controls
