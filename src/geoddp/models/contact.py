@@ -61,7 +61,7 @@ def skew(w: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def _ROT_GENERATORS(nv: int) -> np.ndarray:
+def _rotation_generators(nv: int) -> np.ndarray:
     """(nv, 3, 3): skew(e_i) for the free flyer's rotational tangent directions 3..5, else 0
     (d/d eta_i of oR_b exp(eta_rot) = oR_b E_i)."""
     E = np.zeros((nv, 3, 3))
@@ -333,7 +333,7 @@ class ContactDynamics:
         qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
         w_qq = 0.5 * (qq[:3] + qq[:3].transpose(0, 2, 1))
         w_qa = aq[:3].transpose(0, 2, 1)
-        E = _ROT_GENERATORS(nv)
+        E = _rotation_generators(nv)
         Ew_q = np.einsum("iab,bj->aij", E, w_q)
         P_qq = w_qq + Ew_q + Ew_q.transpose(0, 2, 1) + 0.5 * (np.einsum("iab,jbc,c->aij", E, E, w)
                                                              + np.einsum("jab,ibc,c->aij", E, E, w))
