@@ -6,8 +6,8 @@ its example's states xs = [x0] * (T + 1)). Per solver and gait: iterations, J* (
 Crocoddyl's problem costs geoddp's trajectory), wall time of the solve. Needs the bench
 environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data). geoddp's processes run numpy's BLAS
 on one thread (OPENBLAS_NUM_THREADS=1 unless set): its node models' products are small (tens of
-rows), and on two shared cores BLAS's threads made the second-order terms 2x slower; FDDP keeps
-its default threads.
+rows), and on two shared cores BLAS's threads made the trot's second-order solve 1.4x slower;
+FDDP keeps its default threads.
 
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py            # all, results log
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py one fddp trot
