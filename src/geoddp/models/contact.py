@@ -293,7 +293,7 @@ class ContactDynamics:
     def _aux_models(self):
         """Models built once for the second order: the robot without gravity (the impulse's M(q) w
         as an RNEA) and, per foot frame, a massless copy of the robot carrying a unit point mass at
-        the frame's origin (its RNEA is J_w^T (p'' - g), see :meth:`_point_terms`)."""
+        the frame's origin and no gravity (its RNEA is J_w^T p'', see :meth:`_point_terms`)."""
         if getattr(self, "_aux", None) is None:
             m0 = pin.Model(self.model)
             m0.gravity = pin.Motion.Zero()
