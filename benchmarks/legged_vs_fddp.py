@@ -4,7 +4,10 @@ process (in one process their threads compete).
 Both start from the example's quasi-static controls (Crocoddyl's ``quasiStatic``; FDDP also from
 its example's states xs = [x0] * (T + 1)). Per solver and gait: iterations, J* (geoddp's as
 Crocoddyl's problem costs geoddp's trajectory), wall time of the solve. Needs the bench
-environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data).
+environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data). geoddp's processes run numpy's BLAS
+on one thread (OPENBLAS_NUM_THREADS=1 unless set): its node models' products are small (tens of
+rows), and on two shared cores BLAS's threads made the trot's second-order solve 1.4x slower;
+FDDP keeps its default threads.
 
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py            # all, results log
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py one fddp trot
@@ -12,6 +15,7 @@ environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data).
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -92,8 +96,11 @@ def main(argv: list[str]) -> None:
     rows = []
     for gait in GAITS:
         for solver in SOLVERS:
+            env = dict(os.environ)
+            if solver != "fddp":
+                env.setdefault("OPENBLAS_NUM_THREADS", "1")
             out = subprocess.run([sys.executable, __file__, "one", solver, gait], capture_output=True, text=True,
-                                 check=True)
+                                 check=True, env=env)
             rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
             print(json.dumps(rows[-1]), flush=True)
     log = Path(__file__).resolve().parent / "results" / "legged_vs_fddp.log"

@@ -1,9 +1,11 @@
 """Derivatives of the contact and impulse nodes (geoddp.models.contact, geoddp.problem.legged).
 
-On ANYmal's walk (example-robot-data) at random states and controls: the analytic Jacobians of the
-node map zeta+ = difference(x_bar+, f(x_bar (+) zeta, u_bar + du)) (Pinocchio's RNEA and frame
-derivatives through the KKT system), of the contact forces and of the node cost against central
-differences; the second-order terms against differences of those Jacobians (1e-7) and by the
+On ANYmal's walk and trot (example-robot-data) at random states and controls: the analytic
+Jacobians of the node map zeta+ = difference(x_bar+, f(x_bar (+) zeta, u_bar + du)) (Pinocchio's
+RNEA and frame derivatives through the KKT system), of the contact forces and of the node cost
+against central differences; the exact second-order terms (the KKT system differentiated twice,
+the costs' curvature) against the differences of those Jacobians (tests/oracle_legged.py, all
+entries, 1e-7 relative), the forces' and accelerations' second derivatives likewise, and by the
 one-step prediction test: the error of the second-order expansion falls 8x per halving of the step,
 the first-order one's 4x.
 """
@@ -11,13 +13,21 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from oracle_legged import fd_second_order_node
+
 from geoddp.problem.contract import Trajectory
 from geoddp.scene.legged import anymal_gait, load_anymal
 
 
 @pytest.fixture(scope="module")
-def walk():
-    return anymal_gait("walk", load_anymal())
+def gaits():
+    robot = load_anymal()
+    return {g: anymal_gait(g, robot) for g in ("walk", "trot")}
+
+
+@pytest.fixture(scope="module")
+def walk(gaits):
+    return gaits["walk"]
 
 
 def nodes_of(problem):
@@ -75,9 +85,94 @@ def test_first_derivatives_against_differences(walk, which):
         assert err < 1e-6, (name, err)
 
 
+def chart_jacobians(problem, k, traj, z):
+    """(acceleration or v+ Jacobian, world-force Jacobian) of node k at z = (zeta, du), in the chart
+    of the nominal (the q columns through dIntegrate), so that their differences are Hessians."""
+    m, nv = problem.model, problem.model.nv
+    q = pin.integrate(m, traj.q[k], z[:nv])
+    node = problem.nodes[k]
+    if node.kind == "impulse":
+        ev = problem.dyn.impulse(q, traj.v[k] + z[nv:2 * nv], node.feet, True)
+    else:
+        ev = problem.dyn.contact(q, traj.v[k] + z[nv:2 * nv], traj.u[k] + z[2 * nv:], node.feet, True)
+    Rq = pin.dIntegrate(m, traj.q[k], z[:nv], pin.ArgumentPosition.ARG1)
+    A, L = ev.Az.copy(), ev.Lz.copy()
+    A[:, :nv], L[:, :nv] = A[:, :nv] @ Rq, L[:, :nv] @ Rq
+    return A, L
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
 @pytest.mark.parametrize("which", [0, 1, 2])
-def test_second_order_terms(walk, which):
+def test_kkt_second_derivatives_against_differences(gaits, gait, which):
+    """The accelerations' (v+'s at an impulse) and the world forces' exact second derivatives
+    against central differences of their analytic Jacobians, every entry (1e-7 of the largest)."""
+    problem = gaits[gait]
+    rng = np.random.default_rng(21 + which)
+    k = nodes_of(problem)[which]
+    traj = nominal(problem, k, rng)
+    q, v, u, node = traj.q[k], traj.v[k], traj.u[k], problem.nodes[k]
+    if node.kind == "impulse":
+        Y2, L2 = problem.dyn.impulse_second(q, v, node.feet, problem.dyn.impulse(q, v, node.feet, True))
+    else:
+        Y2, L2 = problem.dyn.contact_second(q, v, u, node.feet, problem.dyn.contact(q, v, u, node.feet, True))
+    nz = problem.nx + problem.nu
+    h = 1e-5
+    DY, DL = np.zeros_like(Y2), np.zeros_like(L2)
+    for j in range(nz):
+        e = np.zeros(nz)
+        e[j] = h
+        (Yp, Lp), (Ym, Lm) = chart_jacobians(problem, k, traj, e), chart_jacobians(problem, k, traj, -e)
+        DY[:, :, j], DL[:, :, j] = (Yp - Ym) / (2 * h), (Lp - Lm) / (2 * h)
+    for name, a, b in (("accelerations", Y2, DY), ("forces", L2, DL)):
+        b = 0.5 * (b + b.transpose(0, 2, 1))
+        err = np.max(np.abs(a - b)) / np.max(np.abs(b))
+        assert err < 1e-7, (name, err)
+        assert np.max(np.abs(a - a.transpose(0, 2, 1))) <= 1e-9 * np.max(np.abs(a))
+
+
+def test_kkt_second_derivatives_with_a_position_gain():
+    """The Baumgarte position term (Kp = 30 1/s^2, zero in Crocoddyl's gaits) in the exact second
+    derivatives, against differences as above."""
+    problem = anymal_gait("walk", load_anymal())
+    problem.dyn.gains = (30.0, 50.0)
+    k = nodes_of(problem)[0]
+    traj = nominal(problem, k, np.random.default_rng(5))
+    q, v, u, node = traj.q[k], traj.v[k], traj.u[k], problem.nodes[k]
+    Y2, _ = problem.dyn.contact_second(q, v, u, node.feet, problem.dyn.contact(q, v, u, node.feet, True))
+    nz, h = problem.nx + problem.nu, 1e-5
+    DY = np.zeros_like(Y2)
+    for j in range(nz):
+        e = np.zeros(nz)
+        e[j] = h
+        DY[:, :, j] = (chart_jacobians(problem, k, traj, e)[0] - chart_jacobians(problem, k, traj, -e)[0]) / (2 * h)
+    DY = 0.5 * (DY + DY.transpose(0, 2, 1))
+    assert np.max(np.abs(Y2 - DY)) / np.max(np.abs(DY)) < 1e-7
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+@pytest.mark.parametrize("which", [0, 1, 2, 3])
+def test_second_order_terms_against_the_differences(gaits, gait, which):
+    """The node's exact T and cost Hessian against tests/oracle_legged.py's differences of the
+    whole node map's analytic Jacobian and cost gradient, every entry (which = 3: the terminal
+    node's Hessian)."""
+    problem = gaits[gait]
+    rng = np.random.default_rng(31 + which)
+    k = nodes_of(problem)[which] if which < 3 else problem.horizon
+    traj = nominal(problem, min(k, problem.horizon - 1), rng)
+    T, Hc = problem.second_order_node(k, traj)
+    Tf, Hf = fd_second_order_node(problem, k, traj)
+    if k < problem.horizon:
+        err = np.max(np.abs(T - Tf)) / np.max(np.abs(Tf))
+        assert err < 1e-7, err
+    err = np.max(np.abs(Hc - Hf)) / np.max(np.abs(Hf))
+    assert err < 1e-7, err
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_second_order_terms(gaits, gait, which):
     """T against a directional difference of the analytic Jacobian (1e-7), and the halving test."""
+    walk = gaits[gait]
     rng = np.random.default_rng(11 + which)
     k = nodes_of(walk)[which]
     traj = nominal(walk, k, rng)

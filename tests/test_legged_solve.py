@@ -67,8 +67,8 @@ def test_result_json_shapes(solved, tmp_path):
 
 
 def test_switch_expansion_reaches_the_same_minimum(solved):
-    """The switch expansion (its second-order steps on the terms of geoddp.problem.legged's
-    differences) ends at the first expansion's J* to round-off, certified too."""
+    """The switch expansion (its second-order steps on geoddp.problem.legged's exact terms) ends
+    at the first expansion's J* to round-off, certified too."""
     problem, first = solved
     res = solve(problem, SolverOptions(expansion="switch"))
     assert res.converged, res.message

@@ -21,11 +21,28 @@ forces as external forces and ``getFrameAccelerationDerivatives`` / ``getFrameVe
 for the constraint rows, put through the KKT matrix (implicit differentiation); forces are handled
 in the foot frame (where they move with the body) and rotated to the world at the end.
 
-Second order (for the ``second`` and ``switch`` expansions):
-:meth:`geoddp.problem.legged.ContactProblem.second_order_node` takes central differences of these
-analytic first derivatives, symmetrised (as the ``rk4`` integrator does for its step), of the whole
-node map ``zeta -> difference(x_bar+, f(x_bar (+) zeta, u_bar + du))``, so the Lie-group terms of
-the chart are in it.
+Second order (for the ``second`` and ``switch`` expansions), exact (:meth:`ContactDynamics.contact_second`,
+:meth:`ContactDynamics.impulse_second`): the KKT system differentiated twice. With w = (q, v, y),
+y = (a, lambda) (contact; v+ and Lambda at an impulse) and the equations written as
+``E1 = rnea(q, v, a) - sum_f J_w,f(q)^T lambda_f - S u = 0`` (world forces, J_w the feet's
+world-aligned linear Jacobians) and, per foot, the Baumgarte condition rotated to the world,
+``E2 = p''(q, v, a + Kd v) + Kp p(q) = 0`` (p the foot point's world position; the same solution
+as the foot frame's condition, so the same derivatives), the second derivatives y'' solve
+``E_y y'' = -E_ww[X, X]``, X = dw/dz = (I, I, y'), with the first-order y' the analytic one above.
+E_ww comes from Pinocchio's second-order RNEA derivatives (``ComputeRNEASecondOrderDerivatives``,
+the compiled core's ``rnea_second_order``) of three exact identities, no differences anywhere:
+
+* the robot's own RNEA at (q, v, a) (an impulse: without gravity at (q, 0, v+ - v), M(q) (v+ - v));
+* per foot, the RNEA of the robot with every inertia zero and a unit point mass at the foot is
+  ``J_w^T p''(q, v, a)`` (the point's Newton equation), whose free-flyer translational rows are
+  ``oR_b^T p''``: p'' = oR_b tau[0:3], and its q-q, q-v, q-a, v-v second derivatives follow by the
+  product rule with oR_b(q exp(eta)) = oR_b exp(eta_rot); P_qa = dJ_w/dq gives the q-lambda block;
+* per foot, that model's RNEA at v = a = 0 under the gravity -lambda_f is ``J_w^T lambda_f``: the
+  q-q block of the forces' term.
+
+All chart Hessians are symmetric (Pinocchio's q-q blocks, derivatives of right-trivialised
+Jacobians, symmetrised: the difference is antisymmetric). The semi-implicit Euler step's chart terms
+are added by :func:`geoddp.models.integrators.expand` (:mod:`geoddp.problem.legged`).
 """
 from __future__ import annotations
 
@@ -34,6 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ..kernels import core as _core
 from ..validate import InputError
 
 LOCAL = pin.ReferenceFrame.LOCAL
@@ -41,6 +59,15 @@ LOCAL = pin.ReferenceFrame.LOCAL
 
 def skew(w: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _rotation_generators(nv: int) -> np.ndarray:
+    """(nv, 3, 3): skew(e_i) for the free flyer's rotational tangent directions 3..5, else 0
+    (d/d eta_i of oR_b exp(eta_rot) = oR_b E_i)."""
+    E = np.zeros((nv, 3, 3))
+    for i in range(3):
+        E[3 + i] = skew(np.eye(3)[i])
+    return E
 
 
 def friction_cone(mu: float, facets: int = 4, min_force: float = 0.0, max_force: float = np.inf
@@ -76,6 +103,8 @@ class NodeEval:
     forces: np.ndarray
     Fz: np.ndarray | None = None
     Lz: np.ndarray | None = None
+    acc: np.ndarray | None = None  # contact node: the accelerations a (nv,)
+    Az: np.ndarray | None = None  # Jacobian (nv, nz) of a (contact node) or of v+ (impulse node)
 
 
 @dataclass
@@ -155,7 +184,7 @@ class ContactDynamics:
         v_next = v + a * dt
         w = v * dt + a * (dt * dt)  # Crocoddyl's dx (= dt v+)
         q_next = pin.integrate(m, q, w)
-        ev = NodeEval(q_next, v_next, lam)
+        ev = NodeEval(q_next, v_next, lam, acc=a)
         if not derivatives:
             return ev
         nc, nu = 3 * len(feet), self.nu
@@ -205,7 +234,7 @@ class ContactDynamics:
         Fz[:nv] = dt * (Dw @ dvn)
         Fz[:nv, :nv] += Dq
         Fz[nv:] = dvn
-        ev.Fz, ev.Lz = Fz, Lz
+        ev.Fz, ev.Lz, ev.Az = Fz, Lz, da
         return ev
 
     # ------------------------------------------------------------------ impulse node
@@ -257,8 +286,158 @@ class ContactDynamics:
         Fz = np.zeros((2 * nv, nz))
         Fz[:nv, :nv] = np.eye(nv)
         Fz[nv:] = dvn
-        ev.Fz, ev.Lz = Fz, Lz
+        ev.Fz, ev.Lz, ev.Az = Fz, Lz, dvn
         return ev
+
+    # ------------------------------------------------------------------ exact second order
+    def _aux_models(self):
+        """Models built once for the second order: the robot without gravity (the impulse's M(q) w
+        as an RNEA) and, per foot frame, a massless copy of the robot carrying a unit point mass at
+        the frame's origin and no gravity (its RNEA is J_w^T p'', see :meth:`_point_terms`)."""
+        if getattr(self, "_aux", None) is None:
+            m0 = pin.Model(self.model)
+            m0.gravity = pin.Motion.Zero()
+            self._aux = {"zero_gravity": (m0, m0.createData()), "feet": {}}
+        return self._aux
+
+    def _foot_model(self, f: int):
+        aux = self._aux_models()
+        if aux["feet"].get(f) is None:
+            mf = pin.Model(self.model)
+            for j in range(mf.njoints):
+                mf.inertias[j] = pin.Inertia.Zero()
+            fr = mf.frames[f]
+            mf.inertias[fr.parentJoint] = pin.Inertia(1.0, fr.placement.translation.copy(), np.zeros((3, 3)))
+            mf.gravity = pin.Motion.Zero()
+            aux["feet"][f] = (mf, mf.createData())
+        return aux["feet"][f]
+
+    def _point_terms(self, f: int, q: np.ndarray, v: np.ndarray, a: np.ndarray):
+        """Derivatives of the world acceleration p''(q, v, a) of the origin of frame f (q in the
+        right chart): (P_a = J_w (3, nv), P_qq, P_qv, P_qa, P_vv (3, nv, nv), indexed [c, first,
+        second], P_qq the symmetric chart Hessian).
+
+        Exact, from an identity: the RNEA of the robot with every inertia zero and a unit point mass
+        at the frame's origin is tau = J_w(q)^T p''(q, v, a) (the point's Newton equation; no
+        gravity), and the free flyer's translational columns of J_w are the base rotation oR_b,
+        so p'' = oR_b w with w = tau[0:3]. Pinocchio's first- and second-order RNEA derivatives
+        of that model give w's, oR_b(q exp(eta)) = oR_b exp(eta_rot) gives the rest (product rule).
+        """
+        mf, df = self._foot_model(f)
+        nv = self.nv
+        w = pin.rnea(mf, df, q, v, a)[:3].copy()
+        R = pin.XYZQUATToSE3(q[:7]).rotation  # the base rotation (RNEA does not fill oMi)
+        dq, dv, M = pin.computeRNEADerivatives(mf, df, q, v, a)
+        M = np.triu(M) + np.triu(M, 1).T
+        w_q, w_v, w_a = dq[:3].copy(), dv[:3].copy(), M[:3].copy()
+        qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
+        w_qq = 0.5 * (qq[:3] + qq[:3].transpose(0, 2, 1))
+        w_qa = aq[:3].transpose(0, 2, 1)
+        E = _rotation_generators(nv)
+        Ew_q = np.einsum("iab,bj->aij", E, w_q)
+        P_qq = w_qq + Ew_q + Ew_q.transpose(0, 2, 1) + 0.5 * (np.einsum("iab,jbc,c->aij", E, E, w)
+                                                             + np.einsum("jab,ibc,c->aij", E, E, w))
+        P_qv = qv[:3] + np.einsum("iab,bk->aik", E, w_v)
+        P_qa = w_qa + np.einsum("iab,bk->aik", E, w_a)
+        rot = lambda T: np.einsum("ab,bij->aij", R, T)  # noqa: E731
+        return R @ w_a, rot(P_qq), rot(P_qv), rot(P_qa), rot(vv[:3])
+
+    def _force_terms(self, H: np.ndarray, q: np.ndarray, feet, forces: np.ndarray, Q: slice) -> None:
+        """Subtract from the RNEA rows of H the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
+        (world forces held), from the foot's point-mass model under the gravity -lambda_f (its RNEA
+        at v = a = 0 is J_w^T lambda_f). (The q-lambda block, -dJ_w/dq, is the callers': P_qa.)"""
+        nv = self.nv
+        zero = np.zeros(nv)
+        for i, f in enumerate(feet):
+            mf, _ = self._foot_model(f)
+            mf.gravity = pin.Motion(-forces[3 * i:3 * i + 3], np.zeros(3))
+            try:
+                gqq = _core.rnea_second_order(mf, q, zero, zero, False)[0]
+            finally:
+                mf.gravity = pin.Motion.Zero()
+            H[:nv, Q, Q] -= 0.5 * (gqq + gqq.transpose(0, 2, 1))
+
+    def _kkt_second(self, H: np.ndarray, Y1: np.ndarray, M: np.ndarray, Jw: np.ndarray) -> np.ndarray:
+        """y'' (ny, nz, nz) of the KKT unknowns y = (a or v+, lambda) from E(w) = 0, w = (s, y),
+        s = (q, v): E_y y'' = -E_ww[X, X], X = dw/dz = [[I, 0], [Y1]] (s is z's first 2 nv
+        entries; Y1 = dy/dz (ny, nz)), E_y = [[M, -J_w^T], [J_w, 0]]. E is affine in y (E_yy = 0),
+        so E_ww[X, X] = E_ss + E_sy Y1 + its transpose, without forming X."""
+        nv, nc, nz = self.nv, Jw.shape[0], Y1.shape[1]
+        ny, ns = H.shape[0], 2 * nv
+        rhs = np.zeros((ny, nz, nz))
+        rhs[:, :ns, :ns] = H[:, :ns, :ns]
+        C = (H[:, :ns, ns:].reshape(ny * ns, -1) @ Y1).reshape(ny, ns, nz)
+        rhs[:, :ns, :] += C
+        rhs[:, :, :ns] += C.transpose(0, 2, 1)
+        K = np.zeros((nv + nc, nv + nc))
+        K[:nv, :nv], K[:nv, nv:], K[nv:, :nv] = M, -Jw.T, Jw
+        return -np.linalg.solve(K, rhs.reshape(nv + nc, nz * nz)).reshape(nv + nc, nz, nz)
+
+    def contact_second(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, feet: tuple[int, ...], ev: NodeEval
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """Exact second derivatives (symmetric chart Hessians in z = (dq, dv, du)) of a contact
+        node's accelerations a (nv, nz, nz) and world forces lambda (3 nc, nz, nz), from ``ev`` (the
+        node evaluated with derivatives), by differentiating the KKT system twice:
+        E1 = rnea(q, v, a) - sum_f J_w,f^T lambda_f - S u = 0 and, per foot, the Baumgarte condition
+        in the world frame E2 = p''(q, v, a + Kd v) + Kp p(q) = 0 (the foot frame's condition
+        rotated, the same solution)."""
+        nv, nc = self.nv, 3 * len(feet)
+        nz = ev.Fz.shape[1]
+        Kp, Kd = self.gains
+        Q, V, A = slice(0, nv), slice(nv, 2 * nv), slice(2 * nv, 3 * nv)
+        nw = 3 * nv + nc
+        H = np.zeros((nv + nc, nw, nw))
+        qq, vv, qv, aq = _core.rnea_second_order(self.model, q, v, ev.acc, False)
+        H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+        H[:nv, Q, V], H[:nv, V, Q], H[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
+        H[:nv, A, Q], H[:nv, Q, A] = aq, aq.transpose(0, 2, 1)
+        self._force_terms(H, q, feet, ev.forces, Q)
+        Jw = np.zeros((nc, nv))
+        for i, f in enumerate(feet):
+            Jw[3 * i:3 * i + 3], P_qq, P_qv, P_qa, P_vv = self._point_terms(f, q, v, ev.acc + Kd * v)
+            r, lc = slice(nv + 3 * i, nv + 3 * i + 3), slice(3 * nv + 3 * i, 3 * nv + 3 * i + 3)
+            H[r, Q, Q] = P_qq + Kp * 0.5 * (P_qa + P_qa.transpose(0, 2, 1))
+            H[r, Q, V] = P_qv + Kd * P_qa
+            H[r, V, Q] = H[r, Q, V].transpose(0, 2, 1)
+            H[r, V, V] = P_vv
+            H[r, Q, A], H[r, A, Q] = P_qa, P_qa.transpose(0, 2, 1)
+            H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
+            H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
+        M = pin.crba(self.model, self.data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
+        return Y[:nv], Y[nv:]
+
+    def impulse_second(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], ev: NodeEval
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """Exact second derivatives of an impulse node's v+ (nv, nz, nz) and world impulses
+        (3 nc, nz, nz), from its KKT system differentiated twice: E1 = M(q) (v+ - v) -
+        sum_f J_w,f^T Lambda_f = 0 (M(q) w: the RNEA without gravity at (q, 0, w)) and, per foot,
+        E2 = J_w(q) v+ = p''(q, 0, v+) = 0."""
+        nv, nc = self.nv, 3 * len(feet)
+        nz = ev.Fz.shape[1]
+        Q, V, P = slice(0, nv), slice(nv, 2 * nv), slice(2 * nv, 3 * nv)
+        nw = 3 * nv + nc
+        H = np.zeros((nv + nc, nw, nw))
+        m0, _ = self._aux_models()["zero_gravity"]
+        zero = np.zeros(nv)
+        qq, _, _, aq = _core.rnea_second_order(m0, q, zero, ev.v_next - v, False)
+        H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+        H[:nv, P, Q], H[:nv, Q, P] = aq, aq.transpose(0, 2, 1)
+        H[:nv, V, Q], H[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
+        self._force_terms(H, q, feet, ev.forces, Q)
+        Jw = np.zeros((nc, nv))
+        for i, f in enumerate(feet):
+            Jw[3 * i:3 * i + 3], P_qq, _, P_qa, _ = self._point_terms(f, q, zero, ev.v_next)
+            r, lc = slice(nv + 3 * i, nv + 3 * i + 3), slice(3 * nv + 3 * i, 3 * nv + 3 * i + 3)
+            H[r, Q, Q] = P_qq
+            H[r, Q, P], H[r, P, Q] = P_qa, P_qa.transpose(0, 2, 1)
+            H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
+            H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
+        M = pin.crba(self.model, self.data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
+        return Y[:nv], Y[nv:]
 
     # ------------------------------------------------------------------ quasi-static controls
     def quasi_static(self, q: np.ndarray, feet: tuple[int, ...]) -> np.ndarray:

@@ -29,13 +29,13 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..lie import product as cfg
+from ..models import integrators as integ
 from ..models.contact import ContactDynamics, friction_cone
 from ..validate import InputError, finite_array
 from .contract import Linearisation, Trajectory
 
 KINDS = ("contact", "impulse")
-FD_STEP = 1e-4  # central differences of the analytic first derivatives (second order); 1e-5 let the
-# round-off of the KKT solves, times a value gradient of 2.7e3, make the walk's exact check indefinite
 
 
 @dataclass
@@ -124,6 +124,7 @@ class ContactProblem:
         self.lb = np.concatenate([lbq[1:nv + 1], -m.velocityLimit])
         self.ub = np.concatenate([ubq[1:nv + 1], m.velocityLimit])
         self.q_neutral = pin.neutral(m)
+        self.groups = cfg.joint_groups(m)
         self.cone = friction_cone(self.costs.mu, 4)
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
                                             "dt": self.dt, "integrator": "semi_implicit"}
@@ -292,40 +293,112 @@ class ContactProblem:
         G[:nv] = pin.dDifference(m, traj.q[k + 1], ev.q_next, pin.ArgumentPosition.ARG1) @ G[:nv]
         return G, gz
 
-    def second_order_node(self, k: int, traj: Trajectory, h: float = FD_STEP):
-        """(T (nx, nz, nz) second derivatives of zeta+ at node k, cost Hessian (nz, nz)): central
-        differences of the analytic first derivatives, symmetrised. k = H: (None, terminal Hessian)."""
-        nx, nu = self.nx, self.nu
+    def _difference_curvature(self, q_ref: np.ndarray, q: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """sum_p c_p d^2 r_p (nv, nv), r(eta) = difference(q_ref, q exp(eta)), exactly: with
+        r0 = r(0), K = Jr(r0)^-1 and exp(r0 + rho) = exp(r0) exp(Jr rho + 1/2 D(rho, rho)),
+        r(eta) = r0 + K eta - 1/2 K D(K eta, K eta) + O(3) (zero on the commutative joints)."""
+        nv = self.model.nv
+        r0 = cfg.difference(self.model, self.groups, q_ref, q)
+        K = cfg.block_Jr_inv(self.groups, nv, r0)
+        D, _ = cfg.second_order_tensors(self.groups, nv, r0)
+        Ds = 0.5 * (D + D.transpose(0, 2, 1))
+        return -K.T @ np.einsum("a,abc->bc", K.T @ c, Ds) @ K
+
+    def _gravity_curvature(self, model: pin.Model, data: pin.Data, q: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """Chart Hessian (nv, nv) of a potential with generalised force J^T ``force``: the model's
+        generalised gravity under the gravity -force (per unit mass) is that force, and the
+        symmetrised derivative of the trivialised gradient is the chart Hessian."""
+        g0 = model.gravity.copy()  # (a reference otherwise)
+        model.gravity = pin.Motion(-np.asarray(force, dtype=float), np.zeros(3))
+        try:
+            dg = pin.computeGeneralizedGravityDerivatives(model, data, q)
+        finally:
+            model.gravity = g0
+        return 0.5 * (dg + dg.T)
+
+    def _cost_hessian(self, k: int, q, v, u, ev, L2) -> np.ndarray:
+        """Exact Hessian (nz, nz) of node k's cost: the Gauss-Newton part of :meth:`_cost` plus
+        each residual's curvature times its weighted residual: the state differences' (SE(3) log's
+        second order), the CoM's and the feet's (generalised gravity derivatives of a model whose
+        gravity is minus the residual: the CoM of the robot, a unit point mass at the foot) and the
+        forces' (``L2``: their exact second derivatives)."""
+        m, c, nv = self.model, self.costs, self.model.nv
+        terminal = k == self.horizon
+        node = self.terminal_node if terminal else self.nodes[k]
+        _, _, Hs = self._cost(node, q, v, u, ev, True, terminal=terminal)  # leaves the kinematics in dyn.data
+        d = self.dyn.data
+        curv = np.zeros((nv, nv))
+        rq = pin.difference(m, self.q_ref, q)
+        m0, d0 = self.dyn._aux_models()["zero_gravity"]
+
+        def feet(weight):
+            out = np.zeros((nv, nv))
+            for f, p in node.swing:
+                mf, df = self.dyn._foot_model(f)
+                out += weight * self._gravity_curvature(mf, df, q, d.oMf[f].translation - p)
+            return out
+
+        if node.kind == "impulse":
+            curv += c.impulse_state * self._difference_curvature(self.q_ref, q, self.w_impulse[:nv] * rq)
+            curv += feet(c.impulse_foot)
+            Hs[:nv, :nv] += curv
+            return Hs
+        curv += c.state * self._difference_curvature(self.q_ref, q, self.w_state[:nv] * rq)
+        ex, _ = _barrier(np.concatenate([pin.difference(m, self.q_neutral, q), v]), self.lb, self.ub)
+        if np.any(ex[:nv]):
+            curv += c.bounds * self._difference_curvature(self.q_neutral, q, ex[:nv])
+        if node.com is not None:
+            r = pin.centerOfMass(m, d, q) - node.com
+            curv += c.com * self._gravity_curvature(m0, d0, q, r / pin.computeTotalMass(m))
+        curv += feet(c.foot)
+        scale = 1.0 if terminal else self.dt
+        Hs[:nv, :nv] += scale * curv
+        if not terminal:
+            A, lb, ub = self.cone
+            for i in range(len(node.feet)):
+                rows = slice(3 * i, 3 * i + 3)
+                ex, _ = _barrier(A @ ev.forces[rows], lb, ub)
+                Hs += (c.friction_cone * self.dt) * np.einsum("r,rc,cij->ij", ex, A, L2[rows])
+        return Hs
+
+    def second_order_node(self, k: int, traj: Trajectory, ev=None):
+        """(T (nx, nz, nz) second derivatives of zeta+ at node k, cost Hessian (nz, nz)), both
+        exact. k = H: (None, terminal Hessian).
+
+        T: the contact node's accelerations and the impulse node's velocity jump from
+        :meth:`geoddp.models.contact.ContactDynamics.contact_second` / ``impulse_second`` (the KKT
+        system differentiated twice), put through the semi-implicit Euler step's exact chart terms
+        (:func:`geoddp.models.integrators.expand`); an impulse node's q+ = q has none. The cost
+        Hessian: :meth:`_cost_hessian`. ``ev``: the node's dynamics already evaluated with
+        derivatives at (traj.q[k], traj.v[k], traj.u[k]), or None."""
+        nx, nu, nv, dt = self.nx, self.nu, self.model.nv, self.dt
         nz = nx + nu
-        cols = nx if (k == self.horizon or self.impulse_rows[k]) else nz  # impulse: no control dependence
-        T = None if k == self.horizon else np.zeros((nx, nz, nz))
-        Hc = np.zeros((nz, nz))
-        if k < self.horizon and self.impulse_rows[k]:
-            Hc[nx:, nx:] = self.costs.impulse_control * np.eye(nu)
-        z = np.zeros(nz)
-        for j in range(cols):
-            z[j] = h
-            Gp, gp = self._node_map(k, traj, z)
-            z[j] = -h
-            Gm, gm = self._node_map(k, traj, z)
-            z[j] = 0.0
-            if T is not None:
-                T[:, :, j] = (Gp - Gm) / (2 * h)
-            Hc[:, j] = (gp - gm) / (2 * h)
-        if cols < nz:
-            Hc[:cols, cols:] = Hc[cols:, :cols].T
-        Hc = 0.5 * (Hc + Hc.T)
-        if T is not None:
-            T = 0.5 * (T + T.transpose(0, 2, 1))
-        return T, Hc
+        q, v = traj.q[k], traj.v[k]
+        if k == self.horizon:
+            return None, self._cost_hessian(k, q, v, np.zeros(nu), None, None)
+        node = self.nodes[k]
+        u = traj.u[k]
+        T = np.zeros((nx, nz, nz))
+        if node.kind == "impulse":
+            ev = ev if ev is not None else self.dyn.impulse(q, v, node.feet, derivatives=True)
+            T[nv:], L2 = self.dyn.impulse_second(q, v, node.feet, ev)
+            return T, self._cost_hessian(k, q, v, u, ev, L2)
+        ev = ev if ev is not None else self.dyn.contact(q, v, u, node.feet, derivatives=True)
+        A2, L2 = self.dyn.contact_second(q, v, u, node.feet, ev)
+        e = integ.expand(self.groups, dt, ev.v_next[None], ev.Fz[None, nv:], dt * A2[None], True)
+        T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, nx:] = e.Theta[0], e.Gamma[0], e.Xi[0]
+        T[:, nx:, :nx] = e.Gamma[0].transpose(0, 2, 1)
+        return T, self._cost_hessian(k, q, v, u, ev, L2)
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         H, nx, nu = self.horizon, self.nx, self.nu
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
+        evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
         lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
         for k in range(H):
             ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k], derivatives=True)
+            evs.append(ev)
             Phi[k], B[k] = ev.Fz[:, :nx], ev.Fz[:, nx:]
             lx[k], lu[k] = g[:nx], g[nx:]
             lxx[k], lux[k], luu[k] = Hs[:nx, :nx], Hs[nx:, :nx], Hs[nx:, nx:]
@@ -334,7 +407,7 @@ class ContactProblem:
         if order == 2:
             Theta, Gamma, Xi = np.empty((H, nx, nx, nx)), np.empty((H, nx, nx, nu)), np.empty((H, nx, nu, nu))
             for k in range(H):
-                T, Hc = self.second_order_node(k, traj)
+                T, Hc = self.second_order_node(k, traj, evs[k])
                 Theta[k], Gamma[k], Xi[k] = T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, nx:]
                 lxx[k], lux[k], luu[k] = Hc[:nx, :nx], Hc[nx:, :nx], Hc[nx:, nx:]
             Hf = self.second_order_node(H, traj)[1]
