@@ -549,13 +549,7 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
         except (FloatingPointError, OverflowError, ZeroDivisionError) as exc:
             s.stop(STATUS_NON_FINITE, f"{type(exc).__name__} at iteration {s.it} ({exc}); the last finite iterate "
                    "is returned")
-        try:
-            gnorm = s.final_check()
-        except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
-            s.converged = False
-            s.message += f"; the final check failed ({type(exc).__name__}: {exc})"
-            gnorm = float("nan")
-        return s.result(gnorm)
+        return _checked_result(s)
 
 
 def check(problem: OptimalControlProblem, options: SolverOptions | None = None,
@@ -570,9 +564,16 @@ def check(problem: OptimalControlProblem, options: SolverOptions | None = None,
     with np.errstate(all="ignore"):
         s = _Solve(problem, opt, U)
         s.stop(STATUS_MAX_ITER, "no iterations (the final check alone)")
-        try:
-            gnorm = s.final_check()
-        except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
-            s.message += f"; the final check failed ({type(exc).__name__}: {exc})"
-            gnorm = float("nan")
-        return s.result(gnorm)
+        return _checked_result(s)
+
+
+def _checked_result(s: _Solve) -> Result:
+    """The Result of ``s`` after its final check; a check that fails makes it not converged and
+    says why in the message."""
+    try:
+        gnorm = s.final_check()
+    except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
+        s.converged = False
+        s.message += f"; the final check failed ({type(exc).__name__}: {exc})"
+        gnorm = float("nan")
+    return s.result(gnorm)
