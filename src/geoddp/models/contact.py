@@ -403,10 +403,7 @@ class ContactDynamics:
             H[r, Q, A], H[r, A, Q] = P_qa, P_qa.transpose(0, 2, 1)
             H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
             H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
-        M = pin.crba(self.model, self.data, q)
-        M = np.triu(M) + np.triu(M, 1).T
-        Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
-        return Y[:nv], Y[nv:]
+        return self._kkt_second_split(H, ev, q, Jw)
 
     def impulse_second(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], ev: NodeEval
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -434,10 +431,16 @@ class ContactDynamics:
             H[r, Q, P], H[r, P, Q] = P_qa, P_qa.transpose(0, 2, 1)
             H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
             H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
+        return self._kkt_second_split(H, ev, q, Jw)
+
+    def _kkt_second_split(self, H: np.ndarray, ev: NodeEval, q: np.ndarray, Jw: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """The KKT system's second derivatives from its blocks H at q (M(q) by CRBA, symmetrised),
+        split into the (nv, nz, nz) accelerations or velocity jump and the (3 nc, nz, nz) forces."""
         M = pin.crba(self.model, self.data, q)
         M = np.triu(M) + np.triu(M, 1).T
         Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
-        return Y[:nv], Y[nv:]
+        return Y[:self.nv], Y[self.nv:]
 
     # ------------------------------------------------------------------ quasi-static controls
     def quasi_static(self, q: np.ndarray, feet: tuple[int, ...]) -> np.ndarray:
