@@ -340,12 +340,7 @@ def run_case(case: Case, runs: int) -> dict[str, Any]:
             # threads (libgomp polls for GOMP_SPINCOUNT = 300000 pauses, a few ms) and geoddp's
             # pool (GEODDP_SPIN_US, 1 ms) would otherwise share the cores with the next solver
             time.sleep(0.01)
-            if s == "fddp":
-                r = fddp(p, case.U0, None)
-            elif s == "fddp-1t":
-                r = fddp(p, case.U0, 1)
-            else:
-                r = geoddp(p, case.U0, s)
+            r = solve_once(p, case.U0, s)
             if i:
                 rec[s].append(r)
     return summarise(case, chk, rec)
