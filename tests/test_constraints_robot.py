@@ -92,3 +92,20 @@ def test_the_replay_draws_the_obstacle_and_the_target_pose(solved):
     assert objects["1_obstacle"]["geometries"][0]["radius"] == sphere.radius
     assert {"2_tool_pose/x", "2_tool_pose/y", "2_tool_pose/z"} <= set(objects)
     assert not any(k.startswith("0_") for k in objects)  # joint limits have no shape
+
+
+def test_python_solve_without_a_start_begins_where_the_scene_does(solved):
+    """``solve(ConstrainedProblem)`` with no initial controls starts from the unconstrained
+    problem's default (quasi-static torques), as the scene does: the same solve, bit for bit, not
+    a fall from zero torques (which ends elsewhere, or infeasible)."""
+    from geoddp import solve
+    from geoddp.scene import initial_controls
+    from geoddp.scene.build import solver_options
+
+    spec, r, _ = solved
+    cp = build_problem(spec)
+    U0 = initial_controls(spec)
+    assert np.array_equal(cp.quasi_static_controls(), U0) and np.abs(U0).max() > 1.0
+    assert np.array_equal(cp.augmented([], []).quasi_static_controls(), U0)
+    r2 = solve(cp, solver_options(spec))
+    assert r2.status == STATUS_KKT and r2.cost == r.cost and np.array_equal(r2.controls, r.controls)

@@ -259,10 +259,15 @@ def test_no_constraints_is_the_unconstrained_solve_bit_for_bit():
     assert a.status == b.status and "constraints" not in b.extra
 
 
-def test_the_unconstrained_solver_refuses_a_constrained_problem():
+def test_solve_hands_a_constrained_problem_to_its_outer_loop():
+    """geoddp.solve(ConstrainedProblem) is solve_constrained (the same iterates, bit for bit); the
+    unconstrained pieces refuse it rather than drop its constraints."""
     cp = ConstrainedProblem(paper_problem(horizon=10), [PointingKeepOut([1, 0, 0], D, 20.0)])
+    a, b = solve(cp, _opts()), solve_constrained(cp, _opts())
+    assert "constraints" in a.extra and a.cost == b.cost and np.array_equal(a.controls, b.controls)
+    assert a.extra["constraints"]["outer_iterations"] == b.extra["constraints"]["outer_iterations"]
     with pytest.raises(InputError, match="solve_constrained") as info:
-        solve(cp, _opts())
+        cp.linearise(cp.trajectory(np.zeros((10, 3))), 1)
     assert info.value.parameter == "problem"
 
 

@@ -180,6 +180,12 @@ class ConstrainedProblem:
     def describe(self) -> dict[str, Any]:
         return self.problem.describe()
 
+    def __getattr__(self, name: str) -> Any:
+        # the default start (``quasi_static_controls``), exactly when the unconstrained problem has one
+        if name == "quasi_static_controls":
+            return getattr(self.problem, name)
+        raise AttributeError(name)
+
     def linearise(self, traj: Trajectory, order: int) -> Any:
         """Refused: the unconstrained solver would drop the constraints. Solve with
         :func:`geoddp.constraints.solve_constrained` (or :meth:`solve_constrained`)."""

@@ -527,7 +527,14 @@ def solve(problem: OptimalControlProblem, options: SolverOptions | None = None,
             ``{"certified": False}`` and the last gradient NaN unless a gradient test stopped the
             solve. For a solve whose iterate only warm-starts another (the inner solves of
             :func:`geoddp.constraints.solve_constrained` before its last, certified, one).
+
+    A :class:`geoddp.constraints.ConstrainedProblem` (hard constraints) goes to its augmented
+    Lagrangian outer loop, :func:`geoddp.constraints.solve_constrained`, which runs this solver on
+    its inner problems (the last one certified).
     """
+    outer_loop = getattr(problem, "solve_constrained", None)
+    if callable(outer_loop):
+        return outer_loop(options, initial_controls)
     _check_problem(problem, options)
     opt = options or SolverOptions()
     if initial_controls is not None:
