@@ -15,7 +15,10 @@ Needs example-robot-data (the ``test`` extra): imported at module top, so a miss
 """
 from __future__ import annotations
 
+import os
 import re
+import shutil
+from pathlib import Path
 
 import example_robot_data  # noqa: F401  (required: see the module docstring)
 import numpy as np
@@ -30,7 +33,16 @@ from geoddp.viz import animation_frame_count
 from geoddp.viz.contact_shapes import HEAD_LENGTH, ContactScene
 from geoddp.viz.html import STATUS_ID, decode_commands
 from geoddp.viz.legged import LEGGED_FIGURES, export_legged_html, legged_figures, legged_forces, plot_legged
-from viz_fixtures import OFFLINE_FLAG, chromium_or_skip, keyframes, run_chromium
+from viz_fixtures import OFFLINE_FLAG, chromium_or_skip, keyframes, run_chromium, screenshot
+
+FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+
+
+def _pixels(img: np.ndarray) -> dict[str, int]:
+    """Pixels of the force arrows' blue (0x20C0FF) and the contact points' yellow (0xFFD020)."""
+    r, g, b = (img[..., i].astype(int) for i in range(3))
+    return {"arrows": int(np.count_nonzero((r < 90) & (g > 150) & (b > 200))),
+            "points": int(np.count_nonzero((r > 200) & (g > 160) & (b < 90)))}
 
 
 @pytest.fixture(scope="module")
@@ -220,6 +232,17 @@ def test_replay_page_loads_in_chromium(solved, page):
     # every clip's every track (position, quaternion, scale, visible) has H + 1 keys in the viewer
     assert {n for clip in status["frames"] for n in clip} == {problem.horizon + 1}
     assert status["duration"] == pytest.approx(problem.horizon * c.dt)
+    # drawn: at a stance frame the arrows and points are on screen; at the last frame (no node
+    # dynamics) the arrows are hidden while the points stay
+    shots = {}
+    for tag, t in (("stance", 0.15), ("last", problem.horizon * c.dt)):
+        img = screenshot(f"{path.as_uri()}#t={t}", path.with_name(f"{tag}.png"), OFFLINE_FLAG)
+        shots[tag] = _pixels(img)
+    print(shots)
+    assert shots["stance"]["arrows"] > 150 and shots["stance"]["points"] > 50
+    assert shots["last"]["arrows"] == 0 and shots["last"]["points"] > 50
+    if os.environ.get("GEODDP_WRITE_FIGURES"):
+        shutil.copy(path.with_name("stance.png"), FIGURES / "replay_anymal_trot.png")
 
 
 # ------------------------------------------------------------------ figures

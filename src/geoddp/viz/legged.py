@@ -9,8 +9,8 @@ with that problem (its contact schedule and node dynamics give the forces:
 - :func:`export_legged_html` / :func:`replay_legged`: the static HTML replay / the live meshcat
   replay, with the scene of :mod:`geoddp.viz.contact_shapes`.
 - :func:`plot_legged`: ``contact_forces.png`` and ``friction_margin.png``;
-  :func:`legged_figures`: those and the multibody figures (:func:`geoddp.viz.plot_multibody`), the
-  set the command line's ``--plots DIR`` writes for a legged result.
+  :func:`legged_figures`: those and the multibody figures (:func:`geoddp.viz.plot_multibody`),
+  every figure of a legged result in one folder.
 """
 from __future__ import annotations
 
@@ -74,7 +74,7 @@ def export_legged_html(result: Result, problem, path: str | Path, *, force_scale
         mu: friction coefficient (None: the problem's); unused by the drawing, kept for the forces.
         scale, geometry, trail, max_mesh_mb: as :func:`geoddp.viz.export_html` (ANYmal's visual
             meshes are 30 MB of files: pass ``max_mesh_mb=None`` to embed them, about 16 MB of
-            page, or ``geometry="collision"`` for its primitives, about 1.2 MB).
+            page, or ``geometry="collision"`` for its primitives, about 2 MB).
 
     Returns:
         The path written.
@@ -201,5 +201,5 @@ def plot_legged(result: Result, problem, out_dir: str | Path, *, mu: float | Non
 def legged_figures(result: Result, problem, out_dir: str | Path) -> list[Path]:
     """Every figure of a legged ``result`` in ``out_dir``: the multibody ones
     (:func:`geoddp.viz.plot_multibody`: joints, controls, solver history) and :func:`plot_legged`'s;
-    returns their paths (the command line's ``--plots DIR``)."""
+    returns their paths."""
     return [*plot_multibody(result, out_dir).values(), *plot_legged(result, problem, out_dir).values()]
