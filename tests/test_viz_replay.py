@@ -278,8 +278,9 @@ def test_cli_run_satellite_html_and_view(monkeypatch, tmp_path, capsys):
 
 def test_viz_modules_import_one_way():
     """model (kinematics), compact_mesh (mesh files as binary geometry) <- constraint_shapes (a
-    constrained solve's cones and obstacles) <- scene (meshcat commands) <- html, meshcat_replay; no
-    circle, and the old twin module (viz/multibody.py) is gone."""
+    constrained solve's cones and obstacles) <- contact_shapes (a legged solve's ground, contact
+    points and force arrows) <- scene (meshcat commands) <- html, meshcat_replay; no circle, and
+    the old twin module (viz/multibody.py) is gone."""
     viz_dir = Path(viz.__file__).parent
     assert not (viz_dir / "multibody.py").exists()
 
@@ -290,7 +291,8 @@ def test_viz_modules_import_one_way():
     assert relative_imports("model") == set()
     assert relative_imports("compact_mesh") == set()
     assert relative_imports("constraint_shapes") == {"model"}
-    assert relative_imports("scene") == {"model", "compact_mesh", "constraint_shapes"}
+    assert relative_imports("contact_shapes") == {"constraint_shapes"}
+    assert relative_imports("scene") == {"model", "compact_mesh", "constraint_shapes", "contact_shapes"}
     assert relative_imports("html") == {"scene"}
     assert relative_imports("meshcat_replay") == {"scene"}  # every check goes through scene.prepare_scene
 

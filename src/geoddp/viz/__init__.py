@@ -19,6 +19,10 @@ framing the whole trajectory.
   gradient norm per iteration; :func:`plot_keep_out`: a body axis's path on the sphere around a
   pointing keep-out cone; :func:`plot_simulation`: the Monte Carlo bundles and error
   histograms.
+- :func:`export_legged_html`, :func:`replay_legged`: a legged robot's replay with the ground, the
+  contact points and the force arrows; :func:`plot_legged`: its contact forces and friction-cone
+  margins; :func:`legged_figures`: those and the multibody figures; :func:`legged_forces`: the
+  forces themselves (:mod:`geoddp.viz.legged`).
 """
 import warnings
 
@@ -31,6 +35,7 @@ with warnings.catch_warnings():
 from .figures import FigureData, Figures, plot_convergence, plot_trajectory
 from .html import animation_frame_count, export_html
 from .keep_out import plot_keep_out
+from .legged import LEGGED_FIGURES, export_legged_html, legged_figures, legged_forces, plot_legged, replay_legged
 from .meshcat_replay import ViewerUnavailable, build_satellite, replay
 from .model import load_model, load_visual_model, visual_placements
 from .multibody_figures import MULTIBODY_FIGURES, plot_multibody, plot_solver_history
@@ -39,19 +44,25 @@ from .simulation import plot_simulation
 __all__ = [
     "FigureData",
     "Figures",
+    "LEGGED_FIGURES",
     "MULTIBODY_FIGURES",
     "ViewerUnavailable",
     "animation_frame_count",
     "build_satellite",
     "export_html",
+    "export_legged_html",
+    "legged_figures",
+    "legged_forces",
     "load_model",
     "load_visual_model",
     "plot_convergence",
     "plot_keep_out",
+    "plot_legged",
     "plot_multibody",
     "plot_simulation",
     "plot_solver_history",
     "plot_trajectory",
     "replay",
+    "replay_legged",
     "visual_placements",
 ]

@@ -120,7 +120,8 @@ def record_scene(result: Result, scale: float = 1.0, **options) -> list[bytes]:
     Args:
         result: any Result (see :func:`geoddp.viz.scene.build_scene`).
         scale: uniform size factor of the drawing.
-        options: ``geometry``, ``trail``, ``max_mesh_mb`` of :func:`geoddp.viz.scene.build_scene`.
+        options: ``geometry``, ``trail``, ``max_mesh_mb``, ``plan``, ``contacts`` of
+            :func:`geoddp.viz.scene.build_scene`.
 
     Returns:
         One bytes object per command, in the order they must be applied.
@@ -235,7 +236,7 @@ def render_html(result: Result, scale: float = 1.0, title: str = "geoddp replay"
 
 def export_html(result: Result, path: str | Path, scale: float = 1.0, *, geometry: str = "visual",
                 trail: str | None = None, max_mesh_mb: float | None = MAX_MESH_MB,
-                plan: Result | None = None) -> Path:
+                plan: Result | None = None, contacts=None) -> Path:
     """Write a self-contained static HTML replay of ``result`` to ``path``.
 
     The file embeds meshcat's three.js viewer, the recorded scene commands and every mesh file
@@ -261,11 +262,16 @@ def export_html(result: Result, path: str | Path, scale: float = 1.0, *, geometr
             (default 20); None: no limit.
         plan: the plan a simulated run flew (``SimulationResult.to_result(plan)`` as ``result``):
             drawn as an animated translucent ghost beside the run.
+        contacts: a legged trajectory's ground, contact points and force arrows
+            (:class:`geoddp.viz.contact_shapes.ContactScene`; :func:`geoddp.viz.legged.export_legged_html`
+            builds it from the problem).
 
     Returns:
         The path written (nothing is written when an InputError is raised).
     """
     extra = {} if plan is None else {"plan": plan}
+    if contacts is not None:
+        extra["contacts"] = contacts
     text = render_html(result, scale=scale, geometry=geometry, trail=trail, max_mesh_mb=max_mesh_mb, **extra)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

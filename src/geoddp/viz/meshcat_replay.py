@@ -217,6 +217,7 @@ def replay(
     geometry: str = "visual",
     trail: str | None = None,
     max_mesh_mb: float | None = MAX_MESH_MB,
+    contacts=None,
 ) -> meshcat.Visualizer:
     """Show ``result`` in a meshcat viewer as an animation synchronised with its time.
 
@@ -240,6 +241,9 @@ def replay(
         trail: None, "root" or a frame name: draw the path of the root body or of that frame.
         max_mesh_mb: largest mesh data (MB) to send, None for no limit (see
             :func:`geoddp.viz.scene.check_mesh_size`).
+        contacts: a legged trajectory's ground, contact points and force arrows
+            (:class:`geoddp.viz.contact_shapes.ContactScene`; :func:`geoddp.viz.legged.replay_legged`
+            builds it from the problem).
 
     Returns:
         The visualizer. When this call started the server, ``vis.close()`` stops it (it is
@@ -269,7 +273,7 @@ def replay(
                 raise
         vis = meshcat.Visualizer(window=window)
     try:
-        build_scene(vis, result, scale=scale, play=True, prepared=prepared)
+        build_scene(vis, result, scale=scale, play=True, prepared=prepared, contacts=contacts)
     except BaseException as exc:
         if owned:
             vis.window.close()  # stops a server started here; a user's server is left alone

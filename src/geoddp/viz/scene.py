@@ -26,8 +26,10 @@ positions of the root or of a named frame, with a bead at each time step) and a 
 the box of everything drawn over the whole trajectory (:func:`camera_view`).
 A constrained result's keep-out cones, obstacles (spheres, half-spaces) and terminal poses sit
 under ``vis["constraints"]`` (:mod:`geoddp.viz.constraint_shapes`).
+A legged trajectory's ground, contact points and force arrows sit under ``vis["contacts"]``
+(:mod:`geoddp.viz.contact_shapes`).
 A ``scale`` other than 1 sits on ``vis["robot"]``, ``vis["target_ghost"]``, ``vis["frame_targets"]``,
-``vis["trail"]`` and ``vis["constraints"]`` themselves.
+``vis["trail"]``, ``vis["constraints"]`` and ``vis["contacts"]`` themselves.
 
 Pinocchio's own ``pin.visualize.MeshcatVisualizer`` is not reused: it draws one configuration at a
 time through its own ``meshcat.Visualizer`` (``display(q)``) and records animations only as videos,
@@ -54,6 +56,7 @@ from ..solver.result import Result
 from ..validate import InputError, positive_float
 from .compact_mesh import CompactMeshObject, MeshData, read_mesh
 from .constraint_shapes import CONSTRAINTS, constraint_shapes, draw_constraints
+from .contact_shapes import CONTACTS, ContactScene, add_tracks, draw_contacts
 from .model import (VisualModel, check_replayable, frame_positions, frame_targets, ghost_configuration,
                     load_visual_model, mesh_bytes, mesh_file, placements_at, replay_description,
                     satellite_description, trajectory_corners)
@@ -338,7 +341,7 @@ def check_mesh_size(result: Result, visual: VisualModel, copies: int, max_mesh_m
 def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, play: bool = True, *,
                 geometry: str = "visual", trail: str | None = None,
                 max_mesh_mb: float | None = MAX_MESH_MB, prepared: tuple | None = None,
-                plan: Result | None = None) -> Animation:
+                plan: Result | None = None, contacts: ContactScene | None = None) -> Animation:
     """The whole replay scene of any result: backdrop, the model's visuals at q_0, the target
     ghost, frame-target triads, the trail, the constraints' shapes (keep-out cones, obstacles and
     terminal poses of a constrained solve: :mod:`geoddp.viz.constraint_shapes`), the camera, and
@@ -363,6 +366,9 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
         plan: another Result of the same model (the plan a simulated run flew): drawn as a
             translucent ghost under ``vis["plan_ghost"]``, animated beside the model (its last
             configuration held if the run is longer).
+        contacts: a legged trajectory's ground, contact points and force arrows
+            (:class:`geoddp.viz.contact_shapes.ContactScene`), drawn under ``vis["contacts"]`` and
+            animated with the model; None: none.
 
     Returns:
         The animation (one clip per drawn visual object, H+1 keyframes each, fps = 1/dt).
@@ -379,7 +385,12 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
     visual, Q, q_ghost, targets, path = prepared
     placements = placements_at(visual, Q)
     # A visualizer may be replayed into again: nothing of an earlier scene may remain.
-    for group in (ROBOT, GHOST, TARGETS, TRAIL, PLAN, CONSTRAINTS):
+    if contacts is not None and not isinstance(contacts, ContactScene):
+        raise InputError("contacts", f"expected a ContactScene or None, got {type(contacts).__name__}")
+    if contacts is not None and contacts.forces.horizon + 1 != len(Q):
+        raise InputError("contacts", f"expected the forces of the result's {len(Q) - 1} nodes, got "
+                         f"{contacts.forces.horizon}")
+    for group in (ROBOT, GHOST, TARGETS, TRAIL, PLAN, CONSTRAINTS, CONTACTS):
         vis[group].delete()
     set_backdrop(vis)
     drawn = _draw(vis[ROBOT], visual, placements[0], scale)
@@ -419,6 +430,11 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
         extra, moving = draw_constraints(vis[CONSTRAINTS], shapes, visual, Q, lower, upper,
                                          lambda node, M: _draw_triad(node, M, length))
         points.extend(extra)
+    contact_tracks: list = []
+    if contacts is not None:
+        vis[CONTACTS].set_transform(np.diag([scale, scale, scale, 1.0]))
+        extra, contact_tracks = draw_contacts(vis[CONTACTS], contacts)
+        points.extend(extra)
     target, position, _ = camera_view(np.vstack(points), scale)
     _set_camera(vis, target, position)
     anim = model_animation(vis, visual, placements, result.dt, drawn)
@@ -426,6 +442,7 @@ def build_scene(vis: meshcat.Visualizer, result: Result, scale: float = 1.0, pla
         for k in range(keys.shape[0]):
             with anim.at_frame(node, k) as frame:
                 frame.set_transform(keys[k])
+    add_tracks(anim, contact_tracks)
     if plan_placements is not None:
         for i in drawn:
             node = vis[PLAN][visual.names[i]]
@@ -481,6 +498,6 @@ def build_satellite(vis: meshcat.Visualizer, scale: float = 1.0) -> None:
     _draw(vis[GHOST], visual, identity, scale, ghost=True)
 
 
-__all__ = ["BACKGROUND_RGB", "CONSTRAINTS", "GHOST", "MAX_MESH_MB", "PLAN", "ROBOT", "SHAPE", "TARGETS", "TRAIL", "build_satellite",
+__all__ = ["BACKGROUND_RGB", "CONSTRAINTS", "CONTACTS", "GHOST", "MAX_MESH_MB", "PLAN", "ROBOT", "SHAPE", "TARGETS", "TRAIL", "build_satellite",
            "build_scene", "camera_view", "check_mesh_size", "check_replayable", "model_animation", "prepare_scene",
            "set_backdrop"]
