@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import copy
 import json
+import re
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -255,3 +258,25 @@ def test_run_a_short_phase_schedule_stopped_early(robot, tmp_path, capsys):
     assert problem.horizon == 11 and np.flatnonzero(problem.impulse_rows).tolist() == [8]
     assert d["iterations"] == 2 and not d["converged"]
     _check_json(d, problem)
+
+
+# ------------------------------------------------------------------ the guide
+GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "legged.md"
+
+
+def test_the_guides_scene_and_errors_are_the_code():
+    """The legged guide's TOML block is the built-in trot's file (but for its max_iter), and its
+    error lines are the parser's messages (up to the file name and the list of feet)."""
+    text = GUIDE.read_text()
+    block = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
+    ours, builtin = parse_scene(tomllib.loads(block)), load_scene("anymal_trot")
+    for field in ("robot", "feet", "posture", "dt", "baumgarte", "gait", "phases", "costs", "expansion",
+                  "initial_controls"):  # the file also caps max_iter
+        assert getattr(ours, field) == getattr(builtin, field), field
+    errors = re.search(r"```text\n(.*?)```", text[text.index("Errors name the key path"):], re.S).group(1)
+    cases = [_edit("gait", "step_knots", 0), BAD["phase_foot"][0]]
+    for line, edit in zip(errors.strip().splitlines(), cases):
+        with pytest.raises(InputError) as e:
+            parse_scene(edit(_gait_scene()), "trot.toml")
+        shown = line.removeprefix("geoddp: error: ").removesuffix(" ...")
+        assert str(e.value).startswith(shown), (str(e.value), shown)
