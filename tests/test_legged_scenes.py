@@ -280,3 +280,20 @@ def test_the_guides_scene_and_errors_are_the_code():
             parse_scene(edit(_gait_scene()), "trot.toml")
         shown = line.removeprefix("geoddp: error: ").removesuffix(" ...")
         assert str(e.value).startswith(shown), (str(e.value), shown)
+
+
+def test_solve_scene_takes_a_legged_scene_and_its_solver_keywords(robot):
+    """``geoddp.solve_scene`` overrides [solver] keys of a legged scene: initial_controls = "zero"
+    starts from zero torques (the first J is their cost), max_iter stops; a key a legged scene has
+    no use for, or a bad value, is refused naming it."""
+    from geoddp import solve_scene
+
+    res = solve_scene("anymal_trot", initial_controls="zero", max_iter=1)
+    problem = load_scene("anymal_trot").build(robot)
+    J_zero = problem.trajectory_cost(problem.trajectory(np.zeros((problem.horizon, problem.nu))))
+    assert res.iterations == 1 and res.cost_history[0] == pytest.approx(J_zero, rel=1e-12)
+    assert res.cost < res.cost_history[0] and res.extra["scene"] == "anymal_trot"
+    for key, value in (("initial_controls", "hover"), ("second_order", "paper"), ("constraint_tol", 1e-6)):
+        with pytest.raises(InputError) as e:
+            solve_scene("anymal_trot", **{key: value})
+        assert e.value.parameter == key

@@ -304,8 +304,9 @@ class LeggedSceneSpec(CommonSpec):
         return v.choice(value, name, INITIAL_CONTROLS)
 
     def with_overrides(self, **overrides: Any) -> "LeggedSceneSpec":
-        """A copy with solver options or ``initial_controls`` replaced, re-validated."""
-        allowed = SOLVER_KEYS
+        """A copy with solver options (``second_order``: "exact" only) or ``initial_controls``
+        replaced, re-validated."""
+        allowed = SOLVER_KEYS + ("second_order",)
         for k in overrides:
             if k not in allowed:
                 guess = v.closest(k, allowed)
