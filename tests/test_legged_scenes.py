@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from geoddp import data
 from geoddp.cli import EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, main
 from geoddp.scene import LeggedSceneSpec, load_scene, parse_scene
 from geoddp.scene.legged import FEET, anymal_gait, load_anymal
@@ -297,3 +298,21 @@ def test_solve_scene_takes_a_legged_scene_and_its_solver_keywords(robot):
         with pytest.raises(InputError) as e:
             solve_scene("anymal_trot", **{key: value})
         assert e.value.parameter == key
+
+
+def test_a_sweep_over_gait_parameters(tmp_path):
+    """A sweep file varies a legged scene's [gait] keys like any other key: each case is the scene
+    with that value, solved (the J of each row is that scene's own solve)."""
+    from geoddp import solve_scene
+    from geoddp.sweep import read_table, run_sweep
+
+    sweep = tmp_path / "trot_knots.toml"
+    sweep.write_text('[sweep]\nscene = "anymal_trot"\nname = "trot_knots"\n[grid]\n"gait.step_knots" = [4, 6]\n'
+                     '"solver.max_iter" = [2]\n')
+    run_sweep(sweep, tmp_path / "out", serial=True)
+    df = read_table(tmp_path / "out").sort_values("gait.step_knots")
+    assert df["error"].tolist() == ["", ""] and df["iterations"].tolist() == [2, 2]
+    base = tomllib.loads(data.scene_path("anymal_trot").read_text())
+    for knots, J in zip(df["gait.step_knots"], df["J"]):
+        scene = {**base, "gait": {**base["gait"], "step_knots": int(knots)}, "solver": {**base["solver"], "max_iter": 2}}
+        assert J == pytest.approx(solve_scene(parse_scene(scene)).cost, rel=1e-12)
