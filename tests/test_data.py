@@ -15,7 +15,7 @@ from pathlib import Path, PurePosixPath
 import pytest
 
 from geoddp import data
-from geoddp.scene import MultibodySceneSpec
+from geoddp.scene import LeggedSceneSpec, MultibodySceneSpec
 from geoddp.scene import SceneSpec, load_scene
 from geoddp.validate import InputError
 
@@ -26,6 +26,7 @@ SATELLITE = ("satellite_authors_code", "satellite_keep_out", "satellite_paper", 
 MULTIBODY = ("quadrotor", "quadrotor_thrust_limits", "space_manipulator", "spacecraft_docking")
 HARD = tuple(sorted(p.stem for p in (PACKAGE / "data" / "scenes" / "hard").glob("*.toml")))
 ROBOTS = ("hector_fly", "solo12_reorient", "ur5_constraints", "ur5_reach")  # example-robot-data's robots by name
+LEGGED = ("anymal_jump", "anymal_trot", "anymal_walk")  # legged scenes: Crocoddyl's ANYmal gaits
 
 QUAD_SCENE = (data.scene_dir() / "multibody" / "quadrotor.toml").read_text()
 
@@ -34,7 +35,7 @@ def test_the_builtin_data_is_the_package_folder():
     assert data.urdf_dir() == PACKAGE / "data" / "urdf" and data.scene_dir() == PACKAGE / "data" / "scenes"
     assert data.urdf_names() == ("quadrotor.urdf", "satellite.urdf", "space_manipulator.urdf", "spacecraft.urdf")
     assert len(HARD) == 13
-    assert data.scene_names() == tuple(sorted(SATELLITE + MULTIBODY + HARD + ROBOTS))
+    assert data.scene_names() == tuple(sorted(SATELLITE + MULTIBODY + HARD + ROBOTS + LEGGED))
     # The repository's examples/ holds the gallery's scripts beside links to the package's scenes,
     # not copies: each top-level scene file and each scene folder is the package's own.
     examples = ROOT / "examples"
@@ -43,17 +44,20 @@ def test_the_builtin_data_is_the_package_folder():
     for name in top:
         assert (examples / name).samefile(data.scene_dir() / name)
     folders = sorted(p.name for p in data.scene_dir().iterdir() if p.is_dir())
-    assert folders == ["hard", "multibody", "robots", "sweeps"]
+    assert folders == ["hard", "legged", "multibody", "robots", "sweeps"]
     for folder in folders:
         assert (examples / folder).samefile(data.scene_dir() / folder)
 
 
-@pytest.mark.parametrize("name", SATELLITE + MULTIBODY + HARD + ROBOTS)
+@pytest.mark.parametrize("name", SATELLITE + MULTIBODY + HARD + ROBOTS + LEGGED)
 def test_every_builtin_scene_loads_by_name_as_from_its_file(name):
     path = data.scene_path(name)
     by_name, by_file = load_scene(name), load_scene(path)
     assert by_name.name == name and by_name.source == by_file.source == str(path)
-    assert isinstance(by_name, MultibodySceneSpec if name in MULTIBODY + ROBOTS else SceneSpec)
+    kind = MultibodySceneSpec if name in MULTIBODY + ROBOTS else LeggedSceneSpec if name in LEGGED else SceneSpec
+    assert isinstance(by_name, kind)
+    if name in LEGGED:
+        assert by_name.robot == "anymal" and by_name.gait["type"] == name.split("_")[1]
     if name in ROBOTS:
         assert by_name.robot == name.split("_")[0] and by_name.urdf == by_file.urdf
     if name in MULTIBODY:
@@ -126,7 +130,7 @@ def test_the_build_ships_every_data_file():
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     backend = cfg["build-system"]["build-backend"]
     files = _data_files()
-    assert len(files) == 4 + 22 + 4 + 3  # 4 URDFs; 22 scenes (2 with control limits, 1 with constraints); 4 robots (1 with constraints); 3 sweeps
+    assert len(files) == 4 + 22 + 4 + 3 + 3  # 4 URDFs; 22 scenes (2 with control limits, 1 with constraints); 4 robots (1 with constraints); 3 sweeps; 3 legged
     if backend.startswith("setuptools"):
         globs = cfg["tool"]["setuptools"]["package-data"]["geoddp"]
         missing = [f for f in files if not any(f.match(g) and len(f.parts) == len(PurePosixPath(g).parts)

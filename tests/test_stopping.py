@@ -47,8 +47,8 @@ def test_thresholds_resolve_as_documented():
 
 def test_every_satellite_scene_file_keeps_the_papers_absolute_tol():
     """Each satellite scene file (the paper's, the hard cases) sets tol = 1e-8 and grad_tol = 1e-10:
-    their solves stay bit for bit the paper's (benchmarks/histories.py compare). The multibody
-    and robot scenes leave them unset: the relative default."""
+    their solves stay bit for bit the paper's (benchmarks/histories.py compare). The multibody,
+    robot and legged scenes leave them unset: the relative default."""
     import geoddp
 
     root = scene_file("satellite_paper").parent
@@ -63,7 +63,7 @@ def test_every_satellite_scene_file_keeps_the_papers_absolute_tol():
             assert opt.absolute() and opt.cost_tolerance(510.0) == 1e-8 and opt.grad_tolerance(510.0) == 1e-10
         else:
             assert spec.tol is None and spec.rtol is None and not opt.absolute(), path
-    assert sum(k == "SceneSpec" for k in kinds.values()) == 18 and len(kinds) == 26, kinds
+    assert sum(k == "SceneSpec" for k in kinds.values()) == 18 and len(kinds) == 29, kinds
     assert geoddp  # the package data was found
 
 

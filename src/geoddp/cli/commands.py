@@ -27,6 +27,13 @@ def check_output_args(args, inputs) -> None:
     check_outputs(outs, inputs=inputs, directories=("--plots",))
 
 
+def _refuse_legged(spec, command: str) -> None:
+    """InputError naming ``scene``: ``geoddp COMMAND`` has no legged form (``geoddp run`` solves it)."""
+    if getattr(spec, "kind", None) == "legged":
+        raise InputError("scene", f"{spec.name!r} is a legged scene: `geoddp {command}` takes satellite and multibody "
+                         f"scenes; solve it with `geoddp run {spec.name}` (--expansion first | second | switch)")
+
+
 def _multibody(args) -> int:
     """``geoddp multibody NAME``: ``geoddp run NAME`` with an optional integrator override."""
     from ..scene.builtin import scene_spec
@@ -76,10 +83,17 @@ def _solve_and_report(spec, args) -> int:
     from ..scene.solve import solve_scene
 
     multibody = isinstance(spec, MultibodySceneSpec)
+    legged = getattr(spec, "kind", None) == "legged"
     check_output_args(args, [getattr(spec, "source", None), getattr(spec, "urdf", None)])
     overrides = {"expansion": args.expansion} if args.expansion else {}
     result = solve_scene(spec, verbose=not args.quiet, **overrides)
-    if multibody:
+    if legged:
+        sched = result.model["contact_schedule"]
+        print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
+              f"solve time = {result.solve_time_s:.3f} s")
+        print(f"contact schedule: {result.horizon} nodes ({sum(sched['impulse'])} impulse) on feet "
+              f"{', '.join(sched['feet'])}, dt = {result.dt} s")
+    elif multibody:
         print(f"J* = {result.cost:.12f}  iterations = {result.iterations}  ||grad|| = {result.grad_norm:.3e}  "
               f"solve time = {result.solve_time_s:.3f} s")
         for e in terminal_frame_errors(spec, result.configurations[-1]):
@@ -133,6 +147,7 @@ def _compare(args) -> int:
     from ..solver.reference import lbfgs
 
     spec0 = load_scene(args.scene)
+    _refuse_legged(spec0, "compare")
     check_output_args(args, [getattr(spec0, "source", None), getattr(spec0, "urdf", None)])
     results = {}
     for exp in EXPANSIONS:
@@ -188,6 +203,7 @@ def _simulate(args) -> int:
     from ..simulate import SimulationSpec, simulate_scene
 
     spec = load_scene(args.scene)
+    _refuse_legged(spec, "simulate")
     check_output_args(args, [getattr(spec, "source", None), getattr(spec, "urdf", None)])
     base = getattr(spec, "simulation", None) or SimulationSpec()  # the scene's [simulation] table, if any
     plant = dict(base.plant)

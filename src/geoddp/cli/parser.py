@@ -13,7 +13,7 @@ def parser() -> argparse.ArgumentParser:
     from ..scene.builtin import NAMES as MULTIBODY_SCENES
     from ..solver.options import EXPANSIONS
 
-    scene_help = ("scene file (TOML: satellite, or [model] kind = \"multibody\") or a built-in scene's name: "
+    scene_help = ("scene file (TOML: satellite, or [model] kind = \"multibody\" | \"legged\") or a built-in scene's name: "
                   + ", ".join(scene_names()))
 
     p = argparse.ArgumentParser(prog="geoddp", description="Differential Dynamic Programming on Lie groups")

@@ -6,6 +6,7 @@
       -> reader.py     TOML -> plain table; Reader: key paths and did-you-mean in every error
       -> satellite.py  the satellite schema (paper Section VI) -> SceneSpec
          multibody.py  the general schema (any URDF, [model] kind = "multibody") -> MultibodySceneSpec
+         legged.py     legged robots in contact ([model] kind = "legged": a gait or phases) -> LeggedSceneSpec
          common.py     the tables both kinds share ([solver]) and their spec fields (CommonSpec)
       -> load.py       load_scene / parse_scene: dispatch on [model].kind
       -> build.py      the one builder: build_problem, solver_options, initial_controls
@@ -40,13 +41,14 @@ from ..solver.options import (DEFAULT_EXPANSION, DEFAULT_GRAD_RTOL, DEFAULT_GRAD
                               DEFAULT_SWITCH_RATIO, EXPANSIONS)
 from .build import AnySceneSpec, build_problem, frame_errors, initial_controls, solver_options, terminal_frame_errors
 from .common import CommonSpec
+from .legged import LeggedSceneSpec
 from .load import SCENE_KINDS, load_scene, parse_scene
 from .multibody import CostTermSpec, MultibodySceneSpec
 from .reader import check_urdf, scene_file
 from .satellite import ATTITUDE_KINDS, INTEGRATORS, SECOND_ORDER, SceneSpec
 from .solve import solve_scene
 
-__all__ = ["SceneSpec", "MultibodySceneSpec", "CostTermSpec", "CommonSpec", "AnySceneSpec", "SCENE_KINDS",
+__all__ = ["SceneSpec", "MultibodySceneSpec", "LeggedSceneSpec", "CostTermSpec", "CommonSpec", "AnySceneSpec", "SCENE_KINDS",
            "load_scene", "parse_scene", "solve_scene", "scene_file", "check_urdf", "build_problem", "solver_options",
            "initial_controls", "frame_errors", "terminal_frame_errors", "INTEGRATORS", "ATTITUDE_KINDS", "EXPANSIONS",
            "SECOND_ORDER", "DEFAULT_EXPANSION", "DEFAULT_GRAD_TOL", "DEFAULT_GRAD_RTOL", "DEFAULT_MAX_ITER",

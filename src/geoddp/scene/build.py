@@ -19,18 +19,23 @@ import pinocchio as pin
 
 from ..models.urdf import build_urdf_model
 from ..validate import InputError
+from .legged import LeggedSceneSpec
 from .multibody import MultibodySceneSpec
 from .satellite import SceneSpec
 
-AnySceneSpec = Union[SceneSpec, MultibodySceneSpec]
-"""What :func:`geoddp.scene.load_scene` returns: a satellite or a multibody scene."""
+AnySceneSpec = Union[SceneSpec, MultibodySceneSpec, LeggedSceneSpec]
+"""What :func:`geoddp.scene.load_scene` returns: a satellite, a multibody or a legged scene."""
 
 
 def build_problem(spec: AnySceneSpec):
     """The validated scene as a :class:`geoddp.problem.Problem` (model, costs, horizon, x0); the
     model's backend is chosen when it is built (TSO(3) closed forms for the satellite). A fresh
     model each call. The shared tables (:mod:`.common`) act on the problem here, once for every kind:
-    a scene with constraints gives a :class:`geoddp.constraints.ConstrainedProblem` around it."""
+    a scene with constraints gives a :class:`geoddp.constraints.ConstrainedProblem` around it. A
+    legged scene gives a :class:`geoddp.problem.legged.ContactProblem`
+    (:meth:`~geoddp.scene.legged.LeggedSceneSpec.build`)."""
+    if isinstance(spec, LeggedSceneSpec):
+        return spec.build()
     general = spec.general() if isinstance(spec, SceneSpec) else spec
     problem = _on_tso3(general) or _multibody(general)
     if general.has_limits:

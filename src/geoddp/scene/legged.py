@@ -1,4 +1,7 @@
-"""Built-in legged scenes: Crocoddyl's ANYmal gaits (its example quadrupedal_gaits_fwddyn.py).
+"""Legged scenes: Crocoddyl's ANYmal gaits as Python builders and the legged scene files
+(``[model] kind = "legged"``) that describe them and any other contact schedule.
+
+Built-in problems (Crocoddyl's example quadrupedal_gaits_fwddyn.py):
 
 * :func:`anymal_walk`: step length 0.25 m, height 0.15 m, dt 0.01 s, 25 step knots, 2 support knots.
 * :func:`anymal_trot`: 0.15 m, 0.1 m, 0.01 s, 25, 2.
@@ -8,21 +11,88 @@
 ANYmal comes from example-robot-data (``pip install example-robot-data``), posture "standing";
 the problems are those Crocoddyl's ``SimpleQuadrupedalGaitProblem`` builds from a fresh instance,
 node for node (contact nodes with Baumgarte gains (0, 50), impulse nodes at touch-down, the same
-costs and weights: :mod:`geoddp.problem.legged`).
+costs and weights: :mod:`geoddp.problem.legged`). The same problems are the built-in scene files
+``anymal_walk``, ``anymal_trot`` and ``anymal_jump`` (``geoddp run anymal_trot``).
+
+Schema of a legged scene file (``?`` = optional, with its default; paths as in error messages)::
+
+    name? = file stem                   description? = ""
+    [model]      kind = "legged", robot (example-robot-data's name, free-flyer root),
+                 feet (contact frame names; a [gait] takes four: LF, RF, LH, RH),
+                 posture? = "standing" (a reference configuration of the robot: the start at
+                 rest and the state regularisation's posture)
+    [contact]    dt (s), baumgarte? = [0.0, 50.0] (Kp 1/s^2, Kd 1/s)
+    exactly one of
+    [gait]       type = "walk" | "trot": step_length (m), step_height (m), step_knots, support_knots
+                 type = "jump": jump_height (m), jump_length (3, m), ground_knots, flying_knots
+    [[phases]]   contacts (feet on the ground, [] in flight), knots (contact nodes),
+                 step_length? (m, along x: the swing feet step and the CoM follows, as
+                 Crocoddyl's footstep; with step_height? = 0), impulse? (a touch-down impulse
+                 node after the phase for the swing feet that are down in the next phase, or
+                 in the terminal node; default: true when some foot touches down)
+    [costs]?     weights of geoddp.problem.legged.GaitCosts: com, friction_cone, mu, foot, state,
+                 control, bounds, impulse_foot, impulse_state (Crocoddyl's by default)
+    [solver]?    expansion, switch_ratio, tol, rtol, grad_tol, grad_rtol, max_iter,
+                 initial_controls? = "quasi_static" ("quasi_static" | "zero")
+
+The terminal node has every foot on the ground and the state terms only (Crocoddyl's walk and
+trot); a jump's terminal node also tracks the landed CoM.
 """
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
+from .. import validate as v
 from ..models.contact import ContactDynamics
-from ..problem.legged import ContactProblem, QuadrupedGait
+from ..problem.legged import ContactProblem, GaitCosts, Node, QuadrupedGait
+from ..solver.options import DEFAULT_EXPANSION, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, EXPANSIONS
 from ..validate import InputError
+from .common import CommonSpec, readonly
+from .reader import Reader, Schema
 
 FEET = ("LF_FOOT", "RF_FOOT", "LH_FOOT", "RH_FOOT")
 GAITS = {"walk": (0.25, 0.15, 0.01, 25, 2), "trot": (0.15, 0.1, 0.01, 25, 2),
          "jump": (0.15, (0.0, 0.3, 0.0), 0.01, 10, 20)}  # jump: height, length (3,), dt, ground, flying knots
+GAINS = (0.0, 50.0)  # Crocoddyl's Baumgarte gains (Kp, Kd) in its quadruped gaits
+
+GAIT_TYPES = ("walk", "trot", "jump")
+_GAIT_KEYS = {"walk": ("step_length", "step_height", "step_knots", "support_knots"),
+              "trot": ("step_length", "step_height", "step_knots", "support_knots"),
+              "jump": ("jump_height", "jump_length", "ground_knots", "flying_knots")}
+COST_KEYS = ("com", "friction_cone", "mu", "foot", "state", "control", "bounds", "impulse_foot", "impulse_state")
+INITIAL_CONTROLS = ("quasi_static", "zero")
+SOLVER_KEYS = ("expansion", "switch_ratio", "tol", "rtol", "grad_tol", "grad_rtol", "max_iter", "initial_controls")
+PHASE_KEYS = ("contacts", "knots", "step_length", "step_height", "impulse")
+SCHEMA: Schema = {  # [table] -> key -> required?
+    "model": {"kind": True, "robot": True, "feet": True, "posture": False},
+    "contact": {"dt": True, "baumgarte": False},
+    "gait": {"type": True, **{k: False for keys in _GAIT_KEYS.values() for k in keys}},
+    "costs": {k: False for k in COST_KEYS},
+    "solver": {k: False for k in SOLVER_KEYS},
+}
+ARRAYS = ("phases",)
+REQUIRED = ("model", "contact")
+
+
+# ------------------------------------------------------------------ the robot and the problem
+def load_robot(name: str = "anymal", parameter: str = "robot"):
+    """example-robot-data's robot ``name`` (a RobotWrapper, its SRDF's postures loaded);
+    InputError naming ``parameter`` if the package is missing or has no such robot."""
+    from ..models import robots
+
+    try:
+        import example_robot_data
+    except ImportError:
+        raise InputError(parameter, f"legged scenes need example-robot-data: {robots.INSTALL_HINT}") from None
+    robots.find(name, parameter)  # the name checked, with did-you-mean
+    return example_robot_data.load(name)
 
 
 def load_anymal():
@@ -35,6 +105,37 @@ def load_anymal():
     return example_robot_data.load("anymal")
 
 
+def contact_problem(robot, nodes: list[Node], terminal: Node, q0: np.ndarray, dt: float,
+                    gains: tuple[float, float] = GAINS, costs: GaitCosts | None = None,
+                    feet: tuple[str, ...] | None = None) -> ContactProblem:
+    """The ContactProblem of a schedule on ``robot`` (a RobotWrapper) from q0 (nq,) at rest, the
+    regularisation posture q0; its description carries the model (for the viewer) and, when
+    ``feet`` (frame names) are given, the contact schedule (:func:`schedule`)."""
+    model = robot.model
+    v0 = np.zeros(model.nv)
+    urdf = Path(robot.urdf) if getattr(robot, "urdf", None) else None
+    desc = {"kind": "multibody", "root": "free_flyer", "nq": model.nq, "nv": model.nv, "dt": dt,
+            "integrator": "semi_implicit", "pin_model": model.saveToString()}
+    if urdf is not None and urdf.is_file():
+        desc.update(urdf=str(urdf), urdf_xml=urdf.read_text())
+    if feet is not None:
+        desc["contact_schedule"] = schedule(model, feet, nodes, terminal, gains)
+    return ContactProblem(ContactDynamics(model, dt, gains=gains), nodes, terminal, q0, v0,
+                          (q0.copy(), v0.copy()), costs=costs, description=desc)
+
+
+def schedule(model: pin.Model, feet: tuple[str, ...], nodes: list[Node], terminal: Node,
+             gains: tuple[float, float]) -> dict[str, Any]:
+    """The contact schedule as the result JSON holds it (``model.contact_schedule``): ``feet``
+    (frame names), ``contact`` (H + 1 rows of 0 / 1 per foot: on the ground at a contact node,
+    touching down at an impulse node, on the ground in the terminal node), ``impulse`` (H
+    booleans) and ``baumgarte`` (Kp, Kd)."""
+    ids = [int(model.getFrameId(f)) for f in feet]
+    rows = [[int(i in n.feet) for i in ids] for n in [*nodes, terminal]]
+    return {"feet": list(feet), "contact": rows, "impulse": [n.kind == "impulse" for n in nodes],
+            "baumgarte": [float(gains[0]), float(gains[1])]}
+
+
 def anymal_gait(gait: str, robot=None) -> ContactProblem:
     """The ContactProblem of Crocoddyl's ANYmal ``gait`` ("walk", "trot" or "jump") from "standing" at rest."""
     if gait not in GAITS:
@@ -42,7 +143,6 @@ def anymal_gait(gait: str, robot=None) -> ContactProblem:
     robot = robot or load_anymal()
     model = robot.model
     q0 = model.referenceConfigurations["standing"].copy()
-    v0 = np.zeros(model.nv)
     builder = QuadrupedGait(model, FEET)
     if gait == "jump":
         height, length, dt, ground, flying = GAITS[gait]
@@ -50,13 +150,7 @@ def anymal_gait(gait: str, robot=None) -> ContactProblem:
     else:
         length, height, dt, knots, support = GAITS[gait]
         nodes, terminal = getattr(builder, gait)(q0, length, height, knots, support)
-    urdf = Path(robot.urdf) if getattr(robot, "urdf", None) else None
-    desc = {"kind": "multibody", "root": "free_flyer", "nq": model.nq, "nv": model.nv, "dt": dt,
-            "integrator": "semi_implicit", "pin_model": model.saveToString()}
-    if urdf is not None and urdf.is_file():
-        desc.update(urdf=str(urdf), urdf_xml=urdf.read_text())
-    return ContactProblem(ContactDynamics(model, dt, gains=(0.0, 50.0)), nodes, terminal, q0, v0,
-                          (q0.copy(), v0.copy()), description=desc)
+    return contact_problem(robot, nodes, terminal, q0, dt, GAINS, feet=FEET)
 
 
 def anymal_walk(robot=None) -> ContactProblem:
@@ -73,3 +167,301 @@ def anymal_jump(robot=None) -> ContactProblem:
     """Crocoddyl's ANYmal jump: 0.3 m sideways (y), CoM apex 0.15 m up, dt 0.01 s, 10 ground knots,
     20 + 20 flying knots, the landing impulse (H = 60: 1 impulse node)."""
     return anymal_gait("jump", robot)
+
+
+# ------------------------------------------------------------------ schedules of a scene file
+@dataclass(frozen=True)
+class PhaseSpec:
+    """One ``[[phases]]`` table: ``contacts`` (feet on the ground, in ``[model].feet`` order),
+    ``knots`` contact nodes, a step of the swing feet (``step_length`` m along x, None: no step;
+    ``step_height`` m) and the touch-down impulse's feet (``landing``: () for none)."""
+
+    contacts: tuple[str, ...]
+    knots: int
+    step_length: float | None
+    step_height: float
+    landing: tuple[str, ...]
+
+
+def phase_nodes(model: pin.Model, feet: tuple[str, ...], q0: np.ndarray, phases: tuple[PhaseSpec, ...]
+                ) -> tuple[list[Node], Node]:
+    """The nodes of a ``[[phases]]`` schedule and its terminal node (every foot down, no targets).
+
+    A phase with a step is Crocoddyl's footstep (:meth:`geoddp.problem.legged.QuadrupedGait._footstep`):
+    per knot the swing feet track a stepping arc and the CoM the fraction of the step the swing
+    feet carry; the feet's and the CoM's positions carry over to the next phase. Its impulse node
+    tracks the landing feet at their last targets. Written as phases, Crocoddyl's walk and trot are
+    the same nodes as :meth:`QuadrupedGait.walk` / ``trot``."""
+    ids = {f: int(model.getFrameId(f)) for f in feet}
+    d = model.createData()
+    pin.forwardKinematics(model, d, q0)
+    pin.updateFramePlacements(model, d)
+    pos = {f: d.oMf[ids[f]].translation.copy() for f in feet}
+    com = sum(pos[f] for f in feet) / len(feet)
+    com[2] = pin.centerOfMass(model, d, q0)[2]
+    nodes: list[Node] = []
+    for ph in phases:
+        support = [ids[f] for f in ph.contacts]
+        swing_names = [f for f in feet if f not in ph.contacts]
+        swing = [ids[f] for f in swing_names]
+        tasks: tuple = ()
+        if ph.step_length is not None:
+            step = QuadrupedGait._footstep(com, [pos[f] for f in swing_names], ph.step_length, ph.step_height,
+                                           ph.knots, support, swing)
+            nodes += step[:-1]
+            tasks = step[-1].swing
+        else:
+            nodes += [Node("contact", tuple(support)) for _ in range(ph.knots)]
+        if ph.landing:
+            land = tuple(ids[f] for f in ph.landing)
+            nodes.append(Node("impulse", land, swing=tuple((i, p) for i, p in tasks if i in land)))
+    return nodes, Node("contact", tuple(ids[f] for f in feet))
+
+
+# ------------------------------------------------------------------ the spec
+@dataclass(frozen=True, eq=False)
+class LeggedSceneSpec(CommonSpec):
+    """A validated legged scene (``[model] kind = "legged"``), as plain values.
+
+    Attributes:
+        name, description: free text; source: scene file path or ``"<dict>"``.
+        robot: example-robot-data's name; posture: its reference configuration (the start at rest
+            and the regularisation posture); feet: contact frame names; nv: the robot's nv.
+        dt: time step of the contact nodes, s; baumgarte: (Kp 1/s^2, Kd 1/s).
+        gait: the ``[gait]`` table as a dict (``type`` and its four keys; ``jump_length`` a
+            tuple), or None; phases: the ``[[phases]]`` as :class:`PhaseSpec`, or () with a gait.
+        costs: the ``[costs]`` weights given, as (name, value) pairs (the rest: Crocoddyl's).
+        initial_controls: "quasi_static" (Crocoddyl's quasiStatic per contact node, zero at
+            impulse nodes) or "zero".
+        expansion, switch_ratio, tol, rtol, grad_tol, grad_rtol, max_iter: the ``[solver]`` table.
+    """
+
+    name: str
+    description: str
+    source: str
+    robot: str
+    posture: str
+    feet: tuple[str, ...]
+    nv: int
+    dt: float
+    baumgarte: tuple[float, float]
+    gait: dict | None
+    phases: tuple[PhaseSpec, ...]
+    costs: tuple[tuple[str, float], ...] = ()
+    initial_controls: str = "quasi_static"
+
+    kind = "legged"
+
+    def __post_init__(self) -> None:
+        self._check_common(("exact",), self.num_inputs)
+        object.__setattr__(self, "initial_controls", v.choice(self.initial_controls, "initial_controls",
+                                                              INITIAL_CONTROLS))
+
+    @property
+    def num_inputs(self) -> int:
+        """m = nv - 6: one torque per joint after the free flyer."""
+        return int(self.nv) - 6
+
+    @property
+    def horizon(self) -> int:
+        """H, the number of nodes (contact and impulse)."""
+        g = self.gait
+        if g is None:
+            return sum(p.knots + bool(p.landing) for p in self.phases)
+        if g["type"] == "walk":
+            return 2 * g["support_knots"] + 4 * (g["step_knots"] + 1)
+        if g["type"] == "trot":
+            return 2 * g["support_knots"] + 2 * (g["step_knots"] + 1)
+        return 2 * g["ground_knots"] + 2 * g["flying_knots"]  # the landing impulse, the last ground knot terminal
+
+    def build(self, robot=None) -> ContactProblem:
+        """The :class:`~geoddp.problem.legged.ContactProblem` (``robot``: the loaded RobotWrapper
+        of ``self.robot``, loaded here if None)."""
+        robot = robot or load_robot(self.robot, "[model].robot")
+        model = robot.model
+        q0 = model.referenceConfigurations[self.posture].copy()
+        g = self.gait
+        if g is None:
+            nodes, terminal = phase_nodes(model, self.feet, q0, self.phases)
+        elif g["type"] == "jump":
+            nodes, terminal = QuadrupedGait(model, self.feet, q0).jump(
+                q0, g["jump_height"], g["jump_length"], g["ground_knots"], g["flying_knots"])
+        else:
+            nodes, terminal = getattr(QuadrupedGait(model, self.feet, q0), g["type"])(
+                q0, g["step_length"], g["step_height"], g["step_knots"], g["support_knots"])
+        try:
+            costs = GaitCosts(**dict(self.costs))
+        except TypeError as exc:
+            raise InputError("costs", f"expected fields of GaitCosts, got {dict(self.costs)} ({exc})") from None
+        return contact_problem(robot, nodes, terminal, q0, self.dt, self.baumgarte, costs, self.feet)
+
+    def initial_control_sequence(self) -> np.ndarray | None:
+        """None for the solver's default start (the quasi-static controls), zeros (H, m) for "zero"."""
+        return None if self.initial_controls == "quasi_static" else np.zeros((self.horizon, self.num_inputs))
+
+    def read_initial_controls(self, value: Any, name: str = "initial_controls") -> str:
+        """``value`` as this scene's initial controls: "quasi_static" or "zero" (InputError naming ``name``)."""
+        return v.choice(value, name, INITIAL_CONTROLS)
+
+    def with_overrides(self, **overrides: Any) -> "LeggedSceneSpec":
+        """A copy with solver options (``second_order``: "exact" only) or ``initial_controls``
+        replaced, re-validated."""
+        allowed = SOLVER_KEYS + ("second_order",)
+        for k in overrides:
+            if k not in allowed:
+                guess = v.closest(k, allowed)
+                hint = f"; did you mean {guess!r}?" if guess else ""
+                raise InputError(k, f"cannot override this LeggedSceneSpec field{hint} (allowed: {', '.join(allowed)})")
+        return dataclasses.replace(self, **overrides)
+
+
+# ------------------------------------------------------------------ parsing
+def parse_legged_scene(data: Mapping[str, Any], source: str, base_dir: Path, default_name: str) -> LeggedSceneSpec:
+    """Validate a parsed legged scene (``[model] kind = "legged"``) into a spec; InputError naming
+    the key path (``[gait].step_knots``, ``phases[2].contacts[0]``) and the file."""
+    from ..models import robots
+
+    r = Reader(data, source, SCHEMA, arrays=ARRAYS, required=REQUIRED)
+    r.top()
+    name = r.string(data.get("name", default_name), "name")
+    description = r.string(data.get("description", ""), "description")
+
+    # ---- model: the robot's URDF and SRDF (its frames and postures), not yet its meshes
+    mt = r.table("model")
+    robot = r.check(robots.find, mt["robot"], "[model].robot")
+    if robot.root != "free_flyer":
+        raise r.err("[model].robot", f"expected a robot with a free-flyer root (a legged robot), got {robot.name!r} "
+                    f"(fixed base)")
+    pm = pin.buildModelFromUrdf(str(robot.urdf), pin.JointModelFreeFlyer())
+    postures = r.check(robots.postures, pm, robot.srdf, "[model].robot")
+    posture = r.string(mt.get("posture", "standing"), "[model].posture")
+    if posture not in postures:
+        guess = v.closest(posture, list(postures))
+        hint = f"did you mean {guess!r}? " if guess else ""
+        raise r.err("[model].posture", f"expected a posture of {robot.name!r}, got {posture!r}; {hint}"
+                    f"postures: {', '.join(postures)}")
+    feet = _feet(r, mt["feet"], pm)
+
+    # ---- contact dynamics
+    ct = r.table("contact")
+    dt = r.check(v.positive_float, ct["dt"], "[contact].dt")
+    gains = r.check(v.finite_array, ct.get("baumgarte", list(GAINS)), "[contact].baumgarte", (2,))
+    if np.any(gains < 0):
+        raise r.err("[contact].baumgarte", f"expected gains [Kp, Kd] >= 0, got {gains.tolist()}")
+
+    # ---- schedule: exactly one of [gait] and [[phases]]
+    if ("gait" in data) == ("phases" in data):
+        got = "both" if "gait" in data else "neither"
+        raise r.err("[gait]", f"expected exactly one of [gait] (walk | trot | jump) | [[phases]], got {got}")
+    gait, phases = None, ()
+    if "gait" in data:
+        gait = _gait(r, r.table("gait"), feet)
+    else:
+        phases = _phases(r, feet)
+
+    # ---- costs, solver
+    cost_t = r.table("costs")
+    costs = tuple((k, r.check(v.positive_float if k == "mu" else v.nonnegative_float, val, f"[costs].{k}"))
+                  for k, val in cost_t.items())
+    s = r.table("solver")
+    get = s.get
+    solver = dict(
+        expansion=r.check(v.choice, get("expansion", DEFAULT_EXPANSION), "[solver].expansion", EXPANSIONS),
+        switch_ratio=r.check(v.bounded_float, get("switch_ratio", DEFAULT_SWITCH_RATIO), "[solver].switch_ratio",
+                             0.0, 1.0, False, False),
+        max_iter=r.check(v.positive_int, get("max_iter", DEFAULT_MAX_ITER), "[solver].max_iter"),
+        initial_controls=r.check(v.choice, get("initial_controls", "quasi_static"), "[solver].initial_controls",
+                                 INITIAL_CONTROLS),
+        **{key: r.check(v.nonnegative_float, s[key], f"[solver].{key}") if key in s else None
+           for key in ("tol", "rtol", "grad_tol", "grad_rtol")})
+    return LeggedSceneSpec(name=name, description=description, source=source, robot=robot.name, posture=posture,
+                           feet=feet, nv=int(pm.nv), dt=dt, baumgarte=(float(gains[0]), float(gains[1])), gait=gait,
+                           phases=phases, costs=costs, **solver)
+
+
+def _feet(r: Reader, val: Any, pm: pin.Model) -> tuple[str, ...]:
+    path = "[model].feet"
+    if not isinstance(val, list) or not val or not all(isinstance(f, str) for f in val):
+        raise r.err(path, f"expected a non-empty list of contact frame names, e.g. {list(FEET)}, got {val!r}")
+    frames = [str(f.name) for f in pm.frames]
+    for i, f in enumerate(val):
+        if not pm.existFrame(f):
+            guess = v.closest(f, frames)
+            hint = f"; did you mean {guess!r}?" if guess else ""
+            raise r.err(f"{path}[{i}]", f"expected a frame of the robot, got {f!r}{hint}")
+        if val.index(f) != i:
+            raise r.err(f"{path}[{i}]", f"expected each foot once, got {f!r} twice")
+    return tuple(val)
+
+
+def _knots(r: Reader, val: Any, path: str) -> int:
+    return r.check(v.positive_int, val, path)
+
+
+def _gait(r: Reader, t: Mapping[str, Any], feet: tuple[str, ...]) -> dict[str, Any]:
+    kind = r.check(v.choice, t["type"], "[gait].type", GAIT_TYPES)
+    uses = _GAIT_KEYS[kind]
+    for key in t:
+        if key != "type" and key not in uses:
+            raise r.err(f"[gait].{key}", f'not used by type = "{kind}"; keys for {kind}: {", ".join(("type",) + uses)}')
+    for key in uses:
+        if key not in t:
+            raise r.err(f"[gait].{key}", f'missing required key for type = "{kind}"')
+    if len(feet) != 4:
+        raise r.err("[model].feet", f"a [gait] moves a quadruped: expected four feet (LF, RF, LH, RH), got {len(feet)}")
+    out: dict[str, Any] = {"type": kind}
+    if kind == "jump":
+        out["jump_height"] = r.check(v.finite_float, t["jump_height"], "[gait].jump_height")
+        out["jump_length"] = tuple(float(x) for x in r.check(v.finite_array, t["jump_length"], "[gait].jump_length", (3,)))
+        out["ground_knots"] = _knots(r, t["ground_knots"], "[gait].ground_knots")
+        out["flying_knots"] = _knots(r, t["flying_knots"], "[gait].flying_knots")
+    else:
+        out["step_length"] = r.check(v.finite_float, t["step_length"], "[gait].step_length")
+        out["step_height"] = r.check(v.finite_float, t["step_height"], "[gait].step_height")
+        out["step_knots"] = _knots(r, t["step_knots"], "[gait].step_knots")
+        out["support_knots"] = _knots(r, t["support_knots"], "[gait].support_knots")
+    return out
+
+
+def _phases(r: Reader, feet: tuple[str, ...]) -> tuple[PhaseSpec, ...]:
+    items = r.array("phases")
+    if not items:
+        raise r.err("phases", "expected at least one [[phases]] table")
+    read = []
+    for path, t in items:
+        r.keys(t, PHASE_KEYS, path)
+        for key in ("contacts", "knots"):
+            if key not in t:
+                raise r.err(f"{path}.{key}", "missing required key")
+        c = t["contacts"]
+        if not isinstance(c, list) or not all(isinstance(f, str) for f in c):
+            raise r.err(f"{path}.contacts", f"expected a list of feet of [model].feet (possibly empty), got {c!r}")
+        for i, f in enumerate(c):
+            if f not in feet:
+                guess = v.closest(f, feet)
+                hint = f"did you mean {guess!r}? " if guess else ""
+                raise r.err(f"{path}.contacts[{i}]", f"expected a foot of [model].feet, got {f!r}; {hint}"
+                            f"feet: {', '.join(feet)}")
+            if c.index(f) != i:
+                raise r.err(f"{path}.contacts[{i}]", f"expected each foot once, got {f!r} twice")
+        contacts = tuple(f for f in feet if f in c)  # in [model].feet order
+        knots = _knots(r, t["knots"], f"{path}.knots")
+        length = None
+        if "step_length" in t:
+            length = r.check(v.finite_float, t["step_length"], f"{path}.step_length")
+            if len(contacts) == len(feet):
+                raise r.err(f"{path}.step_length", "a step needs a swing foot: every foot is in contacts")
+        elif "step_height" in t:
+            raise r.err(f"{path}.step_height", "expected together with step_length (a step's length along x, m)")
+        height = r.check(v.finite_float, t.get("step_height", 0.0), f"{path}.step_height")
+        impulse = r.boolean(t["impulse"], f"{path}.impulse") if "impulse" in t else None
+        read.append((path, contacts, knots, length, height, impulse))
+    phases = []
+    for j, (path, contacts, knots, length, height, impulse) in enumerate(read):
+        after = read[j + 1][1] if j + 1 < len(read) else feet  # the terminal node: every foot down
+        landing = tuple(f for f in feet if f not in contacts and f in after)
+        if impulse and not landing:
+            raise r.err(f"{path}.impulse", "expected false: no swing foot of this phase is on the ground in the "
+                        "next phase (nothing touches down)")
+        phases.append(PhaseSpec(contacts, knots, length, height, landing if impulse is not False else ()))
+    return tuple(phases)

@@ -7,17 +7,19 @@ from pathlib import Path
 from typing import Any
 
 from ..validate import InputError
-from . import multibody, satellite
+from . import legged, multibody, satellite
 from .build import AnySceneSpec
 from .reader import read_toml, scene_file
 
-KINDS = {"multibody": multibody.parse_multibody_scene, "satellite": satellite.parse}  # [model].kind -> parser
+KINDS = {"legged": legged.parse_legged_scene, "multibody": multibody.parse_multibody_scene,
+         "satellite": satellite.parse}  # [model].kind -> parser
 SCENE_KINDS = tuple(sorted(KINDS))  # absent [model].kind means "satellite"
 
 
 def load_scene(path: str | Path) -> AnySceneSpec:
-    """Read and validate a TOML scene file: a :class:`~geoddp.scene.satellite.SceneSpec`, or a
-    :class:`~geoddp.scene.multibody.MultibodySceneSpec` if ``[model] kind = "multibody"``.
+    """Read and validate a TOML scene file: a :class:`~geoddp.scene.satellite.SceneSpec`, a
+    :class:`~geoddp.scene.multibody.MultibodySceneSpec` if ``[model] kind = "multibody"`` or a
+    :class:`~geoddp.scene.legged.LeggedSceneSpec` if ``[model] kind = "legged"``.
 
     Args:
         path: scene file, or the name of a built-in scene (``"satellite_paper"``,

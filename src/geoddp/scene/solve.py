@@ -10,6 +10,7 @@ from ..solver import solve
 from ..solver.result import Result
 from .build import AnySceneSpec, build_problem, initial_controls, solver_options
 from .common import TABLES
+from .legged import LeggedSceneSpec
 from .load import load_scene
 from .multibody import MultibodySceneSpec
 from .satellite import SceneSpec
@@ -44,7 +45,7 @@ PROBLEM_KEYS = ("second_order", "constraint_tol")
 
 def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = False, **options: Any) -> Result:
     """Load (if a path or a built-in scene's name, see :func:`geoddp.scene.load_scene`), build and
-    solve a scene: satellite or multibody (``[model] kind``).
+    solve a scene: satellite, multibody or legged (``[model] kind``).
 
     Keyword options override the scene's ``[solver]`` table, checked as the table is (the error
     names the keyword): ``expansion``, ``switch_ratio``, ``tol``, ``rtol``, ``grad_tol``,
@@ -85,7 +86,7 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = False, **op
     from ..solver.options import SolverOptions
     from ..validate import InputError, closest
 
-    if not isinstance(scene, (SceneSpec, MultibodySceneSpec, str, os.PathLike)):
+    if not isinstance(scene, (SceneSpec, MultibodySceneSpec, LeggedSceneSpec, str, os.PathLike)):
         raise InputError("scene", f"expected a scene file path, a built-in scene's name or a spec from "
                          f"geoddp.scene.load_scene, got {type(scene).__name__}"
                          + (" (write the table to a TOML file and pass its path)" if isinstance(scene, dict) else ""))
@@ -95,7 +96,7 @@ def solve_scene(scene: str | Path | AnySceneSpec, *, verbose: bool = False, **op
             hint = closest(key, known)
             raise InputError(key, "unknown option of solve_scene" + (f" (did you mean {hint!r}?)" if hint else "")
                              + f"; known: {', '.join(sorted(known))}")
-    spec = scene if isinstance(scene, (SceneSpec, MultibodySceneSpec)) else load_scene(scene)
+    spec = scene if isinstance(scene, (SceneSpec, MultibodySceneSpec, LeggedSceneSpec)) else load_scene(scene)
     overrides = {k: v for k, v in options.items() if k in SCENE_KEYS}
     if "initial_controls" in overrides:  # a name or an array, as the [solver] table takes it
         overrides["initial_controls"] = spec.read_initial_controls(overrides["initial_controls"])
