@@ -316,3 +316,32 @@ def test_a_sweep_over_gait_parameters(tmp_path):
     for knots, J in zip(df["gait.step_knots"], df["J"]):
         scene = {**base, "gait": {**base["gait"], "step_knots": int(knots)}, "solver": {**base["solver"], "max_iter": 2}}
         assert J == pytest.approx(solve_scene(parse_scene(scene)).cost, rel=1e-12)
+
+
+def test_run_anymal_trot_draws_forces_and_contacts(robot, tmp_path, capsys):
+    """``geoddp run anymal_trot --plots DIR --html PAGE``: the legged figures (contact forces,
+    friction-cone margins beside the joints and controls) and a replay whose force arrows are the
+    contact forces of the solved trajectory (1 mm per newton), on the collision geometry."""
+    from geoddp.scene import build_problem
+    from geoddp.solver.result import Result
+    from geoddp.viz import legged_forces
+    from geoddp.viz.html import decode_commands
+
+    out, plots, page = tmp_path / "trot.json", tmp_path / "plots", tmp_path / "trot.html"
+    assert main(["run", "anymal_trot", "--quiet", "--json", str(out), "--plots", str(plots), "--html", str(page)]) \
+        == EXIT_CONVERGED
+    assert {p.name for p in plots.iterdir()} >= {"contact_forces.png", "friction_margin.png", "joint_positions.png",
+                                                 "controls.png", "solver_history.png"}
+    res = Result.read_json(out)
+    c = legged_forces(res, build_problem(load_scene("anymal_trot")))
+    cmds = decode_commands(page.read_text())
+    assert any(cmd.get("type") == "set_object" and cmd["path"].endswith("/contacts/ground") for cmd in cmds)
+    anim = [cmd for cmd in cmds if cmd.get("type") == "set_animation"][-1]
+    clips = {e["path"]: e["clip"] for e in anim["animations"]}
+    i = c.feet.index("LF_FOOT")
+    shaft = next(v for p, v in clips.items() if p.endswith("/contacts/forces/LF_FOOT/shaft"))
+    scale = [k["value"][1] for k in next(t for t in shaft["tracks"] if t["name"] == ".scale")["keys"]]
+    on = np.flatnonzero(c.active[:, i] & ~c.impulse)
+    assert on.size > 10
+    np.testing.assert_allclose(np.asarray(scale)[on], 1e-3 * np.linalg.norm(c.forces[on, i], axis=-1), rtol=1e-9)
+    assert page.stat().st_size < 4e6  # the collision geometry, not ANYmal's 30 MB of visual meshes

@@ -109,17 +109,22 @@ def _solve_and_report(spec, args) -> int:
     print(f"status: {result.status} ({result.message})")
     if args.json:
         wrote(result.write_json(args.json))
-    _visualise(result, args, spec if multibody else None)
+    _visualise(result, args, spec if multibody else None, spec if legged else None)
     return EXIT_CONVERGED if result.converged else EXIT_NOT_CONVERGED
 
 
-def _visualise(result, args, multibody_spec=None) -> None:
+def _visualise(result, args, multibody_spec=None, legged_spec=None) -> None:
     """--plots, --html and --view of a solved scene; ``multibody_spec``: the multibody scene solved
-    (its terminal frame terms are the targets of frame_errors.png), None for a satellite."""
+    (its terminal frame terms are the targets of frame_errors.png), None for a satellite;
+    ``legged_spec``: the legged scene solved (its contact problem gives the forces, the contact
+    points and the ground of the figures and the replay)."""
     if not (getattr(args, "html", None) or getattr(args, "plots", None) or getattr(args, "view", False)):
         return
     from .. import viz
 
+    if legged_spec is not None:
+        _visualise_legged(result, args, legged_spec)
+        return
     if getattr(args, "plots", None):
         if multibody_spec is not None:
             paths = list(viz.plot_multibody(result, args.plots, scene=multibody_spec).values())
@@ -133,6 +138,29 @@ def _visualise(result, args, multibody_spec=None) -> None:
     if getattr(args, "view", False):
         try:
             viz.replay(result, open_browser=False)
+            input("Replaying in meshcat; press Enter to quit.\n") if sys.stdin.isatty() else None
+        except viz.ViewerUnavailable as exc:
+            print(f"viewer unavailable: {exc}" + (" (the static HTML was written)" if args.html else
+                                                    " (use --html OUT.html for a static replay)"), file=sys.stderr)
+
+
+def _visualise_legged(result, args, spec) -> None:
+    """--plots (joints, controls, contact forces, friction-cone margins, solver history), --html
+    and --view of a legged scene, with the ground, contact points and force arrows. The replay
+    draws the robot's collision geometry: its visual meshes (ANYmal: 30 MB) would make a page of
+    about 16 MB."""
+    from .. import viz
+    from ..scene import build_problem
+
+    problem = build_problem(spec)
+    if getattr(args, "plots", None):
+        for path in viz.legged_figures(result, problem, args.plots):
+            wrote(path)
+    if getattr(args, "html", None):
+        wrote(viz.export_legged_html(result, problem, args.html, geometry="collision"))
+    if getattr(args, "view", False):
+        try:
+            viz.replay_legged(result, problem, open_browser=False, geometry="collision")
             input("Replaying in meshcat; press Enter to quit.\n") if sys.stdin.isatty() else None
         except viz.ViewerUnavailable as exc:
             print(f"viewer unavailable: {exc}" + (" (the static HTML was written)" if args.html else
