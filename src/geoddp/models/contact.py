@@ -61,13 +61,25 @@ def skew(w: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def _rotation_generators(nv: int) -> np.ndarray:
-    """(nv, 3, 3): skew(e_i) for the free flyer's rotational tangent directions 3..5, else 0
-    (d/d eta_i of oR_b exp(eta_rot) = oR_b E_i)."""
-    E = np.zeros((nv, 3, 3))
-    for i in range(3):
-        E[3 + i] = skew(np.eye(3)[i])
-    return E
+# skew(e_i), i = 0..2: d/d eta_(3+i) of oR_b exp(eta_rot) = oR_b skew(e_i) (the free flyer's
+# rotational tangent directions 3..5; the other directions leave oR_b unchanged)
+_GENERATORS = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+                        [[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]],
+                        [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+
+
+def _symmetric_from_upper(M: np.ndarray) -> np.ndarray:
+    """A copy of the square M with its strict lower triangle replaced by the upper one's mirror
+    (Pinocchio fills the upper triangle of the mass matrix)."""
+    S = np.array(M)
+    lower = _LOWER.get(S.shape[0])
+    if lower is None:
+        lower = _LOWER[S.shape[0]] = np.tril_indices(S.shape[0], -1)
+    S[lower] = S.T[lower]
+    return S
+
+
+_LOWER: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
 
 def friction_cone(mu: float, facets: int = 4, min_force: float = 0.0, max_force: float = np.inf
@@ -194,7 +206,7 @@ class ContactDynamics:
             fr = m.frames[f]
             fext[fr.parentJoint] += fr.placement.act(pin.Force(ll, np.zeros(3)))
         dtau_dq, dtau_dv, M = pin.computeRNEADerivatives(m, d, q, v, a, fext)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = _symmetric_from_upper(M)
         nz = 2 * nv + nu
         F1 = np.zeros((nv, nz))
         F1[:, :nv], F1[:, nv:2 * nv], F1[:, 2 * nv:] = dtau_dq, dtau_dv, -self.S
@@ -219,7 +231,7 @@ class ContactDynamics:
                 K[:nv, r] = -J[:3].T
                 K[r, :nv] = J[:3]
                 rhs[r, :nv], rhs[r, nv:2 * nv] = h_q, h_v
-        sol = -np.linalg.solve(K, rhs)
+        sol = -(np.linalg.inv(K) @ rhs)  # LAPACK's solve is slower on these small systems
         da, dlam = sol[:nv], sol[nv:]
         Lz = np.empty((nc, nz))
         for i, (J, R, *_r) in enumerate(terms):
@@ -262,7 +274,7 @@ class ContactDynamics:
         # F1 = M(q) (v+ - v) - J(q)^T Lambda = rnea(q, 0, v+ - v, fext) - g(q)
         dtau_dq, _, M = pin.computeRNEADerivatives(m, d, q, np.zeros(nv), v_next - v, fext)
         dtau_dq = dtau_dq.copy()
-        M = np.triu(M) + np.triu(M, 1).T
+        M = _symmetric_from_upper(M)
         dg_dq = pin.computeGeneralizedGravityDerivatives(m, d, q)
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv] = M
@@ -276,7 +288,7 @@ class ContactDynamics:
             K[:nv, r] = -J[:3].T
             K[r, :nv] = J[:3]
             rhs[r, :nv] = v_dq[:3]
-        sol = -np.linalg.solve(K, rhs)
+        sol = -(np.linalg.inv(K) @ rhs)  # LAPACK's solve is slower on these small systems
         dvn, dimp = sol[:nv], sol[nv:]
         Lz = np.empty((nc, nz))
         for i, (J, R) in enumerate(zip(Js, Rs)):
@@ -328,19 +340,25 @@ class ContactDynamics:
         w = pin.rnea(mf, df, q, v, a)[:3].copy()
         R = pin.XYZQUATToSE3(q[:7]).rotation  # the base rotation (RNEA does not fill oMi)
         dq, dv, M = pin.computeRNEADerivatives(mf, df, q, v, a)
-        M = np.triu(M) + np.triu(M, 1).T
-        w_q, w_v, w_a = dq[:3].copy(), dv[:3].copy(), M[:3].copy()
+        w_q, w_v = dq[:3], dv[:3]
+        w_a = _symmetric_from_upper(M)[:3]
         qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
-        w_qq = 0.5 * (qq[:3] + qq[:3].transpose(0, 2, 1))
-        w_qa = aq[:3].transpose(0, 2, 1)
-        E = _rotation_generators(nv)
-        Ew_q = np.einsum("iab,bj->aij", E, w_q)
-        P_qq = w_qq + Ew_q + Ew_q.transpose(0, 2, 1) + 0.5 * (np.einsum("iab,jbc,c->aij", E, E, w)
-                                                             + np.einsum("jab,ibc,c->aij", E, E, w))
-        P_qv = qv[:3] + np.einsum("iab,bk->aik", E, w_v)
-        P_qa = w_qa + np.einsum("iab,bk->aik", E, w_a)
-        rot = lambda T: np.einsum("ab,bij->aij", R, T)  # noqa: E731
-        return R @ w_a, rot(P_qq), rot(P_qv), rot(P_qa), rot(vv[:3])
+        # E_i = skew(e_(i-3)) on the free flyer's rotational directions i = 3..5, zero elsewhere:
+        # the product rule's terms touch those rows (and columns) only
+        G = _GENERATORS
+        P_qq = qq[:3] + qq[:3].transpose(0, 2, 1)
+        P_qq *= 0.5
+        Gw_q = np.einsum("iab,bj->aij", G, w_q)  # (3, 3, nv): [a, i - 3, j]
+        P_qq[:, 3:6, :] += Gw_q
+        P_qq[:, :, 3:6] += Gw_q.transpose(0, 2, 1)
+        GG = np.einsum("iab,jbc,c->aij", G, G, w)
+        P_qq[:, 3:6, 3:6] += 0.5 * (GG + GG.transpose(0, 2, 1))
+        P_qv = np.array(qv[:3])
+        P_qv[:, 3:6, :] += np.einsum("iab,bk->aik", G, w_v)
+        P_qa = aq[:3].transpose(0, 2, 1).copy()
+        P_qa[:, 3:6, :] += np.einsum("iab,bk->aik", G, w_a)
+        rot = lambda T: (R @ T.reshape(3, -1)).reshape(3, nv, nv)  # noqa: E731
+        return R @ w_a, rot(P_qq), rot(P_qv), rot(P_qa), rot(np.ascontiguousarray(vv[:3]))
 
     def _force_terms(self, H: np.ndarray, q: np.ndarray, feet, forces: np.ndarray, Q: slice) -> None:
         """Subtract from the RNEA rows of H the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
@@ -348,6 +366,7 @@ class ContactDynamics:
         at v = a = 0 is J_w^T lambda_f). (The q-lambda block, -dJ_w/dq, is the callers': P_qa.)"""
         nv = self.nv
         zero = np.zeros(nv)
+        total = None
         for i, f in enumerate(feet):
             mf, _ = self._foot_model(f)
             mf.gravity = pin.Motion(-forces[3 * i:3 * i + 3], np.zeros(3))
@@ -355,7 +374,9 @@ class ContactDynamics:
                 gqq = _core.rnea_second_order(mf, q, zero, zero, False)[0]
             finally:
                 mf.gravity = pin.Motion.Zero()
-            H[:nv, Q, Q] -= 0.5 * (gqq + gqq.transpose(0, 2, 1))
+            total = gqq if total is None else total + gqq
+        if total is not None:
+            H[:nv, Q, Q] -= 0.5 * (total + total.transpose(0, 2, 1))
 
     def _kkt_second(self, H: np.ndarray, Y1: np.ndarray, M: np.ndarray, Jw: np.ndarray) -> np.ndarray:
         """y'' (ny, nz, nz) of the KKT unknowns y = (a or v+, lambda) from E(w) = 0, w = (s, y),
@@ -371,7 +392,11 @@ class ContactDynamics:
         rhs[:, :, :ns] += C.transpose(0, 2, 1)
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv], K[:nv, nv:], K[nv:, :nv] = M, -Jw.T, Jw
-        return -np.linalg.solve(K, rhs.reshape(nv + nc, nz * nz)).reshape(nv + nc, nz, nz)
+        # one inverse of the small KKT matrix, then one product over the nz^2 right-hand sides
+        # (LAPACK's solve is several times slower on this many columns)
+        Kinv = np.linalg.inv(K)
+        Kinv *= -1.0
+        return (Kinv @ rhs.reshape(nv + nc, nz * nz)).reshape(nv + nc, nz, nz)
 
     def contact_second(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, feet: tuple[int, ...], ev: NodeEval
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -438,7 +463,7 @@ class ContactDynamics:
         """The KKT system's second derivatives from its blocks H at q (M(q) by CRBA, symmetrised),
         split into the (nv, nz, nz) accelerations or velocity jump and the (3 nc, nz, nz) forces."""
         M = pin.crba(self.model, self.data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = _symmetric_from_upper(M)
         Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
         return Y[:self.nv], Y[self.nv:]
 
