@@ -324,10 +324,11 @@ class ContactDynamics:
             aux["feet"][f] = (mf, mf.createData())
         return aux["feet"][f]
 
-    def _point_terms(self, f: int, q: np.ndarray, v: np.ndarray, a: np.ndarray):
-        """Derivatives of the world acceleration p''(q, v, a) of the origin of frame f (q in the
-        right chart): (P_a = J_w (3, nv), P_qq, P_qv, P_qa, P_vv (3, nv, nv), indexed [c, first,
-        second], P_qq the symmetric chart Hessian).
+    def _point_terms(self, feet: tuple[int, ...], q: np.ndarray, v: np.ndarray, a: np.ndarray):
+        """Derivatives of the world accelerations p''(q, v, a) of the origins of the frames
+        ``feet`` (q in the right chart), stacked over the feet (3 rows each): (P_a = J_w (3 nf, nv),
+        P_qq, P_qv, P_qa, P_vv (3 nf, nv, nv), indexed [c, first, second], P_qq the symmetric chart
+        Hessian).
 
         Exact, from an identity: the RNEA of the robot with every inertia zero and a unit point mass
         at the frame's origin is tau = J_w(q)^T p''(q, v, a) (the point's Newton equation; no
@@ -335,30 +336,35 @@ class ContactDynamics:
         so p'' = oR_b w with w = tau[0:3]. Pinocchio's first- and second-order RNEA derivatives
         of that model give w's, oR_b(q exp(eta)) = oR_b exp(eta_rot) gives the rest (product rule).
         """
-        mf, df = self._foot_model(f)
-        nv = self.nv
-        w = pin.rnea(mf, df, q, v, a)[:3].copy()
+        nv, nf = self.nv, len(feet)
+        W = np.empty((nf, 3))
+        Wq, Wv, Wa = np.empty((nf, 3, nv)), np.empty((nf, 3, nv)), np.empty((nf, 3, nv))
+        P_qq, P_qv, P_qa, P_vv = (np.empty((nf, 3, nv, nv)) for _ in range(4))
+        for i, f in enumerate(feet):
+            mf, df = self._foot_model(f)
+            W[i] = pin.rnea(mf, df, q, v, a)[:3]
+            dq, dv, M = pin.computeRNEADerivatives(mf, df, q, v, a)
+            Wq[i], Wv[i], Wa[i] = dq[:3], dv[:3], _symmetric_from_upper(M)[:3]
+            qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
+            P_qq[i], P_qv[i], P_qa[i], P_vv[i] = qq[:3], qv[:3], aq[:3].transpose(0, 2, 1), vv[:3]
         R = pin.XYZQUATToSE3(q[:7]).rotation  # the base rotation (RNEA does not fill oMi)
-        dq, dv, M = pin.computeRNEADerivatives(mf, df, q, v, a)
-        w_q, w_v = dq[:3], dv[:3]
-        w_a = _symmetric_from_upper(M)[:3]
-        qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
         # E_i = skew(e_(i-3)) on the free flyer's rotational directions i = 3..5, zero elsewhere:
         # the product rule's terms touch those rows (and columns) only
         G = _GENERATORS
-        P_qq = qq[:3] + qq[:3].transpose(0, 2, 1)
+        P_qq += P_qq.transpose(0, 1, 3, 2)
         P_qq *= 0.5
-        Gw_q = np.einsum("iab,bj->aij", G, w_q)  # (3, 3, nv): [a, i - 3, j]
-        P_qq[:, 3:6, :] += Gw_q
-        P_qq[:, :, 3:6] += Gw_q.transpose(0, 2, 1)
-        GG = np.einsum("iab,jbc,c->aij", G, G, w)
-        P_qq[:, 3:6, 3:6] += 0.5 * (GG + GG.transpose(0, 2, 1))
-        P_qv = np.array(qv[:3])
-        P_qv[:, 3:6, :] += np.einsum("iab,bk->aik", G, w_v)
-        P_qa = aq[:3].transpose(0, 2, 1).copy()
-        P_qa[:, 3:6, :] += np.einsum("iab,bk->aik", G, w_a)
-        rot = lambda T: (R @ T.reshape(3, -1)).reshape(3, nv, nv)  # noqa: E731
-        return R @ w_a, rot(P_qq), rot(P_qv), rot(P_qa), rot(np.ascontiguousarray(vv[:3]))
+        Gw_q = np.einsum("iab,fbj->faij", G, Wq)  # (nf, 3, 3, nv): [f, a, i - 3, j]
+        P_qq[:, :, 3:6, :] += Gw_q
+        P_qq[:, :, :, 3:6] += Gw_q.transpose(0, 1, 3, 2)
+        GG = np.einsum("iab,jbc,fc->faij", G, G, W)
+        P_qq[:, :, 3:6, 3:6] += 0.5 * (GG + GG.transpose(0, 1, 3, 2))
+        P_qv[:, :, 3:6, :] += np.einsum("iab,fbk->faik", G, Wv)
+        P_qa[:, :, 3:6, :] += np.einsum("iab,fbk->faik", G, Wa)
+
+        def rot(T):  # oR_b applied to each foot's 3 rows
+            return (R @ T.reshape(nf, 3, nv * nv)).reshape(3 * nf, nv, nv)
+
+        return (R @ Wa).reshape(3 * nf, nv), rot(P_qq), rot(P_qv), rot(P_qa), rot(P_vv)
 
     def _force_terms(self, H: np.ndarray, q: np.ndarray, feet, forces: np.ndarray, Q: slice) -> None:
         """Subtract from the RNEA rows of H the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
@@ -385,18 +391,23 @@ class ContactDynamics:
         so E_ww[X, X] = E_ss + E_sy Y1 + its transpose, without forming X."""
         nv, nc, nz = self.nv, Jw.shape[0], Y1.shape[1]
         ny, ns = H.shape[0], 2 * nv
-        rhs = np.zeros((ny, nz, nz))
-        rhs[:, :ns, :ns] = H[:, :ns, :ns]
-        C = (H[:, :ns, ns:].reshape(ny * ns, -1) @ Y1).reshape(ny, ns, nz)
-        rhs[:, :ns, :] += C
-        rhs[:, :, :ns] += C.transpose(0, 2, 1)
+        # the rows in s of the symmetric E_ww[X, X] (its u-u block is zero: X's u columns are y's)
+        rhs = (H[:, :ns, ns:].reshape(ny * ns, -1) @ Y1).reshape(ny, ns, nz)  # E_sy Y1
+        CT = rhs[:, :, :ns].transpose(0, 2, 1).copy()
+        rhs[:, :, :ns] += H[:, :ns, :ns]
+        rhs[:, :, :ns] += CT
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv], K[:nv, nv:], K[nv:, :nv] = M, -Jw.T, Jw
-        # one inverse of the small KKT matrix, then one product over the nz^2 right-hand sides
+        # one inverse of the small KKT matrix, then one product over the right-hand sides
         # (LAPACK's solve is several times slower on this many columns)
         Kinv = np.linalg.inv(K)
         Kinv *= -1.0
-        return (Kinv @ rhs.reshape(nv + nc, nz * nz)).reshape(nv + nc, nz, nz)
+        Ys = (Kinv @ rhs.reshape(ny, ns * nz)).reshape(ny, ns, nz)
+        Y = np.empty((ny, nz, nz))
+        Y[:, :ns] = Ys
+        Y[:, ns:, :ns] = Ys[:, :, ns:].transpose(0, 2, 1)
+        Y[:, ns:, ns:] = 0.0
+        return Y
 
     def contact_second(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, feet: tuple[int, ...], ev: NodeEval
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -417,17 +428,15 @@ class ContactDynamics:
         H[:nv, Q, V], H[:nv, V, Q], H[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
         H[:nv, A, Q], H[:nv, Q, A] = aq, aq.transpose(0, 2, 1)
         self._force_terms(H, q, feet, ev.forces, Q)
-        Jw = np.zeros((nc, nv))
-        for i, f in enumerate(feet):
-            Jw[3 * i:3 * i + 3], P_qq, P_qv, P_qa, P_vv = self._point_terms(f, q, v, ev.acc + Kd * v)
-            r, lc = slice(nv + 3 * i, nv + 3 * i + 3), slice(3 * nv + 3 * i, 3 * nv + 3 * i + 3)
-            H[r, Q, Q] = P_qq + Kp * 0.5 * (P_qa + P_qa.transpose(0, 2, 1))
-            H[r, Q, V] = P_qv + Kd * P_qa
-            H[r, V, Q] = H[r, Q, V].transpose(0, 2, 1)
-            H[r, V, V] = P_vv
-            H[r, Q, A], H[r, A, Q] = P_qa, P_qa.transpose(0, 2, 1)
-            H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
-            H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
+        Jw, P_qq, P_qv, P_qa, P_vv = self._point_terms(feet, q, v, ev.acc + Kd * v)
+        r, lc = slice(nv, nv + nc), slice(3 * nv, 3 * nv + nc)
+        H[r, Q, Q] = P_qq + Kp * 0.5 * (P_qa + P_qa.transpose(0, 2, 1))
+        H[r, Q, V] = P_qv + Kd * P_qa
+        H[r, V, Q] = H[r, Q, V].transpose(0, 2, 1)
+        H[r, V, V] = P_vv
+        H[r, Q, A], H[r, A, Q] = P_qa, P_qa.transpose(0, 2, 1)
+        H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
+        H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
         return self._kkt_second_split(H, ev, q, Jw)
 
     def impulse_second(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], ev: NodeEval
@@ -448,14 +457,12 @@ class ContactDynamics:
         H[:nv, P, Q], H[:nv, Q, P] = aq, aq.transpose(0, 2, 1)
         H[:nv, V, Q], H[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
         self._force_terms(H, q, feet, ev.forces, Q)
-        Jw = np.zeros((nc, nv))
-        for i, f in enumerate(feet):
-            Jw[3 * i:3 * i + 3], P_qq, _, P_qa, _ = self._point_terms(f, q, zero, ev.v_next)
-            r, lc = slice(nv + 3 * i, nv + 3 * i + 3), slice(3 * nv + 3 * i, 3 * nv + 3 * i + 3)
-            H[r, Q, Q] = P_qq
-            H[r, Q, P], H[r, P, Q] = P_qa, P_qa.transpose(0, 2, 1)
-            H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
-            H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
+        Jw, P_qq, _, P_qa, _ = self._point_terms(feet, q, zero, ev.v_next)
+        r, lc = slice(nv, nv + nc), slice(3 * nv, 3 * nv + nc)
+        H[r, Q, Q] = P_qq
+        H[r, Q, P], H[r, P, Q] = P_qa, P_qa.transpose(0, 2, 1)
+        H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
+        H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
         return self._kkt_second_split(H, ev, q, Jw)
 
     def _kkt_second_split(self, H: np.ndarray, ev: NodeEval, q: np.ndarray, Jw: np.ndarray

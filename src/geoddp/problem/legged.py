@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..lie import NONCOMMUTATIVE
 from ..lie import product as cfg
 from ..models import integrators as integ
 from ..models.contact import ContactDynamics, friction_cone
@@ -309,10 +310,15 @@ class ContactProblem:
         r(eta) = r0 + K eta - 1/2 K D(K eta, K eta) + O(3) (zero on the commutative joints)."""
         nv = self.model.nv
         r0 = cfg.difference(self.model, self.groups, q_ref, q)
-        K = cfg.block_Jr_inv(self.groups, nv, r0)
-        D, _ = cfg.second_order_tensors(self.groups, nv, r0)
-        Ds = 0.5 * (D + D.transpose(0, 2, 1))
-        return -K.T @ np.einsum("a,abc->bc", K.T @ c, Ds) @ K
+        out = np.zeros((nv, nv))
+        for g in self.groups:  # D is zero on the commutative factors and across factors
+            if g.kind in NONCOMMUTATIVE:
+                s = g.slice
+                K = NONCOMMUTATIVE[g.kind].right_jacobian_inv(r0[s])
+                D = cfg.group_second_order_tensors(g.kind, r0[None, s])[0][0]
+                Ds = 0.5 * (D + D.transpose(0, 2, 1))
+                out[s, s] = -K.T @ np.einsum("a,abc->bc", K.T @ c[s], Ds) @ K
+        return out
 
     def _gravity_curvature(self, model: pin.Model, data: pin.Data, q: np.ndarray, force: np.ndarray) -> np.ndarray:
         """Chart Hessian (nv, nv) of a potential with generalised force J^T ``force``: the model's
@@ -371,10 +377,12 @@ class ContactProblem:
         Hs[:nv, :nv] += scale * curv
         if not terminal:
             A, lb, ub = self.cone
+            nz = Hs.shape[0]
             for i in range(len(node.feet)):
                 rows = slice(3 * i, 3 * i + 3)
-                ex, _ = _barrier(A @ ev.forces[rows], lb, ub)
-                Hs += (c.friction_cone * self.dt) * np.einsum("r,rc,cij->ij", ex, A, L2[rows])
+                ex, mask = _barrier(A @ ev.forces[rows], lb, ub)
+                if mask.any():  # inside the cone the barrier is flat
+                    Hs += (c.friction_cone * self.dt) * ((ex @ A) @ L2[rows].reshape(3, -1)).reshape(nz, nz)
         return Hs
 
     def second_order_node(self, k: int, traj: Trajectory, ev=None):
