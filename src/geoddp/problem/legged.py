@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from .. import kernels
 from ..lie import NONCOMMUTATIVE
 from ..lie import product as cfg
 from ..models import integrators as integ
@@ -315,7 +316,10 @@ class ContactProblem:
             if g.kind in NONCOMMUTATIVE:
                 s = g.slice
                 K = NONCOMMUTATIVE[g.kind].right_jacobian_inv(r0[s])
-                D = cfg.group_second_order_tensors(g.kind, r0[None, s])[0][0]
+                if g.kind == "se3":  # the compiled core's exact dJr (the Python one differences Jr)
+                    D = kernels.core.se3_jr_derivative(np.ascontiguousarray(r0[s])).reshape(6, 6, 6)
+                else:
+                    D = cfg.group_second_order_tensors(g.kind, r0[None, s])[0][0]
                 Ds = 0.5 * (D + D.transpose(0, 2, 1))
                 out[s, s] = -K.T @ np.einsum("a,abc->bc", K.T @ c[s], Ds) @ K
         return out
