@@ -58,7 +58,8 @@ LOCAL = pin.ReferenceFrame.LOCAL
 
 
 def skew(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    x, y, z = w.tolist()  # Python floats: a fraction of the cost of indexing the array
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 # skew(e_i), i = 0..2: d/d eta_(3+i) of oR_b exp(eta_rot) = oR_b skew(e_i) (the free flyer's
@@ -66,6 +67,17 @@ def skew(w: np.ndarray) -> np.ndarray:
 _GENERATORS = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
                         [[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]],
                         [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+
+
+# the Levi-Civita symbol: skew(w)[a, b] = -sum_c EPS[a, b, c] w_c
+_EPS = np.zeros((3, 3, 3))
+_EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
+_EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
+
+
+def skew_stack(W: np.ndarray) -> np.ndarray:
+    """(n, 3, 3): skew(w) of each row of W (n, 3)."""
+    return -np.einsum("abc,nc->nab", _EPS, W)
 
 
 def _symmetric_from_upper(M: np.ndarray) -> np.ndarray:
@@ -199,8 +211,11 @@ class ContactDynamics:
         ev = NodeEval(q_next, v_next, lam, acc=a)
         if not derivatives:
             return ev
-        nc, nu = 3 * len(feet), self.nu
-        lam_local = [R.T @ lam[3 * i:3 * i + 3] for i, (_, R, *_r) in enumerate(terms)]
+        nf, nu = len(feet), self.nu
+        nc = 3 * nf
+        Js = np.array([t[0] for t in terms]).reshape(nf, 6, nv)  # LOCAL Jacobians, stacked over the feet
+        Rs = np.array([t[1] for t in terms]).reshape(nf, 3, 3)
+        lam_local = np.einsum("fba,fb->fa", Rs, lam.reshape(nf, 3))  # oRf^T lambda_f
         fext = [pin.Force.Zero() for _ in range(m.njoints)]
         for f, ll in zip(feet, lam_local):
             fr = m.frames[f]
@@ -208,36 +223,33 @@ class ContactDynamics:
         dtau_dq, dtau_dv, M = pin.computeRNEADerivatives(m, d, q, v, a, fext)
         M = _symmetric_from_upper(M)
         nz = 2 * nv + nu
-        F1 = np.zeros((nv, nz))
-        F1[:, :nv], F1[:, nv:2 * nv], F1[:, 2 * nv:] = dtau_dq, dtau_dv, -self.S
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv] = M
         rhs = np.zeros((nv + nc, nz))
-        rhs[:nv] = F1
+        rhs[:nv, :nv], rhs[:nv, nv:2 * nv], rhs[:nv, 2 * nv:] = dtau_dq, dtau_dv, -self.S
         if feet:
             Kp, Kd = self.gains
             pin.computeForwardKinematicsDerivatives(m, d, q, v, a)
-            for i, (f, (J, R, vf, _, dp_local)) in enumerate(zip(feet, terms)):
-                v_dq, a_dq, a_dv, _ = pin.getFrameAccelerationDerivatives(m, d, f, LOCAL)
-                wx, vx = skew(vf.angular), skew(vf.linear)
-                r = slice(nv + 3 * i, nv + 3 * i + 3)
-                h_q = a_dq[:3] + wx @ v_dq[:3] - vx @ v_dq[3:]
-                h_v = a_dv[:3] + wx @ J[:3] - vx @ J[3:]
-                if Kp != 0.0:
-                    h_q = h_q + Kp * (skew(dp_local) @ J[3:] + J[:3])
-                if Kd != 0.0:
-                    h_q = h_q + Kd * v_dq[:3]
-                    h_v = h_v + Kd * J[:3]
-                K[:nv, r] = -J[:3].T
-                K[r, :nv] = J[:3]
-                rhs[r, :nv], rhs[r, nv:2 * nv] = h_q, h_v
+            V_dq, A_dq, A_dv = np.empty((nf, 6, nv)), np.empty((nf, 6, nv)), np.empty((nf, 6, nv))
+            for i, f in enumerate(feet):
+                V_dq[i], A_dq[i], A_dv[i], _ = pin.getFrameAccelerationDerivatives(m, d, f, LOCAL)
+            Wx = skew_stack(np.array([t[2].angular for t in terms]))
+            Vx = skew_stack(np.array([t[2].linear for t in terms]))
+            h_q = A_dq[:, :3] + Wx @ V_dq[:, :3] - Vx @ V_dq[:, 3:]
+            h_v = A_dv[:, :3] + Wx @ Js[:, :3] - Vx @ Js[:, 3:]
+            if Kp != 0.0:
+                h_q = h_q + Kp * (skew_stack(np.array([t[4] for t in terms])) @ Js[:, 3:] + Js[:, :3])
+            if Kd != 0.0:
+                h_q = h_q + Kd * V_dq[:, :3]
+                h_v = h_v + Kd * Js[:, :3]
+            Jlin = Js[:, :3].reshape(nc, nv)
+            K[:nv, nv:] = -Jlin.T
+            K[nv:, :nv] = Jlin
+            rhs[nv:, :nv], rhs[nv:, nv:2 * nv] = h_q.reshape(nc, nv), h_v.reshape(nc, nv)
         sol = -(np.linalg.inv(K) @ rhs)  # LAPACK's solve is slower on these small systems
         da, dlam = sol[:nv], sol[nv:]
-        Lz = np.empty((nc, nz))
-        for i, (J, R, *_r) in enumerate(terms):
-            rows = slice(3 * i, 3 * i + 3)
-            Lz[rows] = R @ dlam[rows]
-            Lz[rows, :nv] -= R @ skew(lam_local[i]) @ J[3:]
+        Lz = (Rs @ dlam.reshape(nf, 3, nz)).reshape(nc, nz)
+        Lz[:, :nv] -= (Rs @ skew_stack(lam_local) @ Js[:, 3:]).reshape(nc, nv)
         dvn = dt * da
         dvn[:, nv:2 * nv] += np.eye(nv)
         Dq = pin.dIntegrate(m, q, w, pin.ArgumentPosition.ARG0)
