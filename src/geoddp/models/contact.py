@@ -379,7 +379,7 @@ class ContactDynamics:
         return (R @ Wa).reshape(3 * nf, nv), rot(P_qq), rot(P_qv), rot(P_qa), rot(P_vv)
 
     def _force_terms(self, H: np.ndarray, q: np.ndarray, feet, forces: np.ndarray, Q: slice) -> None:
-        """Subtract from the RNEA rows of H the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
+        """Subtract from the RNEA rows of H (E_ss) the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
         (world forces held), from the foot's point-mass model under the gravity -lambda_f (its RNEA
         at v = a = 0 is J_w^T lambda_f). (The q-lambda block, -dJ_w/dq, is the callers': P_qa.)"""
         nv = self.nv
@@ -396,17 +396,19 @@ class ContactDynamics:
         if total is not None:
             H[:nv, Q, Q] -= 0.5 * (total + total.transpose(0, 2, 1))
 
-    def _kkt_second(self, H: np.ndarray, Y1: np.ndarray, M: np.ndarray, Jw: np.ndarray) -> np.ndarray:
+    def _kkt_second(self, Hss: np.ndarray, Hsy: np.ndarray, Y1: np.ndarray, M: np.ndarray, Jw: np.ndarray
+                    ) -> np.ndarray:
         """y'' (ny, nz, nz) of the KKT unknowns y = (a or v+, lambda) from E(w) = 0, w = (s, y),
         s = (q, v): E_y y'' = -E_ww[X, X], X = dw/dz = [[I, 0], [Y1]] (s is z's first 2 nv
         entries; Y1 = dy/dz (ny, nz)), E_y = [[M, -J_w^T], [J_w, 0]]. E is affine in y (E_yy = 0),
-        so E_ww[X, X] = E_ss + E_sy Y1 + its transpose, without forming X."""
+        so E_ww[X, X] = E_ss + E_sy Y1 + its transpose, without forming X: the blocks
+        Hss = E_ss (ny, 2 nv, 2 nv) and Hsy = E_sy (ny, 2 nv, ny) are all it reads."""
         nv, nc, nz = self.nv, Jw.shape[0], Y1.shape[1]
-        ny, ns = H.shape[0], 2 * nv
+        ny, ns = Hss.shape[0], 2 * nv
         # the rows in s of the symmetric E_ww[X, X] (its u-u block is zero: X's u columns are y's)
-        rhs = (H[:, :ns, ns:].reshape(ny * ns, -1) @ Y1).reshape(ny, ns, nz)  # E_sy Y1
+        rhs = (Hsy.reshape(ny * ns, ny) @ Y1).reshape(ny, ns, nz)  # E_sy Y1
         CT = rhs[:, :, :ns].transpose(0, 2, 1).copy()
-        rhs[:, :, :ns] += H[:, :ns, :ns]
+        rhs[:, :, :ns] += Hss
         rhs[:, :, :ns] += CT
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv], K[:nv, nv:], K[nv:, :nv] = M, -Jw.T, Jw
@@ -430,26 +432,25 @@ class ContactDynamics:
         in the world frame E2 = p''(q, v, a + Kd v) + Kp p(q) = 0 (the foot frame's condition
         rotated, the same solution)."""
         nv, nc = self.nv, 3 * len(feet)
-        nz = ev.Fz.shape[1]
         Kp, Kd = self.gains
-        Q, V, A = slice(0, nv), slice(nv, 2 * nv), slice(2 * nv, 3 * nv)
-        nw = 3 * nv + nc
-        H = np.zeros((nv + nc, nw, nw))
+        Q, V = slice(0, nv), slice(nv, 2 * nv)
+        ny = nv + nc
+        # E_ww's blocks in (s, s) and (s, y), s = (q, v), y = (a, lambda) (E_yy = 0; E_ys is E_sy's transpose)
+        Hss, Hsy = np.zeros((ny, 2 * nv, 2 * nv)), np.zeros((ny, 2 * nv, ny))
         qq, vv, qv, aq = _core.rnea_second_order(self.model, q, v, ev.acc, False)
-        H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
-        H[:nv, Q, V], H[:nv, V, Q], H[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
-        H[:nv, A, Q], H[:nv, Q, A] = aq, aq.transpose(0, 2, 1)
-        self._force_terms(H, q, feet, ev.forces, Q)
+        Hss[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+        Hss[:nv, Q, V], Hss[:nv, V, Q], Hss[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
+        Hsy[:nv, Q, :nv] = aq.transpose(0, 2, 1)
+        self._force_terms(Hss, q, feet, ev.forces, Q)
         Jw, P_qq, P_qv, P_qa, P_vv = self._point_terms(feet, q, v, ev.acc + Kd * v)
-        r, lc = slice(nv, nv + nc), slice(3 * nv, 3 * nv + nc)
-        H[r, Q, Q] = P_qq + Kp * 0.5 * (P_qa + P_qa.transpose(0, 2, 1))
-        H[r, Q, V] = P_qv + Kd * P_qa
-        H[r, V, Q] = H[r, Q, V].transpose(0, 2, 1)
-        H[r, V, V] = P_vv
-        H[r, Q, A], H[r, A, Q] = P_qa, P_qa.transpose(0, 2, 1)
-        H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
-        H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
-        return self._kkt_second_split(H, ev, q, Jw)
+        r = slice(nv, ny)
+        Hss[r, Q, Q] = P_qq + Kp * 0.5 * (P_qa + P_qa.transpose(0, 2, 1))
+        Hss[r, Q, V] = P_qv + Kd * P_qa
+        Hss[r, V, Q] = Hss[r, Q, V].transpose(0, 2, 1)
+        Hss[r, V, V] = P_vv
+        Hsy[r, Q, :nv] = P_qa
+        Hsy[:nv, Q, nv:] = -P_qa.transpose(2, 1, 0)
+        return self._kkt_second_split(Hss, Hsy, ev, q, Jw)
 
     def impulse_second(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], ev: NodeEval
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -458,32 +459,31 @@ class ContactDynamics:
         sum_f J_w,f^T Lambda_f = 0 (M(q) w: the RNEA without gravity at (q, 0, w)) and, per foot,
         E2 = J_w(q) v+ = p''(q, 0, v+) = 0."""
         nv, nc = self.nv, 3 * len(feet)
-        nz = ev.Fz.shape[1]
-        Q, V, P = slice(0, nv), slice(nv, 2 * nv), slice(2 * nv, 3 * nv)
-        nw = 3 * nv + nc
-        H = np.zeros((nv + nc, nw, nw))
+        Q, V = slice(0, nv), slice(nv, 2 * nv)
+        ny = nv + nc
+        Hss, Hsy = np.zeros((ny, 2 * nv, 2 * nv)), np.zeros((ny, 2 * nv, ny))
         m0, _ = self._aux_models()["zero_gravity"]
         zero = np.zeros(nv)
         qq, _, _, aq = _core.rnea_second_order(m0, q, zero, ev.v_next - v, False)
-        H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
-        H[:nv, P, Q], H[:nv, Q, P] = aq, aq.transpose(0, 2, 1)
-        H[:nv, V, Q], H[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
-        self._force_terms(H, q, feet, ev.forces, Q)
+        Hss[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+        Hsy[:nv, Q, :nv] = aq.transpose(0, 2, 1)
+        Hss[:nv, V, Q], Hss[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
+        self._force_terms(Hss, q, feet, ev.forces, Q)
         Jw, P_qq, _, P_qa, _ = self._point_terms(feet, q, zero, ev.v_next)
-        r, lc = slice(nv, nv + nc), slice(3 * nv, 3 * nv + nc)
-        H[r, Q, Q] = P_qq
-        H[r, Q, P], H[r, P, Q] = P_qa, P_qa.transpose(0, 2, 1)
-        H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
-        H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
-        return self._kkt_second_split(H, ev, q, Jw)
+        r = slice(nv, ny)
+        Hss[r, Q, Q] = P_qq
+        Hsy[r, Q, :nv] = P_qa
+        Hsy[:nv, Q, nv:] = -P_qa.transpose(2, 1, 0)
+        return self._kkt_second_split(Hss, Hsy, ev, q, Jw)
 
-    def _kkt_second_split(self, H: np.ndarray, ev: NodeEval, q: np.ndarray, Jw: np.ndarray
+    def _kkt_second_split(self, Hss: np.ndarray, Hsy: np.ndarray, ev: NodeEval, q: np.ndarray, Jw: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray]:
-        """The KKT system's second derivatives from its blocks H at q (M(q) by CRBA, symmetrised),
-        split into the (nv, nz, nz) accelerations or velocity jump and the (3 nc, nz, nz) forces."""
+        """The KKT system's second derivatives from its blocks (Hss, Hsy) at q (M(q) by CRBA,
+        symmetrised), split into the (nv, nz, nz) accelerations or velocity jump and the
+        (3 nc, nz, nz) forces."""
         M = pin.crba(self.model, self.data, q)
         M = _symmetric_from_upper(M)
-        Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
+        Y = self._kkt_second(Hss, Hsy, np.vstack([ev.Az, ev.Lz]), M, Jw)
         return Y[:self.nv], Y[self.nv:]
 
     # ------------------------------------------------------------------ quasi-static controls
