@@ -2,15 +2,17 @@
 process (in one process their threads compete).
 
 Both start from the example's quasi-static controls (Crocoddyl's ``quasiStatic``; FDDP also from
-its example's states xs = [x0] * (T + 1)). Per solver and gait: iterations, J* (geoddp's as
-Crocoddyl's problem costs geoddp's trajectory), wall time of the solve. Needs the bench
+its example's states xs = [x0] * (T + 1)). FDDP runs twice: with its default threads ("fddp",
+ShootingProblem.nthreads as built) and on one thread ("fddp1"). Per solver and gait: iterations,
+J* (geoddp's as Crocoddyl's problem costs geoddp's trajectory), wall time of the solve and the
+process's CPU time over it (cpu_s: less sensitive to other jobs on shared cores). Needs the bench
 environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data). geoddp's processes run numpy's BLAS
 on one thread (OPENBLAS_NUM_THREADS=1 unless set): its node models' products are small (tens of
 rows), and on two shared cores BLAS's threads made the trot's second-order solve 1.4x slower;
 FDDP keeps its default threads.
 
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py            # all, results log
-    .venv-bench/bin/python benchmarks/legged_vs_fddp.py one fddp trot
+    .venv-bench/bin/python benchmarks/legged_vs_fddp.py one fddp trot      # or fddp1, first, second, switch
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-SOLVERS = ("fddp", "first", "second", "switch")
+SOLVERS = ("fddp", "fddp1", "first", "second", "switch")
 GAITS = ("walk", "trot")
 
 
@@ -50,20 +52,24 @@ def crocoddyl_cost(croc, problem, q, v, u) -> tuple[float, float]:
     return float(J), gap
 
 
-def fddp(gait: str, max_iter: int = 200) -> dict:
+def fddp(gait: str, max_iter: int = 200, threads: int | None = None) -> dict:
+    """FDDP with its default threads (``threads`` None) or ``threads`` of them."""
     import crocoddyl
 
     from geoddp.scene.legged import load_anymal
 
     croc, x0 = crocoddyl_problem(load_anymal(), gait)
+    if threads is not None:
+        croc.nthreads = threads
     solver = crocoddyl.SolverFDDP(croc)
     xs = [x0] * (croc.T + 1)
     us = croc.quasiStatic([x0] * croc.T)
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     converged = solver.solve(xs, us, max_iter, False)
-    elapsed = time.perf_counter() - t
-    return {"solver": "fddp", "gait": gait, "iterations": int(solver.iter), "J": float(solver.cost),
-            "converged": bool(converged), "time_s": elapsed}
+    elapsed, cpu = time.perf_counter() - t, time.process_time() - c
+    return {"solver": "fddp" if threads is None else f"fddp{threads}", "gait": gait, "threads": int(croc.nthreads),
+            "iterations": int(solver.iter), "J": float(solver.cost), "converged": bool(converged),
+            "time_s": elapsed, "cpu_s": cpu}
 
 
 def geoddp(gait: str, expansion: str, max_iter: int = 200) -> dict:
@@ -72,11 +78,11 @@ def geoddp(gait: str, expansion: str, max_iter: int = 200) -> dict:
 
     robot = load_anymal()
     problem = anymal_gait(gait, robot)
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     res = solve(problem, SolverOptions(expansion=expansion, max_iter=max_iter))
-    elapsed = time.perf_counter() - t
+    elapsed, cpu = time.perf_counter() - t, time.process_time() - c
     out = {"solver": expansion, "gait": gait, "iterations": int(res.iterations), "J": float(res.cost),
-           "converged": bool(res.converged), "status": res.status, "time_s": elapsed}
+           "converged": bool(res.converged), "status": res.status, "time_s": elapsed, "cpu_s": cpu}
     try:
         croc, _ = crocoddyl_problem(robot, gait)
         out["J_crocoddyl"], out["max_gap"] = crocoddyl_cost(croc, problem, res.q, res.v, res.controls)
@@ -86,7 +92,9 @@ def geoddp(gait: str, expansion: str, max_iter: int = 200) -> dict:
 
 
 def one(solver: str, gait: str) -> dict:
-    return fddp(gait) if solver == "fddp" else geoddp(gait, solver)
+    if solver == "fddp":
+        return fddp(gait)
+    return fddp(gait, threads=1) if solver == "fddp1" else geoddp(gait, solver)
 
 
 def main(argv: list[str]) -> None:
@@ -97,7 +105,7 @@ def main(argv: list[str]) -> None:
     for gait in GAITS:
         for solver in SOLVERS:
             env = dict(os.environ)
-            if solver != "fddp":
+            if not solver.startswith("fddp"):
                 env.setdefault("OPENBLAS_NUM_THREADS", "1")
             out = subprocess.run([sys.executable, __file__, "one", solver, gait], capture_output=True, text=True,
                                  check=True, env=env)

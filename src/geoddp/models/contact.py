@@ -58,16 +58,40 @@ LOCAL = pin.ReferenceFrame.LOCAL
 
 
 def skew(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    x, y, z = w.tolist()  # Python floats: a fraction of the cost of indexing the array
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def _rotation_generators(nv: int) -> np.ndarray:
-    """(nv, 3, 3): skew(e_i) for the free flyer's rotational tangent directions 3..5, else 0
-    (d/d eta_i of oR_b exp(eta_rot) = oR_b E_i)."""
-    E = np.zeros((nv, 3, 3))
-    for i in range(3):
-        E[3 + i] = skew(np.eye(3)[i])
-    return E
+# skew(e_i), i = 0..2: d/d eta_(3+i) of oR_b exp(eta_rot) = oR_b skew(e_i) (the free flyer's
+# rotational tangent directions 3..5; the other directions leave oR_b unchanged)
+_GENERATORS = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+                        [[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]],
+                        [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+
+
+# the Levi-Civita symbol: skew(w)[a, b] = -sum_c EPS[a, b, c] w_c
+_EPS = np.zeros((3, 3, 3))
+_EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
+_EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
+
+
+def skew_stack(W: np.ndarray) -> np.ndarray:
+    """(n, 3, 3): skew(w) of each row of W (n, 3)."""
+    return -np.einsum("abc,nc->nab", _EPS, W)
+
+
+def _symmetric_from_upper(M: np.ndarray) -> np.ndarray:
+    """A copy of the square M with its strict lower triangle replaced by the upper one's mirror
+    (Pinocchio fills the upper triangle of the mass matrix)."""
+    S = np.array(M)
+    lower = _LOWER.get(S.shape[0])
+    if lower is None:
+        lower = _LOWER[S.shape[0]] = np.tril_indices(S.shape[0], -1)
+    S[lower] = S.T[lower]
+    return S
+
+
+_LOWER: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
 
 def friction_cone(mu: float, facets: int = 4, min_force: float = 0.0, max_force: float = np.inf
@@ -187,45 +211,45 @@ class ContactDynamics:
         ev = NodeEval(q_next, v_next, lam, acc=a)
         if not derivatives:
             return ev
-        nc, nu = 3 * len(feet), self.nu
-        lam_local = [R.T @ lam[3 * i:3 * i + 3] for i, (_, R, *_r) in enumerate(terms)]
+        nf, nu = len(feet), self.nu
+        nc = 3 * nf
+        Js = np.array([t[0] for t in terms]).reshape(nf, 6, nv)  # LOCAL Jacobians, stacked over the feet
+        Rs = np.array([t[1] for t in terms]).reshape(nf, 3, 3)
+        lam_local = np.einsum("fba,fb->fa", Rs, lam.reshape(nf, 3))  # oRf^T lambda_f
         fext = [pin.Force.Zero() for _ in range(m.njoints)]
         for f, ll in zip(feet, lam_local):
             fr = m.frames[f]
             fext[fr.parentJoint] += fr.placement.act(pin.Force(ll, np.zeros(3)))
         dtau_dq, dtau_dv, M = pin.computeRNEADerivatives(m, d, q, v, a, fext)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = _symmetric_from_upper(M)
         nz = 2 * nv + nu
-        F1 = np.zeros((nv, nz))
-        F1[:, :nv], F1[:, nv:2 * nv], F1[:, 2 * nv:] = dtau_dq, dtau_dv, -self.S
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv] = M
         rhs = np.zeros((nv + nc, nz))
-        rhs[:nv] = F1
+        rhs[:nv, :nv], rhs[:nv, nv:2 * nv], rhs[:nv, 2 * nv:] = dtau_dq, dtau_dv, -self.S
         if feet:
             Kp, Kd = self.gains
             pin.computeForwardKinematicsDerivatives(m, d, q, v, a)
-            for i, (f, (J, R, vf, _, dp_local)) in enumerate(zip(feet, terms)):
-                v_dq, a_dq, a_dv, _ = pin.getFrameAccelerationDerivatives(m, d, f, LOCAL)
-                wx, vx = skew(vf.angular), skew(vf.linear)
-                r = slice(nv + 3 * i, nv + 3 * i + 3)
-                h_q = a_dq[:3] + wx @ v_dq[:3] - vx @ v_dq[3:]
-                h_v = a_dv[:3] + wx @ J[:3] - vx @ J[3:]
-                if Kp != 0.0:
-                    h_q = h_q + Kp * (skew(dp_local) @ J[3:] + J[:3])
-                if Kd != 0.0:
-                    h_q = h_q + Kd * v_dq[:3]
-                    h_v = h_v + Kd * J[:3]
-                K[:nv, r] = -J[:3].T
-                K[r, :nv] = J[:3]
-                rhs[r, :nv], rhs[r, nv:2 * nv] = h_q, h_v
-        sol = -np.linalg.solve(K, rhs)
+            V_dq, A_dq, A_dv = np.empty((nf, 6, nv)), np.empty((nf, 6, nv)), np.empty((nf, 6, nv))
+            for i, f in enumerate(feet):
+                V_dq[i], A_dq[i], A_dv[i], _ = pin.getFrameAccelerationDerivatives(m, d, f, LOCAL)
+            Wx = skew_stack(np.array([t[2].angular for t in terms]))
+            Vx = skew_stack(np.array([t[2].linear for t in terms]))
+            h_q = A_dq[:, :3] + Wx @ V_dq[:, :3] - Vx @ V_dq[:, 3:]
+            h_v = A_dv[:, :3] + Wx @ Js[:, :3] - Vx @ Js[:, 3:]
+            if Kp != 0.0:
+                h_q = h_q + Kp * (skew_stack(np.array([t[4] for t in terms])) @ Js[:, 3:] + Js[:, :3])
+            if Kd != 0.0:
+                h_q = h_q + Kd * V_dq[:, :3]
+                h_v = h_v + Kd * Js[:, :3]
+            Jlin = Js[:, :3].reshape(nc, nv)
+            K[:nv, nv:] = -Jlin.T
+            K[nv:, :nv] = Jlin
+            rhs[nv:, :nv], rhs[nv:, nv:2 * nv] = h_q.reshape(nc, nv), h_v.reshape(nc, nv)
+        sol = -(np.linalg.inv(K) @ rhs)  # LAPACK's solve is slower on these small systems
         da, dlam = sol[:nv], sol[nv:]
-        Lz = np.empty((nc, nz))
-        for i, (J, R, *_r) in enumerate(terms):
-            rows = slice(3 * i, 3 * i + 3)
-            Lz[rows] = R @ dlam[rows]
-            Lz[rows, :nv] -= R @ skew(lam_local[i]) @ J[3:]
+        Lz = (Rs @ dlam.reshape(nf, 3, nz)).reshape(nc, nz)
+        Lz[:, :nv] -= (Rs @ skew_stack(lam_local) @ Js[:, 3:]).reshape(nc, nv)
         dvn = dt * da
         dvn[:, nv:2 * nv] += np.eye(nv)
         Dq = pin.dIntegrate(m, q, w, pin.ArgumentPosition.ARG0)
@@ -262,7 +286,7 @@ class ContactDynamics:
         # F1 = M(q) (v+ - v) - J(q)^T Lambda = rnea(q, 0, v+ - v, fext) - g(q)
         dtau_dq, _, M = pin.computeRNEADerivatives(m, d, q, np.zeros(nv), v_next - v, fext)
         dtau_dq = dtau_dq.copy()
-        M = np.triu(M) + np.triu(M, 1).T
+        M = _symmetric_from_upper(M)
         dg_dq = pin.computeGeneralizedGravityDerivatives(m, d, q)
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv] = M
@@ -276,7 +300,7 @@ class ContactDynamics:
             K[:nv, r] = -J[:3].T
             K[r, :nv] = J[:3]
             rhs[r, :nv] = v_dq[:3]
-        sol = -np.linalg.solve(K, rhs)
+        sol = -(np.linalg.inv(K) @ rhs)  # LAPACK's solve is slower on these small systems
         dvn, dimp = sol[:nv], sol[nv:]
         Lz = np.empty((nc, nz))
         for i, (J, R) in enumerate(zip(Js, Rs)):
@@ -312,10 +336,11 @@ class ContactDynamics:
             aux["feet"][f] = (mf, mf.createData())
         return aux["feet"][f]
 
-    def _point_terms(self, f: int, q: np.ndarray, v: np.ndarray, a: np.ndarray):
-        """Derivatives of the world acceleration p''(q, v, a) of the origin of frame f (q in the
-        right chart): (P_a = J_w (3, nv), P_qq, P_qv, P_qa, P_vv (3, nv, nv), indexed [c, first,
-        second], P_qq the symmetric chart Hessian).
+    def _point_terms(self, feet: tuple[int, ...], q: np.ndarray, v: np.ndarray, a: np.ndarray):
+        """Derivatives of the world accelerations p''(q, v, a) of the origins of the frames
+        ``feet`` (q in the right chart), stacked over the feet (3 rows each): (P_a = J_w (3 nf, nv),
+        P_qq, P_qv, P_qa, P_vv (3 nf, nv, nv), indexed [c, first, second], P_qq the symmetric chart
+        Hessian).
 
         Exact, from an identity: the RNEA of the robot with every inertia zero and a unit point mass
         at the frame's origin is tau = J_w(q)^T p''(q, v, a) (the point's Newton equation; no
@@ -323,31 +348,43 @@ class ContactDynamics:
         so p'' = oR_b w with w = tau[0:3]. Pinocchio's first- and second-order RNEA derivatives
         of that model give w's, oR_b(q exp(eta)) = oR_b exp(eta_rot) gives the rest (product rule).
         """
-        mf, df = self._foot_model(f)
-        nv = self.nv
-        w = pin.rnea(mf, df, q, v, a)[:3].copy()
+        nv, nf = self.nv, len(feet)
+        W = np.empty((nf, 3))
+        Wq, Wv, Wa = np.empty((nf, 3, nv)), np.empty((nf, 3, nv)), np.empty((nf, 3, nv))
+        P_qq, P_qv, P_qa, P_vv = (np.empty((nf, 3, nv, nv)) for _ in range(4))
+        for i, f in enumerate(feet):
+            mf, df = self._foot_model(f)
+            W[i] = pin.rnea(mf, df, q, v, a)[:3]
+            dq, dv, M = pin.computeRNEADerivatives(mf, df, q, v, a)
+            Wq[i], Wv[i], Wa[i] = dq[:3], dv[:3], _symmetric_from_upper(M)[:3]
+            qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
+            P_qq[i], P_qv[i], P_qa[i], P_vv[i] = qq[:3], qv[:3], aq[:3].transpose(0, 2, 1), vv[:3]
         R = pin.XYZQUATToSE3(q[:7]).rotation  # the base rotation (RNEA does not fill oMi)
-        dq, dv, M = pin.computeRNEADerivatives(mf, df, q, v, a)
-        M = np.triu(M) + np.triu(M, 1).T
-        w_q, w_v, w_a = dq[:3].copy(), dv[:3].copy(), M[:3].copy()
-        qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
-        w_qq = 0.5 * (qq[:3] + qq[:3].transpose(0, 2, 1))
-        w_qa = aq[:3].transpose(0, 2, 1)
-        E = _rotation_generators(nv)
-        Ew_q = np.einsum("iab,bj->aij", E, w_q)
-        P_qq = w_qq + Ew_q + Ew_q.transpose(0, 2, 1) + 0.5 * (np.einsum("iab,jbc,c->aij", E, E, w)
-                                                             + np.einsum("jab,ibc,c->aij", E, E, w))
-        P_qv = qv[:3] + np.einsum("iab,bk->aik", E, w_v)
-        P_qa = w_qa + np.einsum("iab,bk->aik", E, w_a)
-        rot = lambda T: np.einsum("ab,bij->aij", R, T)  # noqa: E731
-        return R @ w_a, rot(P_qq), rot(P_qv), rot(P_qa), rot(vv[:3])
+        # E_i = skew(e_(i-3)) on the free flyer's rotational directions i = 3..5, zero elsewhere:
+        # the product rule's terms touch those rows (and columns) only
+        G = _GENERATORS
+        P_qq += P_qq.transpose(0, 1, 3, 2)
+        P_qq *= 0.5
+        Gw_q = np.einsum("iab,fbj->faij", G, Wq)  # (nf, 3, 3, nv): [f, a, i - 3, j]
+        P_qq[:, :, 3:6, :] += Gw_q
+        P_qq[:, :, :, 3:6] += Gw_q.transpose(0, 1, 3, 2)
+        GG = np.einsum("iab,jbc,fc->faij", G, G, W)
+        P_qq[:, :, 3:6, 3:6] += 0.5 * (GG + GG.transpose(0, 1, 3, 2))
+        P_qv[:, :, 3:6, :] += np.einsum("iab,fbk->faik", G, Wv)
+        P_qa[:, :, 3:6, :] += np.einsum("iab,fbk->faik", G, Wa)
+
+        def rot(T):  # oR_b applied to each foot's 3 rows
+            return (R @ T.reshape(nf, 3, nv * nv)).reshape(3 * nf, nv, nv)
+
+        return (R @ Wa).reshape(3 * nf, nv), rot(P_qq), rot(P_qv), rot(P_qa), rot(P_vv)
 
     def _force_terms(self, H: np.ndarray, q: np.ndarray, feet, forces: np.ndarray, Q: slice) -> None:
-        """Subtract from the RNEA rows of H the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
+        """Subtract from the RNEA rows of H (E_ss) the q-q second derivatives of sum_f J_w,f(q)^T lambda_f
         (world forces held), from the foot's point-mass model under the gravity -lambda_f (its RNEA
         at v = a = 0 is J_w^T lambda_f). (The q-lambda block, -dJ_w/dq, is the callers': P_qa.)"""
         nv = self.nv
         zero = np.zeros(nv)
+        total = None
         for i, f in enumerate(feet):
             mf, _ = self._foot_model(f)
             mf.gravity = pin.Motion(-forces[3 * i:3 * i + 3], np.zeros(3))
@@ -355,23 +392,36 @@ class ContactDynamics:
                 gqq = _core.rnea_second_order(mf, q, zero, zero, False)[0]
             finally:
                 mf.gravity = pin.Motion.Zero()
-            H[:nv, Q, Q] -= 0.5 * (gqq + gqq.transpose(0, 2, 1))
+            total = gqq if total is None else total + gqq
+        if total is not None:
+            H[:nv, Q, Q] -= 0.5 * (total + total.transpose(0, 2, 1))
 
-    def _kkt_second(self, H: np.ndarray, Y1: np.ndarray, M: np.ndarray, Jw: np.ndarray) -> np.ndarray:
+    def _kkt_second(self, Hss: np.ndarray, Hsy: np.ndarray, Y1: np.ndarray, M: np.ndarray, Jw: np.ndarray
+                    ) -> np.ndarray:
         """y'' (ny, nz, nz) of the KKT unknowns y = (a or v+, lambda) from E(w) = 0, w = (s, y),
         s = (q, v): E_y y'' = -E_ww[X, X], X = dw/dz = [[I, 0], [Y1]] (s is z's first 2 nv
         entries; Y1 = dy/dz (ny, nz)), E_y = [[M, -J_w^T], [J_w, 0]]. E is affine in y (E_yy = 0),
-        so E_ww[X, X] = E_ss + E_sy Y1 + its transpose, without forming X."""
+        so E_ww[X, X] = E_ss + E_sy Y1 + its transpose, without forming X: the blocks
+        Hss = E_ss (ny, 2 nv, 2 nv) and Hsy = E_sy (ny, 2 nv, ny) are all it reads."""
         nv, nc, nz = self.nv, Jw.shape[0], Y1.shape[1]
-        ny, ns = H.shape[0], 2 * nv
-        rhs = np.zeros((ny, nz, nz))
-        rhs[:, :ns, :ns] = H[:, :ns, :ns]
-        C = (H[:, :ns, ns:].reshape(ny * ns, -1) @ Y1).reshape(ny, ns, nz)
-        rhs[:, :ns, :] += C
-        rhs[:, :, :ns] += C.transpose(0, 2, 1)
+        ny, ns = Hss.shape[0], 2 * nv
+        # the rows in s of the symmetric E_ww[X, X] (its u-u block is zero: X's u columns are y's)
+        rhs = (Hsy.reshape(ny * ns, ny) @ Y1).reshape(ny, ns, nz)  # E_sy Y1
+        CT = rhs[:, :, :ns].transpose(0, 2, 1).copy()
+        rhs[:, :, :ns] += Hss
+        rhs[:, :, :ns] += CT
         K = np.zeros((nv + nc, nv + nc))
         K[:nv, :nv], K[:nv, nv:], K[nv:, :nv] = M, -Jw.T, Jw
-        return -np.linalg.solve(K, rhs.reshape(nv + nc, nz * nz)).reshape(nv + nc, nz, nz)
+        # one inverse of the small KKT matrix, then one product over the right-hand sides
+        # (LAPACK's solve is several times slower on this many columns)
+        Kinv = np.linalg.inv(K)
+        Kinv *= -1.0
+        Ys = (Kinv @ rhs.reshape(ny, ns * nz)).reshape(ny, ns, nz)
+        Y = np.empty((ny, nz, nz))
+        Y[:, :ns] = Ys
+        Y[:, ns:, :ns] = Ys[:, :, ns:].transpose(0, 2, 1)
+        Y[:, ns:, ns:] = 0.0
+        return Y
 
     def contact_second(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, feet: tuple[int, ...], ev: NodeEval
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -382,28 +432,25 @@ class ContactDynamics:
         in the world frame E2 = p''(q, v, a + Kd v) + Kp p(q) = 0 (the foot frame's condition
         rotated, the same solution)."""
         nv, nc = self.nv, 3 * len(feet)
-        nz = ev.Fz.shape[1]
         Kp, Kd = self.gains
-        Q, V, A = slice(0, nv), slice(nv, 2 * nv), slice(2 * nv, 3 * nv)
-        nw = 3 * nv + nc
-        H = np.zeros((nv + nc, nw, nw))
+        Q, V = slice(0, nv), slice(nv, 2 * nv)
+        ny = nv + nc
+        # E_ww's blocks in (s, s) and (s, y), s = (q, v), y = (a, lambda) (E_yy = 0; E_ys is E_sy's transpose)
+        Hss, Hsy = np.zeros((ny, 2 * nv, 2 * nv)), np.zeros((ny, 2 * nv, ny))
         qq, vv, qv, aq = _core.rnea_second_order(self.model, q, v, ev.acc, False)
-        H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
-        H[:nv, Q, V], H[:nv, V, Q], H[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
-        H[:nv, A, Q], H[:nv, Q, A] = aq, aq.transpose(0, 2, 1)
-        self._force_terms(H, q, feet, ev.forces, Q)
-        Jw = np.zeros((nc, nv))
-        for i, f in enumerate(feet):
-            Jw[3 * i:3 * i + 3], P_qq, P_qv, P_qa, P_vv = self._point_terms(f, q, v, ev.acc + Kd * v)
-            r, lc = slice(nv + 3 * i, nv + 3 * i + 3), slice(3 * nv + 3 * i, 3 * nv + 3 * i + 3)
-            H[r, Q, Q] = P_qq + Kp * 0.5 * (P_qa + P_qa.transpose(0, 2, 1))
-            H[r, Q, V] = P_qv + Kd * P_qa
-            H[r, V, Q] = H[r, Q, V].transpose(0, 2, 1)
-            H[r, V, V] = P_vv
-            H[r, Q, A], H[r, A, Q] = P_qa, P_qa.transpose(0, 2, 1)
-            H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
-            H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
-        return self._kkt_second_split(H, ev, q, Jw)
+        Hss[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+        Hss[:nv, Q, V], Hss[:nv, V, Q], Hss[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
+        Hsy[:nv, Q, :nv] = aq.transpose(0, 2, 1)
+        self._force_terms(Hss, q, feet, ev.forces, Q)
+        Jw, P_qq, P_qv, P_qa, P_vv = self._point_terms(feet, q, v, ev.acc + Kd * v)
+        r = slice(nv, ny)
+        Hss[r, Q, Q] = P_qq + Kp * 0.5 * (P_qa + P_qa.transpose(0, 2, 1))
+        Hss[r, Q, V] = P_qv + Kd * P_qa
+        Hss[r, V, Q] = Hss[r, Q, V].transpose(0, 2, 1)
+        Hss[r, V, V] = P_vv
+        Hsy[r, Q, :nv] = P_qa
+        Hsy[:nv, Q, nv:] = -P_qa.transpose(2, 1, 0)
+        return self._kkt_second_split(Hss, Hsy, ev, q, Jw)
 
     def impulse_second(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], ev: NodeEval
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -412,34 +459,31 @@ class ContactDynamics:
         sum_f J_w,f^T Lambda_f = 0 (M(q) w: the RNEA without gravity at (q, 0, w)) and, per foot,
         E2 = J_w(q) v+ = p''(q, 0, v+) = 0."""
         nv, nc = self.nv, 3 * len(feet)
-        nz = ev.Fz.shape[1]
-        Q, V, P = slice(0, nv), slice(nv, 2 * nv), slice(2 * nv, 3 * nv)
-        nw = 3 * nv + nc
-        H = np.zeros((nv + nc, nw, nw))
+        Q, V = slice(0, nv), slice(nv, 2 * nv)
+        ny = nv + nc
+        Hss, Hsy = np.zeros((ny, 2 * nv, 2 * nv)), np.zeros((ny, 2 * nv, ny))
         m0, _ = self._aux_models()["zero_gravity"]
         zero = np.zeros(nv)
         qq, _, _, aq = _core.rnea_second_order(m0, q, zero, ev.v_next - v, False)
-        H[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
-        H[:nv, P, Q], H[:nv, Q, P] = aq, aq.transpose(0, 2, 1)
-        H[:nv, V, Q], H[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
-        self._force_terms(H, q, feet, ev.forces, Q)
-        Jw = np.zeros((nc, nv))
-        for i, f in enumerate(feet):
-            Jw[3 * i:3 * i + 3], P_qq, _, P_qa, _ = self._point_terms(f, q, zero, ev.v_next)
-            r, lc = slice(nv + 3 * i, nv + 3 * i + 3), slice(3 * nv + 3 * i, 3 * nv + 3 * i + 3)
-            H[r, Q, Q] = P_qq
-            H[r, Q, P], H[r, P, Q] = P_qa, P_qa.transpose(0, 2, 1)
-            H[:nv, Q, lc] = -P_qa.transpose(2, 1, 0)
-            H[:nv, lc, Q] = -P_qa.transpose(2, 0, 1)
-        return self._kkt_second_split(H, ev, q, Jw)
+        Hss[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+        Hsy[:nv, Q, :nv] = aq.transpose(0, 2, 1)
+        Hss[:nv, V, Q], Hss[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
+        self._force_terms(Hss, q, feet, ev.forces, Q)
+        Jw, P_qq, _, P_qa, _ = self._point_terms(feet, q, zero, ev.v_next)
+        r = slice(nv, ny)
+        Hss[r, Q, Q] = P_qq
+        Hsy[r, Q, :nv] = P_qa
+        Hsy[:nv, Q, nv:] = -P_qa.transpose(2, 1, 0)
+        return self._kkt_second_split(Hss, Hsy, ev, q, Jw)
 
-    def _kkt_second_split(self, H: np.ndarray, ev: NodeEval, q: np.ndarray, Jw: np.ndarray
+    def _kkt_second_split(self, Hss: np.ndarray, Hsy: np.ndarray, ev: NodeEval, q: np.ndarray, Jw: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray]:
-        """The KKT system's second derivatives from its blocks H at q (M(q) by CRBA, symmetrised),
-        split into the (nv, nz, nz) accelerations or velocity jump and the (3 nc, nz, nz) forces."""
+        """The KKT system's second derivatives from its blocks (Hss, Hsy) at q (M(q) by CRBA,
+        symmetrised), split into the (nv, nz, nz) accelerations or velocity jump and the
+        (3 nc, nz, nz) forces."""
         M = pin.crba(self.model, self.data, q)
-        M = np.triu(M) + np.triu(M, 1).T
-        Y = self._kkt_second(H, np.vstack([ev.Az, ev.Lz]), M, Jw)
+        M = _symmetric_from_upper(M)
+        Y = self._kkt_second(Hss, Hsy, np.vstack([ev.Az, ev.Lz]), M, Jw)
         return Y[:self.nv], Y[self.nv:]
 
     # ------------------------------------------------------------------ quasi-static controls

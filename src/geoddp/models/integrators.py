@@ -113,9 +113,20 @@ def expand(
     G1[:, nv:] = F1
     if F2 is None:
         return Expansion.from_blocks(n, G1)
+    G2 = np.empty((H, n, nz, nz))
+    G2[:, nv:] = F2
+    if semi_implicit:
+        # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)); Jr is the identity on
+        # commutative factors, so the product is taken per non-commutative factor only
+        G2[:, :nv] = dt * F2
+        for g in groups:
+            if g.kind in NONCOMMUTATIVE:
+                s = g.slice
+                G2[:, s] = dt * (Jr[:, s, s] @ F2[:, s].reshape(H, -1, nz * nz)).reshape(H, -1, nz, nz)
+    else:
+        G2[:, :nv] = 0.0
     # dJr and the bracket vanish on commutative factors and across factors, so both terms are
     # assembled per non-commutative factor s (rows p, a, b in s), on all H nodes at once.
-    G2 = np.zeros((H, n, nz, nz))
     for g in groups:
         if g.kind not in NONCOMMUTATIVE:
             continue
@@ -130,10 +141,6 @@ def expand(
         Mz = (0.5 * dt) * (np.swapaxes(A[:, None, s, s], 2, 3) @ (C[None] @ JW[:, None, s, :]))  # (H, d, d, nz)
         G2[:, s, s, :] += Mz
         G2[:, s, :, s] += np.swapaxes(Mz, 2, 3)
-    if semi_implicit:
-        # Jr rho's own second-order part: rho = dt (F1 z + 1/2 F2(z, z)).
-        G2[:, :nv] += dt * (Jr @ F2.reshape(H, nv, nz * nz)).reshape(H, nv, nz, nz)
-    G2[:, nv:] = F2
     return Expansion.from_blocks(n, G1, G2)
 
 

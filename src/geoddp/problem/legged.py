@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from .. import kernels
+from ..lie import NONCOMMUTATIVE
 from ..lie import product as cfg
 from ..models import integrators as integ
 from ..models.contact import ContactDynamics, friction_cone
@@ -36,6 +38,9 @@ from ..validate import InputError, finite_array
 from .contract import Linearisation, Trajectory
 
 KINDS = ("contact", "impulse")
+# contact nodes per call of the Euler step's second-order expansion in linearise (one call per
+# node costs as much as the rest of it; one call for the whole horizon makes arrays of tens of MB)
+_EXPAND_BLOCK = 8
 
 
 @dataclass
@@ -79,9 +84,9 @@ class GaitCosts:
 def _barrier(r: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(r beyond the bounds, 0 inside; the mask of active entries): Crocoddyl's quadratic barrier
     0.5 |excess|^2, its gradient excess and Gauss-Newton Hessian diag(active)."""
-    lo, hi = r < lb, r > ub
-    ex = np.where(hi, r - ub, 0.0) + np.where(lo, r - lb, 0.0)
-    return ex, (lo | hi).astype(float)
+    # r - lb < 0 exactly where r < lb, r - ub > 0 exactly where r > ub (the other one adds 0)
+    ex = np.minimum(r - lb, 0.0) + np.maximum(r - ub, 0.0)
+    return ex, (ex != 0.0).astype(float)
 
 
 class ContactProblem:
@@ -126,6 +131,7 @@ class ContactProblem:
         self.q_neutral = pin.neutral(m)
         self.groups = cfg.joint_groups(m)
         self.cone = friction_cone(self.costs.mu, 4)
+        self._index = (np.arange(nv), np.arange(nv, 2 * nv), np.arange(2 * nv, 2 * nv + self.nu))
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
                                             "dt": self.dt, "integrator": "semi_implicit"}
 
@@ -143,67 +149,73 @@ class ContactProblem:
         nz = 2 * nv + nu
         impulse = node is not None and node.kind == "impulse"
         val, g, Hs = 0.0, np.zeros(nz), np.zeros((nz, nz))
+        Q, V, U = slice(0, nv), slice(nv, 2 * nv), slice(2 * nv, nz)
+        qi, vi, ui = self._index  # the diagonal's indices of the q, v and u blocks
 
-        def add(w, r, Jr, act=None):  # weight, residual, its Jacobian (rows, nz), barrier mask or weights
+        # every term's Jacobian lives in one block of z's columns (q, v or u): the gradient and the
+        # Gauss-Newton Hessian are added there, an identity Jacobian (None) on the diagonal
+        def deriv(w, ar, a, Jr, cols, diag):  # weight, act * residual, act (or None: ones), Jacobian
+            if Jr is None:
+                g[cols] += w * ar
+                Hs[diag, diag] += w if a is None else w * a
+            else:
+                g[cols] += w * (Jr.T @ ar)
+                Hs[cols, cols] += w * (Jr.T @ Jr if a is None else Jr.T @ (a[:, None] * Jr))
+
+        def add(w, r, Jr, cols, diag, act=None):  # weight, residual, its Jacobian (rows, cols) or None
             nonlocal val
-            a = np.ones(len(r)) if act is None else act
-            val += 0.5 * w * float(r @ (a * r))
+            ar = r if act is None else act * r
+            val += 0.5 * w * float(r @ ar)
             if derivatives:
-                g[:] += w * (Jr.T @ (a * r))
-                Hs[:] += w * (Jr.T @ (a[:, None] * Jr))
+                deriv(w, ar, act, Jr, cols, diag)
+
+        def add_state(w, q_ref, v_ref, act):  # (difference(q_ref, q), v - v_ref) weighted by act
+            nonlocal val
+            rs, D = self._state_residual(q_ref, q, v, v_ref)
+            ar = act * rs
+            val += 0.5 * w * float(rs @ ar)
+            if derivatives:
+                deriv(w, ar[:nv], act[:nv], D, Q, qi)
+                deriv(w, ar[nv:], act[nv:], None, V, vi)
+
+        def foot_jacobian(f):
+            return d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3] if derivatives else None
 
         pin.forwardKinematics(m, d, q)
         pin.updateFramePlacements(m, d)
-        # state regularisation
-        rs, D = self._state_residual(self.q_ref, q, v, self.v_ref)
-        Js = np.zeros((2 * nv, nz))
-        Js[:nv, :nv], Js[nv:, nv:2 * nv] = D, np.eye(nv)
         if impulse:
-            add(c.impulse_state, rs, Js, self.w_impulse)
+            add_state(c.impulse_state, self.q_ref, self.v_ref, self.w_impulse)
             for f, p in node.swing:
-                Jf = np.zeros((3, nz))
-                if derivatives:
-                    Jf[:, :nv] = d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3]
-                add(c.impulse_foot, d.oMf[f].translation - p, Jf)
-            uJ = np.zeros((nu, nz))
-            uJ[:, 2 * nv:] = np.eye(nu)
-            add(c.impulse_control, u, uJ)
+                add(c.impulse_foot, d.oMf[f].translation - p, foot_jacobian(f), Q, qi)
+            add(c.impulse_control, u, None, U, ui)
             return val, g, Hs
-        add(c.state, rs, Js, self.w_state)
+        add_state(c.state, self.q_ref, self.v_ref, self.w_state)
         rb, Db = self._state_residual(self.q_neutral, q, v, np.zeros(nv))
-        Jb = np.zeros((2 * nv, nz))
-        Jb[:nv, :nv], Jb[nv:, nv:2 * nv] = Db, np.eye(nv)
         ex, mask = _barrier(rb, self.lb, self.ub)
         val += 0.5 * c.bounds * float(ex @ ex)
         if derivatives:
-            g[:] += c.bounds * (Jb.T @ ex)
-            Hs[:] += c.bounds * (Jb.T @ (mask[:, None] * Jb))
+            deriv(c.bounds, ex[:nv], mask[:nv], Db, Q, qi)
+            deriv(c.bounds, ex[nv:], mask[nv:], None, V, vi)
         # CoM and swing-foot terms depend on x alone: the terminal node keeps them (Crocoddyl's calc(x))
         if node.com is not None:
             com = pin.centerOfMass(m, d, q)
-            Jc = np.zeros((3, nz))
-            if derivatives:
-                Jc[:, :nv] = pin.jacobianCenterOfMass(m, d, q)
-            add(c.com, com - node.com, Jc)
+            add(c.com, com - node.com, pin.jacobianCenterOfMass(m, d, q) if derivatives else None, Q, qi)
         for f, p in node.swing:
-            Jf = np.zeros((3, nz))
-            if derivatives:
-                Jf[:, :nv] = d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3]
-            add(c.foot, d.oMf[f].translation - p, Jf)
+            add(c.foot, d.oMf[f].translation - p, foot_jacobian(f), Q, qi)
         if not terminal:
-            uJ = np.zeros((nu, nz))
-            uJ[:, 2 * nv:] = np.eye(nu)
-            add(c.control, u, uJ)
+            add(c.control, u, None, U, ui)
             A, lb, ub = self.cone
-            for i in range(len(node.feet)):
-                r = A @ ev.forces[3 * i:3 * i + 3]
-                ex, mask = _barrier(r, lb, ub)
-                val += 0.5 * c.friction_cone * float(ex @ ex)
-                if derivatives:
-                    Jr = A @ ev.Lz[3 * i:3 * i + 3]
-                    g[:] += c.friction_cone * (Jr.T @ ex)
-                    Hs[:] += c.friction_cone * (Jr.T @ (mask[:, None] * Jr))
-            val, g, Hs = val * self.dt, g * self.dt, Hs * self.dt
+            if node.feet:  # all feet's cone residuals at once: (feet, facets + 1)
+                ex, mask = _barrier(ev.forces.reshape(-1, 3) @ A.T, lb, ub)
+                for i in range(len(node.feet)):
+                    val += 0.5 * c.friction_cone * float(ex[i] @ ex[i])
+                    if derivatives and mask[i].any():
+                        Jr = A @ ev.Lz[3 * i:3 * i + 3]
+                        g[:] += c.friction_cone * (Jr.T @ ex[i])
+                        Hs[:] += c.friction_cone * (Jr.T @ (mask[i, :, None] * Jr))
+            val = val * self.dt
+            g *= self.dt
+            Hs *= self.dt
         return val, g, Hs
 
     def node(self, k: int, q: np.ndarray, v: np.ndarray, u: np.ndarray, derivatives: bool = False):
@@ -299,10 +311,18 @@ class ContactProblem:
         r(eta) = r0 + K eta - 1/2 K D(K eta, K eta) + O(3) (zero on the commutative joints)."""
         nv = self.model.nv
         r0 = cfg.difference(self.model, self.groups, q_ref, q)
-        K = cfg.block_Jr_inv(self.groups, nv, r0)
-        D, _ = cfg.second_order_tensors(self.groups, nv, r0)
-        Ds = 0.5 * (D + D.transpose(0, 2, 1))
-        return -K.T @ np.einsum("a,abc->bc", K.T @ c, Ds) @ K
+        out = np.zeros((nv, nv))
+        for g in self.groups:  # D is zero on the commutative factors and across factors
+            if g.kind in NONCOMMUTATIVE:
+                s = g.slice
+                K = NONCOMMUTATIVE[g.kind].right_jacobian_inv(r0[s])
+                if g.kind == "se3":  # the compiled core's exact dJr (the Python one differences Jr)
+                    D = kernels.core.se3_jr_derivative(np.ascontiguousarray(r0[s])).reshape(6, 6, 6)
+                else:
+                    D = cfg.group_second_order_tensors(g.kind, r0[None, s])[0][0]
+                Ds = 0.5 * (D + D.transpose(0, 2, 1))
+                out[s, s] = -K.T @ np.einsum("a,abc->bc", K.T @ c[s], Ds) @ K
+        return out
 
     def _gravity_curvature(self, model: pin.Model, data: pin.Data, q: np.ndarray, force: np.ndarray) -> np.ndarray:
         """Chart Hessian (nv, nv) of a potential with generalised force J^T ``force``: the model's
@@ -316,17 +336,23 @@ class ContactProblem:
             model.gravity = g0
         return 0.5 * (dg + dg.T)
 
-    def _cost_hessian(self, k: int, q, v, u, ev, L2) -> np.ndarray:
+    def _cost_hessian(self, k: int, q, v, u, ev, L2, gauss_newton: np.ndarray | None = None) -> np.ndarray:
         """Exact Hessian (nz, nz) of node k's cost: the Gauss-Newton part of :meth:`_cost` plus
         each residual's curvature times its weighted residual: the state differences' (SE(3) log's
         second order), the CoM's and the feet's (generalised gravity derivatives of a model whose
         gravity is minus the residual: the CoM of the robot, a unit point mass at the foot) and the
-        forces' (``L2``: their exact second derivatives)."""
+        forces' (``L2``: their exact second derivatives). ``gauss_newton``: that Gauss-Newton part
+        at the same point if already computed (it is added to, not copied), else None."""
         m, c, nv = self.model, self.costs, self.model.nv
         terminal = k == self.horizon
         node = self.terminal_node if terminal else self.nodes[k]
-        _, _, Hs = self._cost(node, q, v, u, ev, True, terminal=terminal)  # leaves the kinematics in dyn.data
         d = self.dyn.data
+        if gauss_newton is None:
+            _, _, Hs = self._cost(node, q, v, u, ev, True, terminal=terminal)  # leaves the kinematics in dyn.data
+        else:
+            Hs = gauss_newton
+            pin.forwardKinematics(m, d, q)
+            pin.updateFramePlacements(m, d)
         curv = np.zeros((nv, nv))
         rq = pin.difference(m, self.q_ref, q)
         m0, d0 = self.dyn._aux_models()["zero_gravity"]
@@ -355,10 +381,12 @@ class ContactProblem:
         Hs[:nv, :nv] += scale * curv
         if not terminal:
             A, lb, ub = self.cone
+            nz = Hs.shape[0]
             for i in range(len(node.feet)):
                 rows = slice(3 * i, 3 * i + 3)
-                ex, _ = _barrier(A @ ev.forces[rows], lb, ub)
-                Hs += (c.friction_cone * self.dt) * np.einsum("r,rc,cij->ij", ex, A, L2[rows])
+                ex, mask = _barrier(A @ ev.forces[rows], lb, ub)
+                if mask.any():  # inside the cone the barrier is flat
+                    Hs += (c.friction_cone * self.dt) * ((ex @ A) @ L2[rows].reshape(3, -1)).reshape(nz, nz)
         return Hs
 
     def second_order_node(self, k: int, traj: Trajectory, ev=None):
@@ -391,25 +419,41 @@ class ContactProblem:
         return T, self._cost_hessian(k, q, v, u, ev, L2)
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
-        H, nx, nu = self.horizon, self.nx, self.nu
+        H, nx, nu, nv = self.horizon, self.nx, self.nu, self.model.nv
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
         evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
         lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
+        hess = []
         for k in range(H):
             ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k], derivatives=True)
             evs.append(ev)
+            hess.append(Hs)
             Phi[k], B[k] = ev.Fz[:, :nx], ev.Fz[:, nx:]
             lx[k], lu[k] = g[:nx], g[nx:]
             lxx[k], lux[k], luu[k] = Hs[:nx, :nx], Hs[nx:, :nx], Hs[nx:, nx:]
         _, _, gf, Hf = self.node(H, traj.q[H], traj.v[H], None, derivatives=True)
         Theta = Gamma = Xi = None
         if order == 2:
-            Theta, Gamma, Xi = np.empty((H, nx, nx, nx)), np.empty((H, nx, nx, nu)), np.empty((H, nx, nu, nu))
+            Theta, Gamma, Xi = np.zeros((H, nx, nx, nx)), np.zeros((H, nx, nx, nu)), np.zeros((H, nx, nu, nu))
+            contact = []  # (k, dt a'') of the contact nodes, put through the Euler step in blocks
             for k in range(H):
-                T, Hc = self.second_order_node(k, traj, evs[k])
-                Theta[k], Gamma[k], Xi[k] = T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, nx:]
+                node, q, v, u, ev = self.nodes[k], traj.q[k], traj.v[k], traj.u[k], evs[k]
+                if node.kind == "impulse":
+                    Y2, L2 = self.dyn.impulse_second(q, v, node.feet, ev)
+                    Theta[k, nv:], Gamma[k, nv:], Xi[k, nv:] = Y2[:, :nx, :nx], Y2[:, :nx, nx:], Y2[:, nx:, nx:]
+                else:
+                    A2, L2 = self.dyn.contact_second(q, v, u, node.feet, ev)
+                    A2 *= self.dt
+                    contact.append((k, A2))
+                Hc = self._cost_hessian(k, q, v, u, ev, L2, gauss_newton=hess[k])
                 lxx[k], lux[k], luu[k] = Hc[:nx, :nx], Hc[nx:, :nx], Hc[nx:, nx:]
+            for b in range(0, len(contact), _EXPAND_BLOCK):
+                ks = [k for k, _ in contact[b:b + _EXPAND_BLOCK]]
+                e = integ.expand(self.groups, self.dt, np.array([evs[k].v_next for k in ks]),
+                                 np.array([evs[k].Fz[nv:] for k in ks]),
+                                 np.array([A2 for _, A2 in contact[b:b + _EXPAND_BLOCK]]), True)
+                Theta[ks], Gamma[ks], Xi[ks] = e.Theta, e.Gamma, e.Xi
             Hf = self.second_order_node(H, traj)[1]
         return Linearisation(order=order, Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi, l_x=lx, l_u=lu, l_xx=lxx,
                              l_ux=lux, l_uu=luu, lf_x=gf[:nx], lf_xx=Hf[:nx, :nx], gauss_newton=order == 1)
