@@ -55,6 +55,7 @@ from ..kernels import core as _core
 from ..validate import InputError
 
 LOCAL = pin.ReferenceFrame.LOCAL
+CONTACT_KINDS = ("3d", "6d", "6d_local")
 
 
 def skew(w: np.ndarray) -> np.ndarray:
@@ -141,12 +142,20 @@ class ContactDynamics:
         gains: Baumgarte gains (Kp 1/s^2, Kd 1/s) of every point contact (Crocoddyl's (0, 50) in
             its quadruped gaits).
         impulse_damping: Pinocchio's inv_damping of the impulse KKT solve (Crocoddyl's 1e-12).
+        contact_kinds: {frame id or name: kind} of the feet that are not 3D point contacts:
+            ``"6d"`` (a flat foot: the frame's whole spatial acceleration constrained, forces
+            (force, torque) at the frame's origin in world-aligned axes, Crocoddyl's
+            ``ContactModel6D`` / ``ImpulseModel6D`` with ``LOCAL_WORLD_ALIGNED``) or ``"6d_local"``
+            (the same in the frame's own axes, ``LOCAL``); ``"3d"`` (the default of every frame):
+            a point contact. The Baumgarte position term of a 6D contact is
+            ``Kp log6(oMf)`` (the reference placement the identity, as in Crocoddyl's biped).
     """
 
     model: pin.Model
     dt: float
     gains: tuple[float, float] = (0.0, 50.0)
     impulse_damping: float = 1e-12
+    contact_kinds: dict = field(default_factory=dict)
     data: pin.Data = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -156,6 +165,19 @@ class ContactDynamics:
         if not (np.isfinite(self.dt) and self.dt > 0):
             raise InputError("dt", f"expected a positive time step (s), got {self.dt!r}")
         self.gains = (float(self.gains[0]), float(self.gains[1]))
+        kinds = {}
+        for key, kind in dict(self.contact_kinds).items():
+            if isinstance(key, str):
+                if not self.model.existFrame(key):
+                    raise InputError("contact_kinds", f"frame {key!r} is not in the model")
+                key = int(self.model.getFrameId(key))
+            if not (isinstance(key, (int, np.integer)) and 0 <= int(key) < len(self.model.frames)):
+                raise InputError("contact_kinds", f"expected frame ids or names as keys, got {key!r}")
+            if kind not in CONTACT_KINDS:
+                raise InputError("contact_kinds", f"expected a kind of {CONTACT_KINDS} for frame {key!r}, got {kind!r}")
+            if kind != "3d":
+                kinds[int(key)] = kind
+        self.contact_kinds = kinds
         self.data = self.model.createData()
         nv = self.model.nv
         self.S = np.zeros((nv, nv - 6))
@@ -168,6 +190,17 @@ class ContactDynamics:
     @property
     def nu(self) -> int:
         return int(self.model.nv) - 6
+
+    def kind(self, f: int) -> str:
+        """The contact kind of frame ``f``: "3d", "6d" or "6d_local"."""
+        return self.contact_kinds.get(f, "3d")
+
+    def force_dims(self, feet: tuple[int, ...]) -> list[int]:
+        """Entries of each foot's force in ``NodeEval.forces``: 3 (point) or 6 (force, torque)."""
+        return [3 if self.kind(f) == "3d" else 6 for f in feet]
+
+    def _flat(self, feet: tuple[int, ...]) -> bool:
+        return any(f in self.contact_kinds for f in feet)
 
     # ------------------------------------------------------------------ contact node
     def _contact_terms(self, feet: tuple[int, ...]):
@@ -192,6 +225,8 @@ class ContactDynamics:
     def contact(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, feet: tuple[int, ...],
                 derivatives: bool = False) -> NodeEval:
         """Contact node at (q, v, u) with ``feet`` (frame ids) on the ground."""
+        if self._flat(feet):
+            return self._contact_general(q, v, u, feet, derivatives)
         m, d, dt, nv = self.model, self.data, self.dt, self.nv
         pin.computeAllTerms(m, d, q, v)
         pin.updateFramePlacements(m, d)
@@ -265,6 +300,8 @@ class ContactDynamics:
     def impulse(self, q: np.ndarray, v: np.ndarray, feet: tuple[int, ...], derivatives: bool = False) -> NodeEval:
         """Impulse node at (q, v): ``feet`` touch down (v jumps, q stays). Jacobian columns as a
         contact node's with m = nu (the control columns zero)."""
+        if self._flat(feet):
+            return self._impulse_general(q, v, feet, derivatives)
         m, d, nv = self.model, self.data, self.nv
         pin.computeAllTerms(m, d, q, v)
         pin.updateFramePlacements(m, d)
@@ -431,6 +468,8 @@ class ContactDynamics:
         E1 = rnea(q, v, a) - sum_f J_w,f^T lambda_f - S u = 0 and, per foot, the Baumgarte condition
         in the world frame E2 = p''(q, v, a + Kd v) + Kp p(q) = 0 (the foot frame's condition
         rotated, the same solution)."""
+        if self._flat(feet):
+            return self._second_general(q, v, feet, ev, impulse=False)
         nv, nc = self.nv, 3 * len(feet)
         Kp, Kd = self.gains
         Q, V = slice(0, nv), slice(nv, 2 * nv)
@@ -458,6 +497,8 @@ class ContactDynamics:
         (3 nc, nz, nz), from its KKT system differentiated twice: E1 = M(q) (v+ - v) -
         sum_f J_w,f^T Lambda_f = 0 (M(q) w: the RNEA without gravity at (q, 0, w)) and, per foot,
         E2 = J_w(q) v+ = p''(q, 0, v+) = 0."""
+        if self._flat(feet):
+            return self._second_general(q, v, feet, ev, impulse=True)
         nv, nc = self.nv, 3 * len(feet)
         Q, V = slice(0, nv), slice(nv, 2 * nv)
         ny = nv + nc
@@ -486,6 +527,314 @@ class ContactDynamics:
         Y = self._kkt_second(Hss, Hsy, np.vstack([ev.Az, ev.Lz]), M, Jw)
         return Y[:self.nv], Y[self.nv:]
 
+    # ------------------------------------------------------------------ feet of any kind (6D flat feet)
+    def _rows(self, f: int, R: np.ndarray, J: np.ndarray) -> np.ndarray:
+        """Foot f's constraint rows as Crocoddyl stacks them, from its LOCAL Jacobian J (6, nv):
+        R J_lin (3d, world-aligned), blockdiag(R, R) J (6d), J (6d_local)."""
+        kind = self.kind(f)
+        if kind == "3d":
+            return R @ J[:3]
+        if kind == "6d":
+            return np.vstack([R @ J[:3], R @ J[3:]])
+        return J
+
+    def _drift(self, f: int, R: np.ndarray, vf: pin.Motion) -> np.ndarray:
+        """Foot f's a0 in its constraint's axes (Crocoddyl's arithmetic): the classical linear
+        acceleration (3d) or the spatial acceleration (6d) at a = 0 in the foot frame plus the
+        Baumgarte terms, rotated to the world for 3d and 6d."""
+        m, d = self.model, self.data
+        Kp, Kd = self.gains
+        kind = self.kind(f)
+        if kind == "3d":
+            a0 = pin.getFrameClassicalAcceleration(m, d, f, LOCAL).linear.copy()
+            if Kp != 0.0:
+                a0 += Kp * (R.T @ d.oMf[f].translation)
+            if Kd != 0.0:
+                a0 += Kd * vf.linear
+            return R @ a0
+        a0 = pin.getFrameAcceleration(m, d, f, LOCAL).vector.copy()
+        if Kp != 0.0:
+            a0 += Kp * pin.log6(d.oMf[f]).vector
+        if Kd != 0.0:
+            a0 += Kd * vf.vector
+        if kind == "6d":
+            return np.concatenate([R @ a0[:3], R @ a0[3:]])
+        return a0
+
+    def _local_forces(self, f: int, R: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(force, torque) of foot f in the foot frame from its reported force (3 or 6 entries)."""
+        kind = self.kind(f)
+        if kind == "3d":
+            return R.T @ lam, np.zeros(3)
+        if kind == "6d":
+            return R.T @ lam[:3], R.T @ lam[3:]
+        return lam[:3].copy(), lam[3:].copy()
+
+    def _fext(self, feet: tuple[int, ...], local: list) -> list:
+        fext = [pin.Force.Zero() for _ in range(self.model.njoints)]
+        for f, (fl, tl) in zip(feet, local):
+            fr = self.model.frames[f]
+            fext[fr.parentJoint] += fr.placement.act(pin.Force(fl, tl))
+        return fext
+
+    def _reported_force_jacobian(self, f: int, R: np.ndarray, J: np.ndarray, local, dlam: np.ndarray) -> np.ndarray:
+        """Jacobian of foot f's reported force (world-aligned for 3d and 6d) from the Jacobian
+        ``dlam`` of its foot-frame force: R dlam minus the rotation's q-derivative R skew(f) J_ang."""
+        kind, nv = self.kind(f), self.nv
+        if kind == "6d_local":
+            return dlam
+        out = np.empty_like(dlam)
+        for k in range(len(dlam) // 3):
+            out[3 * k:3 * k + 3] = R @ dlam[3 * k:3 * k + 3]
+            out[3 * k:3 * k + 3, :nv] -= R @ skew(local[k]) @ J[3:]
+        return out
+
+    def _kkt_first(self, feet, Js, Rs, lam, rows, M, rhs):
+        """Solve the differentiated KKT system for (d a or d v+, d lambda) and return (its first
+        block (nv, nz), the reported forces' Jacobian (nc, nz)); ``rows``: per foot (constraint rows
+        in the foot frame, their rhs in q, their rhs in v or None)."""
+        nv = self.nv
+        dims = self.force_dims(feet)
+        offs = np.cumsum([0] + dims)
+        nc = int(offs[-1])
+        K = np.zeros((nv + nc, nv + nc))
+        K[:nv, :nv] = M
+        for i, (Jl, h_q, h_v) in enumerate(rows):
+            r = slice(nv + offs[i], nv + offs[i + 1])
+            K[:nv, r], K[r, :nv] = -Jl.T, Jl
+            rhs[r, :nv] = h_q
+            if h_v is not None:
+                rhs[r, nv:2 * nv] = h_v
+        sol = -(np.linalg.inv(K) @ rhs)
+        local = [self._local_forces(f, R, lam[offs[i]:offs[i + 1]]) for i, (f, R) in enumerate(zip(feet, Rs))]
+        Lz = np.vstack([self._reported_force_jacobian(f, Rs[i], Js[i], local[i], sol[nv + offs[i]:nv + offs[i + 1]])
+                        for i, f in enumerate(feet)])
+        return sol[:nv], Lz
+
+    def _contact_general(self, q, v, u, feet, derivatives):
+        """:meth:`contact` with feet of any kind (3d points and 6d flat feet)."""
+        m, d, dt, nv = self.model, self.data, self.dt, self.nv
+        pin.computeAllTerms(m, d, q, v)
+        pin.updateFramePlacements(m, d)
+        Js = [pin.getFrameJacobian(m, d, f, LOCAL) for f in feet]
+        Rs = [d.oMf[f].rotation.copy() for f in feet]
+        vfs = [pin.getFrameVelocity(m, d, f, LOCAL) for f in feet]
+        tau = self.S @ u
+        Jc = np.vstack([self._rows(f, R, J) for f, R, J in zip(feet, Rs, Js)])
+        a0 = np.concatenate([self._drift(f, R, vf) for f, R, vf in zip(feet, Rs, vfs)])
+        a = pin.forwardDynamics(m, d, tau, Jc, a0, 0.0).copy()
+        lam = d.lambda_c.copy()
+        v_next = v + a * dt
+        w = v * dt + a * (dt * dt)
+        q_next = pin.integrate(m, q, w)
+        ev = NodeEval(q_next, v_next, lam, acc=a)
+        if not derivatives:
+            return ev
+        Kp, Kd = self.gains
+        dims = self.force_dims(feet)
+        offs = np.cumsum([0] + dims)
+        local = [self._local_forces(f, R, lam[offs[i]:offs[i + 1]]) for i, (f, R) in enumerate(zip(feet, Rs))]
+        dtau_dq, dtau_dv, M = pin.computeRNEADerivatives(m, d, q, v, a, self._fext(feet, local))
+        M = _symmetric_from_upper(M)
+        nz = 2 * nv + self.nu
+        rhs = np.zeros((nv + int(offs[-1]), nz))
+        rhs[:nv, :nv], rhs[:nv, nv:2 * nv], rhs[:nv, 2 * nv:] = dtau_dq, dtau_dv, -self.S
+        pin.computeForwardKinematicsDerivatives(m, d, q, v, a)
+        rows = []
+        for f, J, R, vf in zip(feet, Js, Rs, vfs):
+            V_dq, A_dq, A_dv, _ = pin.getFrameAccelerationDerivatives(m, d, f, LOCAL)
+            if self.kind(f) == "3d":  # the classical acceleration: a_lin + w x v_lin
+                Wx, Vx = skew(vf.angular), skew(vf.linear)
+                h_q = A_dq[:3] + Wx @ V_dq[:3] - Vx @ V_dq[3:]
+                h_v = A_dv[:3] + Wx @ J[:3] - Vx @ J[3:]
+                if Kp != 0.0:
+                    h_q = h_q + Kp * (skew(R.T @ d.oMf[f].translation) @ J[3:] + J[:3])
+                if Kd != 0.0:
+                    h_q, h_v = h_q + Kd * V_dq[:3], h_v + Kd * J[:3]
+                rows.append((J[:3], h_q, h_v))
+            else:  # the spatial acceleration
+                h_q, h_v = A_dq.copy(), A_dv.copy()
+                if Kp != 0.0:
+                    h_q += Kp * (pin.Jlog6(d.oMf[f]) @ J)
+                if Kd != 0.0:
+                    h_q += Kd * V_dq
+                    h_v += Kd * J
+                rows.append((J, h_q, h_v))
+        da, Lz = self._kkt_first(feet, Js, Rs, lam, rows, M, rhs)
+        dvn = dt * da
+        dvn[:, nv:2 * nv] += np.eye(nv)
+        Dq = pin.dIntegrate(m, q, w, pin.ArgumentPosition.ARG0)
+        Dw = pin.dIntegrate(m, q, w, pin.ArgumentPosition.ARG1)
+        Fz = np.empty((2 * nv, nz))
+        Fz[:nv] = dt * (Dw @ dvn)
+        Fz[:nv, :nv] += Dq
+        Fz[nv:] = dvn
+        ev.Fz, ev.Lz, ev.Az = Fz, Lz, da
+        return ev
+
+    def _impulse_general(self, q, v, feet, derivatives):
+        """:meth:`impulse` with feet of any kind (Crocoddyl's ImpulseModel3D / ImpulseModel6D)."""
+        m, d, nv = self.model, self.data, self.nv
+        pin.computeAllTerms(m, d, q, v)
+        pin.updateFramePlacements(m, d)
+        Js = [pin.getFrameJacobian(m, d, f, LOCAL) for f in feet]
+        Rs = [d.oMf[f].rotation.copy() for f in feet]
+        Jc = np.vstack([self._rows(f, R, J) for f, R, J in zip(feet, Rs, Js)])
+        pin.impulseDynamics(m, d, v, Jc, 0.0, self.impulse_damping)
+        v_next, imp = d.dq_after.copy(), d.impulse_c.copy()
+        ev = NodeEval(q.copy(), v_next, imp)
+        if not derivatives:
+            return ev
+        dims = self.force_dims(feet)
+        offs = np.cumsum([0] + dims)
+        local = [self._local_forces(f, R, imp[offs[i]:offs[i + 1]]) for i, (f, R) in enumerate(zip(feet, Rs))]
+        dtau_dq, _, M = pin.computeRNEADerivatives(m, d, q, np.zeros(nv), v_next - v, self._fext(feet, local))
+        dtau_dq = dtau_dq.copy()
+        M = _symmetric_from_upper(M)
+        dg_dq = pin.computeGeneralizedGravityDerivatives(m, d, q)
+        nz = 2 * nv + self.nu
+        rhs = np.zeros((nv + int(offs[-1]), nz))
+        rhs[:nv, :nv] = dtau_dq - dg_dq
+        rhs[:nv, nv:2 * nv] = -M
+        pin.computeForwardKinematicsDerivatives(m, d, q, v_next, np.zeros(nv))
+        rows = []
+        for f, J, k in zip(feet, Js, dims):
+            v_dq, _ = pin.getFrameVelocityDerivatives(m, d, f, LOCAL)
+            rows.append((J[:k], v_dq[:k], None))
+        dvn, Lz = self._kkt_first(feet, Js, Rs, imp, rows, M, rhs)
+        Fz = np.zeros((2 * nv, nz))
+        Fz[:nv, :nv] = np.eye(nv)
+        Fz[nv:] = dvn
+        ev.Fz, ev.Lz, ev.Az = Fz, Lz, dvn
+        return ev
+
+    def _rot_model(self, f: int):
+        """A massless copy of the robot with a unit rotational inertia (no mass) on the body of
+        frame f, and no gravity: its RNEA is J_ang^T w'(q, v, a) (the body's Euler equation; the
+        angular velocity's cross term vanishes for the identity inertia), whose free flyer's
+        rotational rows give the world angular acceleration oR_b tau[3:6]."""
+        aux = self._aux_models()
+        key = ("rotation", f)
+        if aux["feet"].get(key) is None:
+            mr = pin.Model(self.model)
+            for j in range(mr.njoints):
+                mr.inertias[j] = pin.Inertia.Zero()
+            mr.inertias[mr.frames[f].parentJoint] = pin.Inertia(0.0, np.zeros(3), np.eye(3))
+            mr.gravity = pin.Motion.Zero()
+            aux["feet"][key] = (mr, mr.createData())
+        return aux["feet"][key]
+
+    def _frame_terms(self, f: int, rotation: bool, q: np.ndarray, v: np.ndarray, a: np.ndarray):
+        """Frame f's world linear acceleration p''(q, v, a) of its origin (``rotation`` False; the
+        point-mass model) or its world angular acceleration w'(q, v, a) (True; the rotational
+        model), with derivatives in the right chart: (value (3,), d/dq, d/dv, d/da (3, nv),
+        qq, qv, qa, vv (3, nv, nv), qq symmetric). As :meth:`_point_terms`: oR_b times the free
+        flyer's rows of the auxiliary model's RNEA, the product rule on oR_b(q exp(eta))."""
+        mf, df = self._rot_model(f) if rotation else self._foot_model(f)
+        rows = slice(3, 6) if rotation else slice(0, 3)
+        w = pin.rnea(mf, df, q, v, a)[rows].copy()
+        dq, dv, M = pin.computeRNEADerivatives(mf, df, q, v, a)
+        Wq, Wv, Wa = dq[rows].copy(), dv[rows].copy(), _symmetric_from_upper(M)[rows]
+        qq, vv, qv, aq = _core.rnea_second_order(mf, q, v, a, False)
+        qq = 0.5 * (qq[rows] + qq[rows].transpose(0, 2, 1))
+        qv, qa, vv = qv[rows].copy(), aq[rows].transpose(0, 2, 1).copy(), vv[rows].copy()
+        G = _GENERATORS
+        Gq = np.einsum("iab,bj->aij", G, Wq)
+        qq[:, 3:6, :] += Gq
+        qq[:, :, 3:6] += Gq.transpose(0, 2, 1)
+        GG = np.einsum("iab,jbc,c->aij", G, G, w)
+        qq[:, 3:6, 3:6] += 0.5 * (GG + GG.transpose(0, 2, 1))
+        qv[:, 3:6, :] += np.einsum("iab,bk->aik", G, Wv)
+        qa[:, 3:6, :] += np.einsum("iab,bk->aik", G, Wa)
+        Jq = Wq.copy()
+        Jq[:, 3:6] += np.einsum("iab,b->ai", G, w)
+        R = pin.XYZQUATToSE3(q[:7]).rotation
+
+        def rot(T):
+            return np.einsum("ab,bjk->ajk", R, T)
+
+        return R @ w, R @ Jq, R @ Wv, R @ Wa, rot(qq), rot(qv), rot(qa), rot(vv)
+
+    @staticmethod
+    def _cross_second(W, P, nv: int) -> np.ndarray:
+        """(3, 2 nv, 2 nv): second derivatives in s = (q, v) of w x p' with w = J_ang,w(q) v and
+        p' = J_w(q) v (``W``, ``P``: :meth:`_frame_terms` at (q, 0, v), both linear in v)."""
+        def s_form(T):
+            D = np.hstack([T[1], T[3]])
+            H = np.zeros((3, 2 * nv, 2 * nv))
+            H[:, :nv, :nv], H[:, :nv, nv:], H[:, nv:, :nv] = T[4], T[6], T[6].transpose(0, 2, 1)
+            return T[0], D, H
+
+        w, Dw, Hw = s_form(W)
+        p, Dp, Hp = s_form(P)
+        X = np.einsum("sab,ax,by->sxy", _EPS, Dw, Dp)
+        return np.einsum("sab,axy,b->sxy", _EPS, Hw, p) + np.einsum("sab,a,bxy->sxy", _EPS, w, Hp) + X \
+            + X.transpose(0, 2, 1)
+
+    def _second_general(self, q, v, feet, ev, impulse: bool):
+        """:meth:`contact_second` / :meth:`impulse_second` with feet of any kind. A 6D foot's
+        condition in the world frame is E2 = (p''(q, v, a + Kd v) - w x p', w'(q, v, a + Kd v))
+        (its foot-frame spatial condition rotated: R d/dt(v_lin) = p'' - w x p'), its forces'
+        term J_w^T f + J_ang,w^T t, the torques' q-q block from the rotational model at rest under
+        the angular gravity -t (its RNEA is then J_ang,w^T t)."""
+        nv = self.nv
+        Kp, Kd = self.gains
+        if any(self.kind(f) == "6d_local" for f in feet):
+            raise InputError("contact_kinds", "the exact second order takes 6D contacts in world-aligned axes ('6d')")
+        if not impulse and Kp != 0.0 and any(self.kind(f) == "6d" for f in feet):
+            raise InputError("gains", "the exact second order of a 6D contact takes Kp = 0 (Crocoddyl's biped: (0, 30))")
+        dims = self.force_dims(feet)
+        offs = np.cumsum([0] + dims)
+        nc = int(offs[-1])
+        ny = nv + nc
+        Q, V = slice(0, nv), slice(nv, 2 * nv)
+        Hss, Hsy = np.zeros((ny, 2 * nv, 2 * nv)), np.zeros((ny, 2 * nv, ny))
+        zero = np.zeros(nv)
+        if impulse:
+            m0, _ = self._aux_models()["zero_gravity"]
+            qq, _, _, aq = _core.rnea_second_order(m0, q, zero, ev.v_next - v, False)
+            Hss[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+            Hsy[:nv, Q, :nv] = aq.transpose(0, 2, 1)
+            Hss[:nv, V, Q], Hss[:nv, Q, V] = -aq, -aq.transpose(0, 2, 1)
+            vs, as_ = zero, ev.v_next
+        else:
+            qq, vv, qv, aq = _core.rnea_second_order(self.model, q, v, ev.acc, False)
+            Hss[:nv, Q, Q] = 0.5 * (qq + qq.transpose(0, 2, 1))
+            Hss[:nv, Q, V], Hss[:nv, V, Q], Hss[:nv, V, V] = qv, qv.transpose(0, 2, 1), vv
+            Hsy[:nv, Q, :nv] = aq.transpose(0, 2, 1)
+            vs, as_ = v, ev.acc + Kd * v
+        lin = np.concatenate([ev.forces[o:o + 3] for o in offs[:-1]])
+        self._force_terms(Hss, q, feet, lin, Q)
+        Jw = np.zeros((nc, nv))
+        for i, f in enumerate(feet):
+            o = int(offs[i])
+            blocks = [(slice(nv + o, nv + o + 3), self._frame_terms(f, False, q, vs, as_), o)]
+            if dims[i] == 6:
+                blocks.append((slice(nv + o + 3, nv + o + 6), self._frame_terms(f, True, q, vs, as_), o + 3))
+                mr, _ = self._rot_model(f)
+                mr.gravity = pin.Motion(np.zeros(3), -ev.forces[o + 3:o + 6])
+                try:
+                    gqq = _core.rnea_second_order(mr, q, zero, zero, False)[0]
+                finally:
+                    mr.gravity = pin.Motion.Zero()
+                Hss[:nv, Q, Q] -= 0.5 * (gqq + gqq.transpose(0, 2, 1))
+            for r, T, c in blocks:
+                Jw[c:c + 3] = T[3]
+                Hss[r, Q, Q] = T[4]
+                if not impulse:
+                    if dims[i] == 3 and Kp != 0.0:
+                        Hss[r, Q, Q] += Kp * 0.5 * (T[6] + T[6].transpose(0, 2, 1))
+                    Hss[r, Q, V] = T[5] + Kd * T[6]
+                    Hss[r, V, Q] = Hss[r, Q, V].transpose(0, 2, 1)
+                    Hss[r, V, V] = T[7]
+                Hsy[r, Q, :nv] = T[6]
+                Hsy[:nv, Q, nv + c:nv + c + 3] = -T[6].transpose(2, 1, 0)
+            if dims[i] == 6 and not impulse:  # the linear rows' - w x p'
+                cross = self._cross_second(self._frame_terms(f, True, q, zero, v),
+                                           self._frame_terms(f, False, q, zero, v), nv)
+                Hss[nv + o:nv + o + 3] -= cross
+        return self._kkt_second_split(Hss, Hsy, ev, q, Jw)
+
     # ------------------------------------------------------------------ quasi-static controls
     def quasi_static(self, q: np.ndarray, feet: tuple[int, ...]) -> np.ndarray:
         """Crocoddyl's ``quasiStatic`` of a contact node: the (nu,) controls that, with the contact
@@ -494,6 +843,6 @@ class ContactDynamics:
         pin.computeAllTerms(m, d, q, np.zeros(nv))
         pin.updateFramePlacements(m, d)
         g = pin.rnea(m, d, q, np.zeros(nv), np.zeros(nv))
-        cols = [self.S] + [(d.oMf[f].rotation @ pin.getFrameJacobian(m, d, f, LOCAL)[:3]).T for f in feet]
+        cols = [self.S] + [self._rows(f, d.oMf[f].rotation, pin.getFrameJacobian(m, d, f, LOCAL)).T for f in feet]
         sol = np.linalg.pinv(np.hstack(cols)) @ g
         return sol[:self.nu].copy()
