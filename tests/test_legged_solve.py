@@ -74,33 +74,3 @@ def test_switch_expansion_reaches_the_same_minimum(solved):
     assert res.converged, res.message
     assert "second" in res.expansion_history
     assert res.cost == pytest.approx(first.cost, rel=1e-12)
-
-
-@pytest.fixture(scope="module")
-def solo_jump():
-    """Solo12 jumping in place (0.1 m CoM apex, 10 ground knots, 20 + 20 flying knots, the landing
-    impulse, 10 ground knots; Baumgarte gains (0, 50)) from the quasi-static start: J_0 = 1.6e7."""
-    from geoddp.problem.legged import QuadrupedGait
-    from geoddp.scene.legged import contact_problem, load_robot
-
-    robot = load_robot("solo12")
-    feet = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
-    q0 = robot.model.referenceConfigurations["standing"].copy()
-    nodes, terminal = QuadrupedGait(robot.model, feet).jump(q0, 0.1, (0.0, 0.0, 0.0), 10, 20)
-    problem = contact_problem(robot, nodes, terminal, q0, 0.01, (0.0, 50.0), feet=feet)
-    return problem, {e: solve(problem, SolverOptions(expansion=e)) for e in ("first", "second", "switch")}
-
-
-def test_solo_jump_converges_with_every_expansion(solo_jump):
-    """The exact model is indefinite beyond reg_max far from the optimum (second: at the start;
-    switch: at its forced hand-over, lambda then 1e10): both hand back to first order until its
-    steps run full and unregularised, and end with first order at its J* (before: stopped after 0
-    and 20 iterations). Crocoddyl's FDDP reaches the same J* (2558.509136) in 24 iterations."""
-    problem, res = solo_jump
-    J0 = problem.trajectory_cost(problem.trajectory(problem.quasi_static_controls()))
-    for e, r in res.items():
-        assert r.converged, (e, r.message)
-        assert r.iterations <= 110, (e, r.iterations)
-        assert r.cost < 2e-4 * J0
-        assert r.cost == pytest.approx(res["first"].cost, rel=1e-6), e
-    assert res["second"].expansion_history[0] == "first" and res["switch"].expansion_history[25] == "first"
