@@ -1,5 +1,10 @@
-"""geoddp (first, second, switch) against Crocoddyl FDDP on the ANYmal gaits, each solve in its own
-process (in one process their threads compete).
+"""geoddp (first, second, switch) against Crocoddyl FDDP on the ANYmal gaits and jump and a Solo12
+jump, each solve in its own process (in one process their threads compete).
+
+The Solo12 jump ("solo_jump"): example-robot-data's solo12 from "standing", feet FL_FOOT FR_FOOT
+HL_FOOT HR_FOOT, jumping in place with a 0.1 m CoM apex, 10 ground and 20 + 20 flying knots, dt
+0.01 s, Baumgarte gains (0, 50) (Crocoddyl's ``createJumpingProblem(x0, 0.1, [0, 0, 0], 0.01, 10,
+20)``; geoddp's ``QuadrupedGait(model, feet).jump(q0, 0.1, (0, 0, 0), 10, 20)``).
 
 Both start from the example's quasi-static controls (Crocoddyl's ``quasiStatic``; FDDP also from
 its example's states xs = [x0] * (T + 1)). FDDP runs twice: with its default threads ("fddp",
@@ -26,7 +31,16 @@ from pathlib import Path
 import numpy as np
 
 SOLVERS = ("fddp", "fddp1", "first", "second", "switch")
-GAITS = ("walk", "trot")
+GAITS = ("walk", "trot", "jump", "solo_jump")
+SOLO_FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
+SOLO_JUMP = (0.1, (0.0, 0.0, 0.0), 10, 20)  # CoM apex, jump length, ground knots, flying knots
+
+
+def load(gait):
+    """The robot of ``gait``: Solo12 for "solo_jump", else ANYmal."""
+    from geoddp.scene.legged import load_anymal, load_robot
+
+    return load_robot("solo12") if gait == "solo_jump" else load_anymal()
 
 
 def crocoddyl_problem(robot, gait):
@@ -37,6 +51,10 @@ def crocoddyl_problem(robot, gait):
 
     q0 = robot.model.referenceConfigurations["standing"].copy()
     x0 = np.concatenate([q0, np.zeros(robot.model.nv)])
+    if gait == "solo_jump":
+        height, length, ground, flying = SOLO_JUMP
+        builder = SimpleQuadrupedalGaitProblem(robot.model, *SOLO_FEET)
+        return builder.createJumpingProblem(x0, height, list(length), 0.01, ground, flying), x0
     builder = SimpleQuadrupedalGaitProblem(robot.model, *FEET)  # fresh: its first half step
     make = {"walk": builder.createWalkingProblem, "trot": builder.createTrottingProblem,
             "jump": builder.createJumpingProblem}[gait]
@@ -56,9 +74,7 @@ def fddp(gait: str, max_iter: int = 200, threads: int | None = None) -> dict:
     """FDDP with its default threads (``threads`` None) or ``threads`` of them."""
     import crocoddyl
 
-    from geoddp.scene.legged import load_anymal
-
-    croc, x0 = crocoddyl_problem(load_anymal(), gait)
+    croc, x0 = crocoddyl_problem(load(gait), gait)
     if threads is not None:
         croc.nthreads = threads
     solver = crocoddyl.SolverFDDP(croc)
@@ -73,11 +89,17 @@ def fddp(gait: str, max_iter: int = 200, threads: int | None = None) -> dict:
 
 
 def geoddp(gait: str, expansion: str, max_iter: int = 200) -> dict:
-    from geoddp.scene.legged import anymal_gait, load_anymal
+    from geoddp.problem.legged import QuadrupedGait
+    from geoddp.scene.legged import anymal_gait, contact_problem
     from geoddp.solver import SolverOptions, solve
 
-    robot = load_anymal()
-    problem = anymal_gait(gait, robot)
+    robot = load(gait)
+    if gait == "solo_jump":
+        q0 = robot.model.referenceConfigurations["standing"].copy()
+        nodes, terminal = QuadrupedGait(robot.model, SOLO_FEET).jump(q0, *SOLO_JUMP)
+        problem = contact_problem(robot, nodes, terminal, q0, 0.01, (0.0, 50.0), feet=SOLO_FEET)
+    else:
+        problem = anymal_gait(gait, robot)
     t, c = time.perf_counter(), time.process_time()
     res = solve(problem, SolverOptions(expansion=expansion, max_iter=max_iter))
     elapsed, cpu = time.perf_counter() - t, time.process_time() - c

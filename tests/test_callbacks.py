@@ -142,6 +142,26 @@ def test_gauss_newton_ignores_the_ratio_and_counts_full_steps_only():
     assert q.superlinear() and q.order(2, 50.0, U) == 1 and q.order(8, 50.0, U) == 1 and not q.second
 
 
+def test_hand_back_runs_first_order_until_a_full_unregularised_step():
+    """An exact model indefinite beyond reg_max hands the iterations back to first order (second
+    and switch alike) until a first-order step is full with lambda = 0; at first order it stops."""
+    U = np.zeros((4, 1))
+    for expansion in ("second", "switch"):
+        p = _policy(expansion)
+        p.second = True  # second from the start; switch after its hand-over
+        p.stepped(6.0, 1.0, "first", lam=0.0)  # a full unregularised step before the hand back ...
+        assert p.order(3, 50.0, U) == 2 and p.hand_back() and p.expansion == "first"
+        assert p.order(3, 50.0, U) == 1  # ... does not count: one first-order step at least
+        p.stepped(5.0, 1.0, "first", lam=1e-3)  # full but regularised
+        assert p.order(4, 45.0, U) == 1
+        p.stepped(4.0, 1.0 / 3.0, "first", lam=0.0)  # unregularised but damped
+        assert p.order(5, 41.0, U) == 1
+        p.stepped(3.0, 1.0, "first", lam=0.0)
+        assert p.order(6, 38.0, U) == 2 and p.expansion == "second" and not p.handed_back
+    first = _policy("first")
+    assert not first.hand_back() and first.order(1, 50.0, U) == 1
+
+
 def test_certification_thresholds():
     p, U = _policy(tol=1e-8), np.zeros((4, 1))
     assert not p.certifies_early(U)  # an exact first order keeps the paper's rules

@@ -113,9 +113,9 @@ def test_rollouts_match(robot, gait):
         assert np.max(np.abs(d.xnext - xs[k + 1])) < 1e-10, k
 
 
-@pytest.mark.parametrize("gait", ["walk", "trot"])
-def test_geoddp_solution_in_crocoddyls_problem(gait):
-    """geoddp (first expansion, from the quasi-static start) converges; Crocoddyl's problem costs its
+@pytest.mark.parametrize(("gait", "expansion"), [("walk", "first"), ("trot", "first")])
+def test_geoddp_solution_in_crocoddyls_problem(gait, expansion):
+    """geoddp (first order, from the quasi-static start) converges; Crocoddyl's problem costs its
     trajectory at geoddp's J* (1e-6 relative) with every transition consistent with Crocoddyl's
     node models (1e-6); and that J* is at most FDDP's from the example's start (round-off aside)."""
     import sys
@@ -124,7 +124,7 @@ def test_geoddp_solution_in_crocoddyls_problem(gait):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     import legged_vs_fddp as bench
 
-    ours, theirs = bench.geoddp(gait, "first"), bench.fddp(gait)
+    ours, theirs = bench.geoddp(gait, expansion), bench.fddp(gait)
     assert ours["converged"] and theirs["converged"]
     assert abs(ours["J_crocoddyl"] - ours["J"]) <= 1e-6 * ours["J"]
     assert ours["max_gap"] < 1e-6

@@ -191,3 +191,15 @@ def test_satellite_outside_the_euler_schemes_runs_the_general_one_body_model():
     assert c.converged and abs(c.cost - d.cost) <= 2e-3 * d.cost
     with pytest.raises(InputError, match="attitude_kind"):
         paper_problem(integrator="rk4", attitude_kind="quat", horizon=10)
+
+
+def test_an_exact_model_indefinite_beyond_reg_max_hands_back_to_first_order(paper, paper_solves):
+    """With reg_max = 1e-6 no lambda makes the paper problem's first exact Q_uu positive definite:
+    second order does not stop there but takes first-order steps until one is full and
+    unregularised, then finishes at second order, at the optimum of the default solve."""
+    res = solve(paper, SolverOptions(expansion="second", verbose=False, reg_max=1e-6))
+    assert res.status in (STATUS_CONVERGED_COST, STATUS_CONVERGED_GRAD), res.message
+    assert list(res.expansion_history) == ["first", "first", "second", "second"]
+    assert res.step_history[1] == 1.0 and res.reg_history[1] == 0.0  # the step that hands over again
+    ref = paper_solves["second"].cost
+    assert abs(res.cost - ref) <= 1e-9 * ref

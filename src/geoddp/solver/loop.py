@@ -28,6 +28,10 @@ Decisions the paper leaves open, and why:
   reg_min) so that the last iterations run unregularised and keep their superlinear rate.
 * Line search: gamma in {1, 1/3, 1/9, ...} until J <= J_bar (the paper's test); if gamma falls
   below min_step, lambda is raised and the iteration is redone; past reg_max the solve stops.
+  A second-order backward pass that no lambda up to reg_max factorises does not stop the solve:
+  the iteration hands back to first order (:meth:`.policy.ExpansionPolicy.hand_back`), far from
+  the optimum the exact model can be indefinite beyond any useful lambda (a Solo12 jump from the
+  quasi-static start: at its first iterate, and at switch's hand-over with J still 1e7).
 * Stopping: |J_i - J_(i-1)| <= tau after an accepted step, or ||dJ/dU|| <= the gradient threshold
   (gradient by Lemma V.1, eq. (32)), or max_iter. tau = max(tol, rtol max(|J_i|, ZERO_COST |J_0|))
   (:meth:`SolverOptions.cost_tolerance`): relative to |J| by default (rtol = 1e-11), so that
@@ -128,6 +132,7 @@ class _Solve:
     def iterate(self) -> bool:
         """One iteration of Algorithm 1. Returns False when the solve stops (the status says why)."""
         opt = self.opt
+        lam_in = self.lam
         order = self.policy.order(self.it, self.J, self.traj.u)  # first or second order: the switch
         lin, gnorm = self.direction(order)  # expansion at the nominal, eq. (3); ||dJ/dU||, eq. (32)
         if not np.isfinite(gnorm):
@@ -141,6 +146,11 @@ class _Solve:
         if not (np.isfinite(d1) and np.isfinite(d2)):
             return self.stop(STATUS_NON_FINITE, f"the backward pass at iteration {self.it} produced non-finite gains; "
                              "the last finite iterate is returned")
+        if self.lam > opt.reg_max and order == 2 and self.policy.hand_back():
+            # no lambda up to reg_max makes the exact Q_uu positive definite: first order goes on
+            # from this iterate, with the lambda it had (the policy says until when)
+            self.lam = lam_in
+            return True
         if self.lam > opt.reg_max:
             return self.stop(STATUS_MAX_REG, f"Q_uu not positive definite with lambda up to {opt.reg_max:.1e}")
         lam_used, quu_min = self.lam, float(self.ws.quu_eig.min())
@@ -152,7 +162,7 @@ class _Solve:
             return self.increase_regularisation()  # no descent: redo with a larger lambda
         traj, J_new, gamma = found
         dJ = J_new - self.J
-        self.accept(traj, J_new, gamma, self.policy.expansion, rungs)  # the new nominal
+        self.accept(traj, J_new, gamma, self.policy.expansion, rungs, lam=lam_used)  # the new nominal
         self.update_regularisation(gamma, lin, quu_min)
         return self.cost_test(dJ, gamma, lam_used, quu_min, d1 - 0.5 * d2)  # |dJ| <= tol, or the hand-over
 
@@ -232,11 +242,13 @@ class _Solve:
             return self.stop(STATUS_NO_DESCENT, "no gamma >= min_step decreased J, even with maximal regularisation")
         return True
 
-    def accept(self, traj: Trajectory, J: float, step: float, expansion: str, rungs: int, escape: bool = False) -> None:
-        """The step to ``traj`` (cost J) becomes the iterate; the policy and the callbacks hear of it."""
+    def accept(self, traj: Trajectory, J: float, step: float, expansion: str, rungs: int, escape: bool = False,
+               lam: float = 0.0) -> None:
+        """The step to ``traj`` (cost J), taken with regularisation ``lam``, becomes the iterate; the
+        policy and the callbacks hear of it."""
         record = Step(self.it, self.J, self.gnorm, J, self.lam, step, expansion, rungs, escape, traj.u,
                       time.perf_counter() - self.t_start)
-        self.policy.stepped(abs(J - self.J), step, expansion)
+        self.policy.stepped(abs(J - self.J), step, expansion, lam)
         self.traj, self.J = traj, J
         self.it += 1
         self.gnorm = None

@@ -48,7 +48,10 @@ class SolverOptions:
             them: every multibody residual term), "second" (with Theta, Gamma, Xi and exact cost
             Hessians) or "switch" (first until J_i / J_0 < switch_ratio, then second; the
             paper's proposal), or after ``switch_after`` first-order iterations, or when a
-            first-order step passes the cost test (``tol``), whichever comes first.
+            first-order step passes the cost test (``tol``), whichever comes first. A
+            second-order iteration whose Q_uu no lambda up to ``reg_max`` makes positive definite
+            hands back to first order until a first-order step is full and unregularised
+            (:mod:`geoddp.solver.policy`).
         switch_ratio: sigma of the switch rule, in (0, 1). Not applied when the first-order
             model is a Gauss-Newton one (multibody costs): it keeps converging like FDDP, and
             handing over early gave 1.5-3x slower solves on the real robots.

@@ -14,6 +14,10 @@ paper's printed ones.
   only, at the paper's J_i / J_0 < sigma. With a Gauss-Newton model, switch_after counts full
   steps only and waits while they converge superlinearly, and the cost test first runs the exact
   check, which may certify the point (:meth:`ExpansionPolicy.order`, :meth:`ExpansionPolicy.certifies`).
+* Hand back (second and switch): an exact model that no lambda up to reg_max makes positive
+  definite sends the iterations back to first order, from the same iterate, until a first-order
+  step is full (gamma = 1) and unregularised (lambda = 0); then second order resumes
+  (:meth:`ExpansionPolicy.hand_back`). A solve at first order still stops there.
 * Early certification (Gauss-Newton first order, no input on a control limit; the satellite
   keeps the paper's rules): an exact lambda = 0 pass whose Newton decrement is at most
   CERTIFY_EARLY = 0.1 of the final check's threshold ends the solve at its iterate, before the
@@ -64,6 +68,8 @@ class ExpansionPolicy:
         self.second = opt.expansion == "second"  # the iterations run second order (switch: from the hand-over)
         self.gauss_newton = False  # what the last order-1 linearisation said
         self.first_steps: list[tuple[float, float]] = []  # (|dJ|, gamma) of the accepted first-order steps
+        self.handed_back = False  # an exact model failed beyond reg_max: first order until it runs free
+        self.last_first: tuple[float, float] | None = None  # (gamma, lambda) of the last first-order step
 
     @property
     def expansion(self) -> str:
@@ -76,23 +82,43 @@ class ExpansionPolicy:
 
     def hand_over(self) -> None:
         """Switch to second order from the next iteration on."""
-        self.second = True
+        self.second, self.handed_back = True, False
+
+    def hand_back(self) -> bool:
+        """The exact model at the iterate is indefinite beyond reg_max (no rung of the ladder
+        factorised): the iterations go on at first order (True) until a first-order step is full and
+        unregularised (:meth:`order`); a solve already at first order stops (False)."""
+        if not self.second:
+            return False
+        self.second, self.handed_back, self.last_first = False, True, None
+        return True
 
     def linearised(self, order: int, gauss_newton: bool) -> None:
         """A linearisation of ``order`` was made; ``gauss_newton``: its cost Hessians are Gauss-Newton's."""
         if order == 1:
             self.gauss_newton = gauss_newton
 
-    def stepped(self, decrease: float, gamma: float, expansion: str) -> None:
-        """A step of ``expansion`` with line-search ``gamma`` changed J by ``decrease`` (>= 0) and was accepted."""
+    def stepped(self, decrease: float, gamma: float, expansion: str, lam: float = 0.0) -> None:
+        """A step of ``expansion`` with line-search ``gamma`` and regularisation ``lam`` changed J by
+        ``decrease`` (>= 0) and was accepted."""
         if expansion == "first":
             self.first_steps.append((decrease, gamma))
+            self.last_first = (gamma, lam)
 
     def order(self, it: int, J: float, U: np.ndarray) -> int:
         """The switch rule: second order after switch_after iterations, or once J_i / J_0 <
         switch_ratio (the paper's test) unless the first-order model is a Gauss-Newton one, or
         when first order passes its cost test (:meth:`hand_over`)."""
         opt = self.opt
+        if self.handed_back:
+            # After a hand back (second and switch): first order until its step is full and
+            # unregularised, the regime where Gauss-Newton converges fast and the exact model is
+            # near its own. On the Solo12 jump from the quasi-static start the exact Q_uu stayed
+            # indefinite beyond reg_max until then: each earlier hand-over crawled (switch handing
+            # over at the fifth full step: 145+ iterations against first order's 108) or stopped.
+            if self.last_first is not None and self.last_first == (1.0, 0.0):
+                self.handed_back, self.second = False, True
+            return 2 if self.second else 1
         # The paper's test hands over early because its first-order model carries exact, possibly
         # indefinite cost Hessians. A Gauss-Newton model (lin.gauss_newton) has positive
         # semidefinite ones and keeps converging like FDDP; handing over at J / J_0 < sigma
