@@ -140,3 +140,100 @@ def test_quasi_static_controls_are_crocoddyls(talos, nfeet):
     x = np.concatenate([q, np.zeros(model.nv)])
     theirs = node.quasiStatic(node.createData(), x)
     assert np.max(np.abs(dyn.quasi_static(q, feet) - theirs)) < 1e-9
+
+
+# ------------------------------------------------------------------ the biped walk, node for node
+@pytest.fixture(scope="module")
+def walk(talos):
+    from crocoddyl.utils.biped import SimpleBipedGaitProblem
+
+    from geoddp.problem.biped import talos_walk
+
+    model = talos[0]
+    robot = example_robot_data.load("talos_legs")
+    q0 = model.referenceConfigurations["half_sitting"].copy()
+    x0 = np.concatenate([q0, np.zeros(model.nv)])
+    croc = SimpleBipedGaitProblem(robot.model, "right_sole_link", "left_sole_link").createWalkingProblem(
+        x0, 0.6, 0.1, 0.03, 15, 4)  # Crocoddyl's example bipedal_gaits_fwddyn.py, a fresh instance
+    return talos_walk(robot), croc, x0
+
+
+def test_wrench_cone_is_crocoddyls():
+    from geoddp.problem.biped import wrench_cone
+
+    cone = crocoddyl.WrenchCone(np.eye(3), 0.7, np.array([0.1, 0.05]))
+    A, lb, ub = wrench_cone(0.7, (0.1, 0.05))
+    assert np.max(np.abs(A - cone.A)) == 0.0 and np.array_equal(lb, cone.lb) and np.array_equal(ub, cone.ub)
+
+
+def test_walk_nodes_are_crocoddyls(walk):
+    """Every node of the walk: the same kind and feet, the same next state (1e-12) and node cost
+    (1e-10 relative) at random states and controls; the terminal node (the last landing impulse's
+    calc(x)) and the quasi-static controls."""
+    ours, croc, x0 = walk
+    model = ours.model
+    assert ours.horizon == croc.T == 39
+    rng = np.random.default_rng(11)
+    worst_x, worst_c = 0.0, 0.0
+    for k, cm in enumerate(croc.runningModels):
+        node = ours.nodes[k]
+        impulse = isinstance(cm, crocoddyl.ActionModelImpulseFwdDynamics)
+        assert (node.kind == "impulse") == impulse, k
+        contacts = cm.impulses if impulse else cm.differential.contacts
+        assert sorted(contacts.active_set) == sorted(
+            model.frames[f].name + ("_impulse" if impulse else "_contact") for f in node.feet), k
+        data = cm.createData()
+        for _ in range(3):
+            q, v = random_state(model, rng)
+            u = np.zeros(ours.nu) if impulse else 20.0 * rng.standard_normal(ours.nu)
+            cm.calc(data, np.concatenate([q, v]), np.zeros(0) if impulse else u)
+            ev, cost, *_ = ours.node(k, q, v, u)
+            worst_x = max(worst_x, np.max(np.abs(np.concatenate([ev.q_next, ev.v_next]) - data.xnext)))
+            worst_c = max(worst_c, abs(cost - data.cost) / max(abs(data.cost), 1.0))
+    assert worst_x < 1e-12, worst_x
+    assert worst_c < 1e-10, worst_c
+    assert [n.kind for n in ours.nodes].count("impulse") == 1 and ours.terminal_node.kind == "impulse"
+    tm = croc.terminalModel
+    data = tm.createData()
+    for _ in range(3):
+        q, v = random_state(model, rng)
+        tm.calc(data, np.concatenate([q, v]))
+        assert abs(ours.node(ours.horizon, q, v, None)[1] - data.cost) <= 1e-10 * abs(data.cost)
+    us = croc.quasiStatic([x0] * croc.T)
+    U = ours.quasi_static_controls()
+    for k in range(croc.T):
+        expect = np.zeros(ours.nu) if ours.impulse_rows[k] else us[k]
+        assert np.max(np.abs(U[k] - expect)) < 1e-9, k
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05, 0.1])
+def test_walk_trajectory_cost_is_crocoddyls(walk, noise):
+    """geoddp's rollout of random controls (quasi-static plus noise, N m) costed by Crocoddyl's
+    problem (larger noise makes the open-loop walk fall and diverge): the same J (1e-9 relative), every transition Crocoddyl's (1e-9 relative)."""
+    ours, croc, _ = walk
+    rng = np.random.default_rng(int(100 * noise))
+    U = ours.quasi_static_controls() + noise * rng.standard_normal((ours.horizon, ours.nu))
+    traj = ours.trajectory(ours.check_controls(U))
+    xs = [np.concatenate([a, b]) for a, b in zip(traj.q, traj.v)]
+    J = croc.calc(xs, [np.zeros(0) if ours.impulse_rows[k] else traj.u[k] for k in range(ours.horizon)])
+    assert np.isfinite(J) and abs(J - ours.trajectory_cost(traj)) <= 1e-9 * abs(J), (J, ours.trajectory_cost(traj))
+    for k, d in enumerate(croc.runningDatas):
+        assert np.max(np.abs(d.xnext - xs[k + 1])) <= 1e-9 * max(1.0, np.max(np.abs(xs[k + 1]))), k
+
+
+def test_walk_solution_matches_fddp(walk):
+    """geoddp's first expansion from the quasi-static start converges; Crocoddyl's problem costs its
+    trajectory at its J* (1e-9 relative) with every transition consistent (1e-9), and that J* is
+    FDDP's from the example's start (xs = [x0] * (T + 1)) to 1e-9 relative."""
+    from geoddp.solver import SolverOptions, solve
+
+    ours, croc, x0 = walk
+    res = solve(ours, SolverOptions(expansion="first"))
+    assert res.converged
+    xs = [np.concatenate([a, b]) for a, b in zip(res.q, res.v)]
+    J = croc.calc(xs, [np.zeros(0) if ours.impulse_rows[k] else res.controls[k] for k in range(ours.horizon)])
+    assert abs(J - res.cost) <= 1e-9 * res.cost
+    assert max(np.max(np.abs(d.xnext - xs[k + 1])) for k, d in enumerate(croc.runningDatas)) < 1e-9
+    solver = crocoddyl.SolverFDDP(croc)
+    assert solver.solve([x0] * (croc.T + 1), croc.quasiStatic([x0] * croc.T), 200, False)
+    assert abs(res.cost - solver.cost) <= 1e-9 * solver.cost, (res.cost, solver.cost)
