@@ -3,14 +3,15 @@ SimpleBipedGaitProblem, its example bipedal_gaits_fwddyn.py's walking phase: ste
 0.1 m, dt 0.03 s, 15 step knots, 4 support knots), each solve in its own process.
 
 Both start from the example's quasi-static controls (Crocoddyl's ``quasiStatic``); FDDP from its
-example's states xs = [x0] * (T + 1) (infeasible, as the example) and, "fddp_rollout", from the
-rollout of those controls (geoddp's start). Per solver: iterations, J* (geoddp's as Crocoddyl's
+example's states xs = [x0] * (T + 1) (infeasible, as the example) with its default threads
+("fddp", ShootingProblem.nthreads as built) and on one thread ("fddp1"), and, "fddp_rollout", from
+the rollout of those controls (geoddp's start). Per solver: iterations, J* (geoddp's as Crocoddyl's
 problem costs geoddp's trajectory, with the largest transition gap), wall and CPU time of the solve.
 Needs the bench environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data); geoddp's processes
 run numpy's BLAS on one thread (OPENBLAS_NUM_THREADS=1 unless set).
 
     .venv-bench/bin/python benchmarks/biped_vs_fddp.py            # all, results log
-    .venv-bench/bin/python benchmarks/biped_vs_fddp.py one first  # or fddp, fddp_rollout, second, switch
+    .venv-bench/bin/python benchmarks/biped_vs_fddp.py one first  # or fddp, fddp1, fddp_rollout, second, switch
 """
 from __future__ import annotations
 
@@ -23,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-SOLVERS = ("fddp", "fddp_rollout", "first", "second", "switch")
-WALK = (0.6, 0.1, 0.03, 15, 4)  # step length, height, dt, step knots, support knots
+SOLVERS = ("fddp", "fddp1", "fddp_rollout", "first", "second", "switch")
+WALK = (0.6, 0.1, 0.03, 15, 4)  # step length, height, dt, step knots, support knots: geoddp.scene.legged.TALOS_WALK
 
 
 def crocoddyl_problem(robot):
@@ -45,18 +46,23 @@ def crocoddyl_cost(croc, problem, q, v, u) -> tuple[float, float]:
     return float(J), gap
 
 
-def fddp(rollout: bool, max_iter: int = 200) -> dict:
+def fddp(rollout: bool, max_iter: int = 200, threads: int | None = None) -> dict:
+    """FDDP from the example's states or the rollout, with its default threads (``threads`` None)
+    or ``threads`` of them."""
     import crocoddyl
     import example_robot_data
 
     croc, x0 = crocoddyl_problem(example_robot_data.load("talos_legs"))
+    if threads is not None:
+        croc.nthreads = threads
     solver = crocoddyl.SolverFDDP(croc)
     us = croc.quasiStatic([x0] * croc.T)
     xs = croc.rollout(us) if rollout else [x0] * (croc.T + 1)
     t, c = time.perf_counter(), time.process_time()
     converged = solver.solve(xs, us, max_iter, rollout)
     elapsed, cpu = time.perf_counter() - t, time.process_time() - c
-    return {"solver": "fddp_rollout" if rollout else "fddp", "threads": int(croc.nthreads),
+    name = "fddp_rollout" if rollout else "fddp" if threads is None else f"fddp{threads}"
+    return {"solver": name, "threads": int(croc.nthreads),
             "iterations": int(solver.iter), "J": float(solver.cost), "converged": bool(converged),
             "time_s": elapsed, "cpu_s": cpu}
 
@@ -64,11 +70,11 @@ def fddp(rollout: bool, max_iter: int = 200) -> dict:
 def geoddp(expansion: str, max_iter: int = 200) -> dict:
     import example_robot_data
 
-    from geoddp.problem.biped import talos_walk
+    from geoddp.scene.legged import talos_walk
     from geoddp.solver import SolverOptions, solve
 
     robot = example_robot_data.load("talos_legs")
-    problem = talos_walk(robot, *WALK)
+    problem = talos_walk(robot)
     t, c = time.perf_counter(), time.process_time()
     res = solve(problem, SolverOptions(expansion=expansion, max_iter=max_iter))
     elapsed, cpu = time.perf_counter() - t, time.process_time() - c
@@ -84,7 +90,7 @@ def geoddp(expansion: str, max_iter: int = 200) -> dict:
 
 def one(solver: str) -> dict:
     if solver.startswith("fddp"):
-        return fddp(solver == "fddp_rollout")
+        return fddp(solver == "fddp_rollout", threads=1 if solver == "fddp1" else None)
     return geoddp(solver)
 
 

@@ -147,7 +147,7 @@ def test_quasi_static_controls_are_crocoddyls(talos, nfeet):
 def walk(talos):
     from crocoddyl.utils.biped import SimpleBipedGaitProblem
 
-    from geoddp.problem.biped import talos_walk
+    from geoddp.scene.legged import talos_walk
 
     model = talos[0]
     robot = example_robot_data.load("talos_legs")
@@ -159,7 +159,7 @@ def walk(talos):
 
 
 def test_wrench_cone_is_crocoddyls():
-    from geoddp.problem.biped import wrench_cone
+    from geoddp.models.contact import wrench_cone
 
     cone = crocoddyl.WrenchCone(np.eye(3), 0.7, np.array([0.1, 0.05]))
     A, lb, ub = wrench_cone(0.7, (0.1, 0.05))

@@ -26,7 +26,7 @@ SATELLITE = ("satellite_authors_code", "satellite_keep_out", "satellite_paper", 
 MULTIBODY = ("quadrotor", "quadrotor_thrust_limits", "space_manipulator", "spacecraft_docking")
 HARD = tuple(sorted(p.stem for p in (PACKAGE / "data" / "scenes" / "hard").glob("*.toml")))
 ROBOTS = ("hector_fly", "solo12_reorient", "ur5_constraints", "ur5_reach")  # example-robot-data's robots by name
-LEGGED = ("anymal_jump", "anymal_trot", "anymal_walk")  # legged scenes: Crocoddyl's ANYmal gaits
+LEGGED = ("anymal_jump", "anymal_trot", "anymal_walk", "talos_walk")  # legged scenes: Crocoddyl's ANYmal gaits, its biped walk
 
 QUAD_SCENE = (data.scene_dir() / "multibody" / "quadrotor.toml").read_text()
 
@@ -57,7 +57,8 @@ def test_every_builtin_scene_loads_by_name_as_from_its_file(name):
     kind = MultibodySceneSpec if name in MULTIBODY + ROBOTS else LeggedSceneSpec if name in LEGGED else SceneSpec
     assert isinstance(by_name, kind)
     if name in LEGGED:
-        assert by_name.robot == "anymal" and by_name.gait["type"] == name.split("_")[1]
+        robot = {"anymal": "anymal", "talos": "talos_legs"}[name.split("_")[0]]
+        assert by_name.robot == robot and by_name.gait["type"] == name.split("_")[1]
     if name in ROBOTS:
         assert by_name.robot == name.split("_")[0] and by_name.urdf == by_file.urdf
     if name in MULTIBODY:
@@ -130,7 +131,7 @@ def test_the_build_ships_every_data_file():
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     backend = cfg["build-system"]["build-backend"]
     files = _data_files()
-    assert len(files) == 4 + 22 + 4 + 3 + 3  # 4 URDFs; 22 scenes (2 with control limits, 1 with constraints); 4 robots (1 with constraints); 3 sweeps; 3 legged
+    assert len(files) == 4 + 22 + 4 + 3 + 4  # 4 URDFs; 22 scenes (2 with control limits, 1 with constraints); 4 robots (1 with constraints); 3 sweeps; 4 legged
     if backend.startswith("setuptools"):
         globs = cfg["tool"]["setuptools"]["package-data"]["geoddp"]
         missing = [f for f in files if not any(f.match(g) and len(f.parts) == len(PurePosixPath(g).parts)

@@ -116,6 +116,39 @@ def friction_cone(mu: float, facets: int = 4, min_force: float = 0.0, max_force:
     return A, lb, ub
 
 
+def wrench_cone(mu: float, box: tuple[float, float], facets: int = 4, inner: bool = True
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Crocoddyl's ``WrenchCone`` (flat ground, normal +z) of a rectangular sole ``box`` = (length,
+    width) m centred on the foot frame: (A (facets + 13, 6), lb, ub), lb <= A (f, tau) <= ub
+    meaning the wrench (force N, torque N m about the foot frame's origin, world-aligned axes)
+    inside: the linearised friction cone (``inner``: its inner approximation, mu cos(pi / facets);
+    Crocoddyl's default), f_z >= 0, the centre of pressure inside the sole (four rows), the yaw
+    torque within the sole's friction bound (eight rows)."""
+    if facets % 2 or facets < 2:
+        raise InputError("facets", f"expected an even number >= 2, got {facets!r}")
+    theta = 2.0 * np.pi / facets
+    mu = mu * np.cos(0.5 * theta) if inner else mu
+    A = np.zeros((facets + 13, 6))
+    lb, ub = np.full(facets + 13, -np.inf), np.zeros(facets + 13)
+    mu_n = np.array([0.0, 0.0, -mu])
+    for i in range(facets // 2):
+        t = np.array([np.cos(theta * i), np.sin(theta * i), 0.0])
+        A[2 * i, :3], A[2 * i + 1, :3] = mu_n + t, mu_n - t
+    A[facets, 2] = 1.0
+    lb[facets], ub[facets] = 0.0, np.inf
+    L, W = 0.5 * box[0], 0.5 * box[1]
+    n = facets
+    A[n + 1] = [0, 0, -W, 1, 0, 0]
+    A[n + 2] = [0, 0, -W, -1, 0, 0]
+    A[n + 3] = [0, 0, -L, 0, 1, 0]
+    A[n + 4] = [0, 0, -L, 0, -1, 0]
+    mu_lw = -mu * (L + W)
+    for j, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+        A[n + 5 + j] = [sx * W, sy * L, mu_lw, -sx * mu, -sy * mu, -1.0]
+        A[n + 9 + j] = [sx * W, sy * L, mu_lw, sx * mu, sy * mu, 1.0]
+    return A, lb, ub
+
+
 @dataclass
 class NodeEval:
     """One node evaluated: next state, accelerations / velocity jump, contact forces in the world

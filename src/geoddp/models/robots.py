@@ -70,6 +70,9 @@ class RobotSpec:
         package_dirs: directories ``package://`` URIs of the URDF are searched in (the
             ``share`` directory holding ``example-robot-data/robots/...``).
         default_posture: the loader's reference posture (a group_state of the SRDF), or None.
+        loader_model: True when the loader changes the model its URDF gives ("talos_legs": Talos'
+            URDF cut to its legs); that robot's model is then the loader's
+            (``example_robot_data.load(name).model``), not the URDF's.
     """
 
     name: str
@@ -78,6 +81,7 @@ class RobotSpec:
     root: str
     package_dirs: tuple[str, ...]
     default_posture: str | None
+    loader_model: bool = False
 
     def multibody(self, *, dt: float, root: str | None = None, **kwargs: Any) -> Multibody:
         """The :class:`Multibody` of this robot from its URDF (root: the loader's unless given;
@@ -146,11 +150,21 @@ def find(name: Any, parameter: str = "robot") -> RobotSpec:
     posture = getattr(cls, "ref_posture", None) if srdf is not None else None
     # URIs read package://example-robot-data/robots/...: the package directory is robots/../..
     spec = RobotSpec(name, urdf, srdf, "free_flyer" if getattr(cls, "free_flyer", False) else "fixed",
-                     (str(robots.parent.parent.resolve()),), posture)
+                     (str(robots.parent.parent.resolve()),), posture, _loader_edits_model(cls))
     if len(_FOUND) >= 64:
         _FOUND.clear()
     _FOUND[key] = spec
     return spec
+
+
+def _loader_edits_model(cls) -> bool:
+    """Whether example-robot-data's loader class ``cls`` does more than load its URDF (it defines
+    its own constructor: talos_legs, human, panda_collision)."""
+    try:
+        from example_robot_data.utils import RobotLoader
+    except ImportError:  # another layout of the loaders: assume the URDF's model
+        return False
+    return cls.__init__ is not RobotLoader.__init__
 
 
 _FOUND: dict[tuple[str, tuple[str, ...]] | None, RobotSpec] = {}  # (name, sys.path) -> where it was found

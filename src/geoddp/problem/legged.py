@@ -4,18 +4,27 @@ problem the solver solves (:class:`ContactProblem`, the solver's contract of
 
 A schedule is a list of nodes, each either a **contact node** (which feet are on the ground; the
 others swing) or an **impulse node** (the feet that touch down; a node with no controls), plus a
-terminal node. Costs per node are Crocoddyl's ``SimpleQuadrupedalGaitProblem``'s (its example
-quadrupedal_gaits_fwddyn.py), weights included, and costed as Crocoddyl costs them: running costs
-of contact nodes times dt, impulse and terminal nodes' costs as they are.
+terminal node. Costs per node are those of Crocoddyl's gait examples, weights included, and costed
+as Crocoddyl costs them: running costs of contact nodes times dt, impulse and terminal nodes' costs
+as they are. A foot's contact kind (:class:`geoddp.models.contact.ContactDynamics`) picks its
+terms, as Crocoddyl's two examples do: a point foot ("3d", ``SimpleQuadrupedalGaitProblem``,
+quadrupedal_gaits_fwddyn.py) has its position tracked and its force in a friction cone; a flat
+foot ("6d", ``SimpleBipedGaitProblem``, bipedal_gaits_fwddyn.py) has its placement tracked and its
+wrench in a wrench cone (:func:`geoddp.models.contact.wrench_cone`).
 
-Contact node (weights): CoM tracking 1e6 (when the node has a CoM target), per support foot a
-friction-cone quadratic barrier 10 (mu = 0.7, 4 facets, f_z >= 0), per swing foot a position
-tracking 1e6, state regularisation 10 toward the default posture (weights (0, 0, 0, 500, 500,
-500, 0.01 per joint, 10 x 6, 1 per joint velocity), squared), control regularisation 0.1, a
-state-bounds quadratic barrier 1e3 (joint position and velocity limits). Impulse node: foot
-tracking 1e7 of the feet that land, state regularisation 10 (weights 1 x 6, 10 per joint, 10 x nv).
-Terminal node: the terms of its node that depend on the state alone (state regularisation and
-bounds, CoM and foot tracking), undivided by dt (Crocoddyl's terminal ``calc(x)``).
+Contact node (weights: :class:`GaitCosts`, the quadruped's; :meth:`GaitCosts.biped` the biped's):
+CoM tracking 1e6 (when the node has a CoM target); per support foot a cone quadratic barrier 10
+(mu = 0.7, 4 facets; the friction cone of the force, f_z >= 0; for a flat foot the wrench cone of a
+0.1 x 0.05 m sole: also the centre of pressure inside the sole and the yaw torque bounded); per
+swing foot a tracking term 1e6 (point foot: its position; flat foot: log6(M_ref^-1 oMf), M_ref the
+target position with the identity rotation); state regularisation 10 toward the default posture
+(weights (0, 0, 0, 500, 500, 500, 0.01 per joint, 10 x 6, 1 per joint velocity (10 for the biped)),
+squared); control regularisation 0.1; a state-bounds quadratic barrier 1e3 (joint position and
+velocity limits; none for the biped). Impulse node: tracking 1e7 (biped 1e8) of the feet that
+land, state regularisation 10 (weights 1 x 6, 10 per joint (biped 0.1), 10 x nv). Terminal node:
+the terms of its node that depend on the state alone (state regularisation and bounds, CoM and foot
+tracking), undivided by dt (Crocoddyl's terminal ``calc(x)``); it may be an impulse node (the
+biped's walk ends on its last landing).
 
 Controls are (H, nu) at every node; at impulse nodes they act on nothing and stay zero (a unit
 quadratic on them keeps the node's control Hessian invertible and costs exactly 0 there), so a
@@ -33,7 +42,7 @@ from .. import kernels
 from ..lie import NONCOMMUTATIVE
 from ..lie import product as cfg
 from ..models import integrators as integ
-from ..models.contact import ContactDynamics, friction_cone
+from ..models.contact import ContactDynamics, friction_cone, wrench_cone
 from ..validate import InputError, finite_array
 from .contract import Linearisation, Trajectory
 
@@ -67,7 +76,14 @@ class Node:
 
 @dataclass
 class GaitCosts:
-    """Weights of Crocoddyl's quadruped gait costs (see the module docstring)."""
+    """Weights of Crocoddyl's gait costs (see the module docstring): its quadruped's by default,
+    its biped's from :meth:`biped`.
+
+    ``friction_cone`` weighs each support foot's cone barrier (a point foot's friction cone, a flat
+    foot's wrench cone over a ``sole`` of (length, width) m). ``state_weights`` and
+    ``impulse_state_weights``: the state regularisation's weights, squared, per (base position,
+    base orientation, joint, base velocity, joint velocity) entry (each entry of the tangent
+    state (dq, dv) gets its group's)."""
 
     com: float = 1e6
     friction_cone: float = 1e1
@@ -79,6 +95,25 @@ class GaitCosts:
     impulse_foot: float = 1e7
     impulse_state: float = 1e1
     impulse_control: float = 1.0  # on the controls of an impulse node: they stay 0, so it costs 0
+    sole: tuple[float, float] = (0.1, 0.05)
+    state_weights: tuple[float, float, float, float, float] = (0.0, 500.0, 0.01, 10.0, 1.0)
+    impulse_state_weights: tuple[float, float, float, float, float] = (1.0, 1.0, 10.0, 10.0, 10.0)
+
+    @classmethod
+    def biped(cls, **overrides: float) -> "GaitCosts":
+        """Crocoddyl's ``SimpleBipedGaitProblem`` weights: no state bounds, landing feet 1e8, joint
+        velocities 10, impulse joints 0.1 (``overrides``: fields to change)."""
+        return cls(**{"bounds": 0.0, "impulse_foot": 1e8, "state_weights": (0.0, 500.0, 0.01, 10.0, 10.0),
+                      "impulse_state_weights": (1.0, 1.0, 0.1, 10.0, 10.0), **overrides})
+
+
+def state_weight_vector(weights: tuple[float, ...], nv: int) -> np.ndarray:
+    """(2 nv,) the squared per-entry weights of a free-flyer robot's tangent state (dq, dv) from the
+    five group weights of :class:`GaitCosts` (base position, base orientation, joint, base
+    velocity, joint velocity)."""
+    wp, wo, wj, wb, wv = (float(w) for w in weights)
+    nj = nv - 6
+    return np.array([wp] * 3 + [wo] * 3 + [wj] * nj + [wb] * 6 + [wv] * nj) ** 2
 
 
 def _barrier(r: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -119,9 +154,12 @@ class ContactProblem:
         nv = m.nv
         self.nx, self.nu, self.horizon, self.dt = 2 * nv, nv - 6, len(self.nodes), dynamics.dt
         self.impulse_rows = np.array([n.kind == "impulse" for n in self.nodes])
-        nj = nv - 6
-        self.w_state = np.array([0.0] * 3 + [500.0] * 3 + [0.01] * nj + [10.0] * 6 + [1.0] * nj) ** 2
-        self.w_impulse = np.array([1.0] * 6 + [10.0] * nj + [10.0] * nv) ** 2
+        self.w_state = state_weight_vector(self.costs.state_weights, nv)
+        self.w_impulse = state_weight_vector(self.costs.impulse_state_weights, nv)
+        flat = [f for f in dynamics.contact_kinds if any(f in n.feet for n in [*self.nodes, terminal])]
+        if any(dynamics.kind(f) == "6d_local" for f in flat):
+            raise InputError("dynamics.contact_kinds", "the gait costs take flat feet in world-aligned axes ('6d'), "
+                             "not '6d_local'")
         # Crocoddyl's StateMultibody bounds, the residual difference(neutral, q) against q's limits
         # shifted by one (the free flyer has nq = 7, nv = 6) and the velocity limits
         lbq = np.concatenate([np.full(7, -np.inf), m.lowerPositionLimit[7:]])
@@ -130,7 +168,8 @@ class ContactProblem:
         self.ub = np.concatenate([ubq[1:nv + 1], m.velocityLimit])
         self.q_neutral = pin.neutral(m)
         self.groups = cfg.joint_groups(m)
-        self.cone = friction_cone(self.costs.mu, 4)
+        self.cone = friction_cone(self.costs.mu, 4)  # a point foot's (A, lb, ub) over its force (3,)
+        self.wrench = wrench_cone(self.costs.mu, self.costs.sole, 4)  # a flat foot's over (force, torque) (6,)
         self._index = (np.arange(nv), np.arange(nv, 2 * nv), np.arange(2 * nv, 2 * nv + self.nu))
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
                                             "dt": self.dt, "integrator": "semi_implicit"}
@@ -140,6 +179,32 @@ class ContactProblem:
         d = pin.difference(self.model, q_ref, q)
         D = pin.dDifference(self.model, q_ref, q, pin.ArgumentPosition.ARG1)
         return np.concatenate([d, v - v_ref]), D
+
+    def _foot_residual(self, f: int, p: np.ndarray, q: np.ndarray, derivatives: bool):
+        """Swing-foot tracking residual of frame ``f`` toward the target position ``p`` (3,), m,
+        and its Jacobian in dq (None unless ``derivatives``); the frame placements of dyn.data
+        current. A point foot: oMf.translation - p (3,), Jacobian R J_lin; a flat foot (Crocoddyl's
+        ``ResidualModelFramePlacement``): log6(M_ref^-1 oMf) (6,), M_ref = (I, p), Jacobian
+        Jlog6 J (J the LOCAL frame Jacobian)."""
+        m, d = self.model, self.dyn.data
+        if self.dyn.kind(f) == "3d":
+            r = d.oMf[f].translation - p
+            return r, (d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3] if derivatives else None)
+        rMf = pin.SE3(np.eye(3), np.asarray(p, dtype=float)).actInv(d.oMf[f])
+        r = pin.log6(rMf).vector
+        return r, (pin.Jlog6(rMf) @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL) if derivatives else None)
+
+    def _cones(self, feet: tuple[int, ...]) -> list[tuple[slice, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+        """Per foot of a contact node: (its rows of ``NodeEval.forces``, its cone (A, lb, ub)):
+        the friction cone of a point foot's force (3 rows), the wrench cone of a flat foot's
+        (force, torque) (6 rows)."""
+        out, start = [], 0
+        for f in feet:
+            cone = self.cone if self.dyn.kind(f) == "3d" else self.wrench
+            n = cone[0].shape[1]
+            out.append((slice(start, start + n), cone))
+            start += n
+        return out
 
     def _cost(self, node: Node | None, q, v, u, ev, derivatives: bool, terminal: bool = False):
         """Cost of one node (dt-scaled for a contact node), its gradient in z = (dq, dv, du) and
@@ -178,41 +243,37 @@ class ContactProblem:
                 deriv(w, ar[:nv], act[:nv], D, Q, qi)
                 deriv(w, ar[nv:], act[nv:], None, V, vi)
 
-        def foot_jacobian(f):
-            return d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3] if derivatives else None
-
         pin.forwardKinematics(m, d, q)
         pin.updateFramePlacements(m, d)
         if impulse:
             add_state(c.impulse_state, self.q_ref, self.v_ref, self.w_impulse)
             for f, p in node.swing:
-                add(c.impulse_foot, d.oMf[f].translation - p, foot_jacobian(f), Q, qi)
+                add(c.impulse_foot, *self._foot_residual(f, p, q, derivatives), Q, qi)
             add(c.impulse_control, u, None, U, ui)
             return val, g, Hs
         add_state(c.state, self.q_ref, self.v_ref, self.w_state)
-        rb, Db = self._state_residual(self.q_neutral, q, v, np.zeros(nv))
-        ex, mask = _barrier(rb, self.lb, self.ub)
-        val += 0.5 * c.bounds * float(ex @ ex)
-        if derivatives:
-            deriv(c.bounds, ex[:nv], mask[:nv], Db, Q, qi)
-            deriv(c.bounds, ex[nv:], mask[nv:], None, V, vi)
+        if c.bounds:  # Crocoddyl's biped has no bounds term
+            rb, Db = self._state_residual(self.q_neutral, q, v, np.zeros(nv))
+            ex, mask = _barrier(rb, self.lb, self.ub)
+            val += 0.5 * c.bounds * float(ex @ ex)
+            if derivatives:
+                deriv(c.bounds, ex[:nv], mask[:nv], Db, Q, qi)
+                deriv(c.bounds, ex[nv:], mask[nv:], None, V, vi)
         # CoM and swing-foot terms depend on x alone: the terminal node keeps them (Crocoddyl's calc(x))
         if node.com is not None:
             com = pin.centerOfMass(m, d, q)
             add(c.com, com - node.com, pin.jacobianCenterOfMass(m, d, q) if derivatives else None, Q, qi)
         for f, p in node.swing:
-            add(c.foot, d.oMf[f].translation - p, foot_jacobian(f), Q, qi)
+            add(c.foot, *self._foot_residual(f, p, q, derivatives), Q, qi)
         if not terminal:
             add(c.control, u, None, U, ui)
-            A, lb, ub = self.cone
-            if node.feet:  # all feet's cone residuals at once: (feet, facets + 1)
-                ex, mask = _barrier(ev.forces.reshape(-1, 3) @ A.T, lb, ub)
-                for i in range(len(node.feet)):
-                    val += 0.5 * c.friction_cone * float(ex[i] @ ex[i])
-                    if derivatives and mask[i].any():
-                        Jr = A @ ev.Lz[3 * i:3 * i + 3]
-                        g[:] += c.friction_cone * (Jr.T @ ex[i])
-                        Hs[:] += c.friction_cone * (Jr.T @ (mask[i, :, None] * Jr))
+            for rows, (A, lb, ub) in self._cones(node.feet):
+                ex, mask = _barrier(A @ ev.forces[rows], lb, ub)
+                val += 0.5 * c.friction_cone * float(ex @ ex)
+                if derivatives and mask.any():  # inside the cone the barrier is flat
+                    Jr = A @ ev.Lz[rows]
+                    g[:] += c.friction_cone * (Jr.T @ ex)
+                    Hs[:] += c.friction_cone * (Jr.T @ (mask[:, None] * Jr))
             val = val * self.dt
             g *= self.dt
             Hs *= self.dt
@@ -336,12 +397,42 @@ class ContactProblem:
             model.gravity = g0
         return 0.5 * (dg + dg.T)
 
+    def _placement_curvature(self, f: int, p: np.ndarray, q: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """sum_a c_a d^2 r_a (nv, nv) of a flat foot's placement residual r(eta) =
+        log6(M_ref^-1 oMf(q exp(eta))), M_ref = (I, p), exactly: with the frame's displacement
+        phi(eta) = J eta + 1/2 a_f(q, eta, 0) to second order (a_f the frame's LOCAL spatial
+        acceleration at zero joint acceleration, quadratic in the velocity) and
+        r = r0 + K phi - 1/2 K D(K phi, K phi) (K = Jlog6, D the SE(3) chart's second-order tensor),
+        the curvature is 1/2 (K^T c) . P - (KJ)^T ((K^T c) . D_sym) (KJ), P the velocity Hessian of
+        a_f (column k: its velocity derivative at v = e_k). Leaves dyn.data's placements at q."""
+        m, d, nv = self.model, self.dyn.data, self.model.nv
+        rMf = pin.SE3(np.eye(3), np.asarray(p, dtype=float)).actInv(d.oMf[f])
+        r0 = pin.log6(rMf).vector
+        K = pin.Jlog6(rMf)
+        J = pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)
+        kc = K.T @ c
+        P = np.empty((nv, nv))  # kc . P
+        zero = np.zeros(nv)
+        for k in range(nv):  # d a_f / d v at v = e_k is P e_k (a_f quadratic in v)
+            e = np.zeros(nv)
+            e[k] = 1.0
+            pin.computeForwardKinematicsDerivatives(m, d, q, e, zero)
+            P[:, k] = kc @ pin.getFrameAccelerationDerivatives(m, d, f, pin.LOCAL)[2]
+        pin.forwardKinematics(m, d, q)
+        pin.updateFramePlacements(m, d)
+        D = kernels.core.se3_jr_derivative(np.ascontiguousarray(r0)).reshape(6, 6, 6)
+        Ds = 0.5 * (D + D.transpose(0, 2, 1))
+        KJ = K @ J
+        out = 0.5 * P - KJ.T @ np.einsum("a,abc->bc", kc, Ds) @ KJ
+        return 0.5 * (out + out.T)
+
     def _cost_hessian(self, k: int, q, v, u, ev, L2, gauss_newton: np.ndarray | None = None) -> np.ndarray:
         """Exact Hessian (nz, nz) of node k's cost: the Gauss-Newton part of :meth:`_cost` plus
         each residual's curvature times its weighted residual: the state differences' (SE(3) log's
-        second order), the CoM's and the feet's (generalised gravity derivatives of a model whose
-        gravity is minus the residual: the CoM of the robot, a unit point mass at the foot) and the
-        forces' (``L2``: their exact second derivatives). ``gauss_newton``: that Gauss-Newton part
+        second order), the CoM's and the point feet's (generalised gravity derivatives of a model
+        whose gravity is minus the residual: the CoM of the robot, a unit point mass at the foot),
+        the flat feet's placements' (:meth:`_placement_curvature`) and the forces' (``L2``: their
+        exact second derivatives). ``gauss_newton``: that Gauss-Newton part
         at the same point if already computed (it is added to, not copied), else None."""
         m, c, nv = self.model, self.costs, self.model.nv
         terminal = k == self.horizon
@@ -360,8 +451,11 @@ class ContactProblem:
         def feet(weight):
             out = np.zeros((nv, nv))
             for f, p in node.swing:
-                mf, df = self.dyn._foot_model(f)
-                out += weight * self._gravity_curvature(mf, df, q, d.oMf[f].translation - p)
+                if self.dyn.kind(f) == "3d":
+                    mf, df = self.dyn._foot_model(f)
+                    out += weight * self._gravity_curvature(mf, df, q, d.oMf[f].translation - p)
+                else:
+                    out += self._placement_curvature(f, p, q, weight * self._foot_residual(f, p, q, False)[0])
             return out
 
         if node.kind == "impulse":
@@ -370,9 +464,10 @@ class ContactProblem:
             Hs[:nv, :nv] += curv
             return Hs
         curv += c.state * self._difference_curvature(self.q_ref, q, self.w_state[:nv] * rq)
-        ex, _ = _barrier(np.concatenate([pin.difference(m, self.q_neutral, q), v]), self.lb, self.ub)
-        if np.any(ex[:nv]):
-            curv += c.bounds * self._difference_curvature(self.q_neutral, q, ex[:nv])
+        if c.bounds:
+            ex, _ = _barrier(np.concatenate([pin.difference(m, self.q_neutral, q), v]), self.lb, self.ub)
+            if np.any(ex[:nv]):
+                curv += c.bounds * self._difference_curvature(self.q_neutral, q, ex[:nv])
         if node.com is not None:
             r = pin.centerOfMass(m, d, q) - node.com
             curv += c.com * self._gravity_curvature(m0, d0, q, r / pin.computeTotalMass(m))
@@ -380,13 +475,11 @@ class ContactProblem:
         scale = 1.0 if terminal else self.dt
         Hs[:nv, :nv] += scale * curv
         if not terminal:
-            A, lb, ub = self.cone
             nz = Hs.shape[0]
-            for i in range(len(node.feet)):
-                rows = slice(3 * i, 3 * i + 3)
+            for rows, (A, lb, ub) in self._cones(node.feet):
                 ex, mask = _barrier(A @ ev.forces[rows], lb, ub)
                 if mask.any():  # inside the cone the barrier is flat
-                    Hs += (c.friction_cone * self.dt) * ((ex @ A) @ L2[rows].reshape(3, -1)).reshape(nz, nz)
+                    Hs += (c.friction_cone * self.dt) * ((ex @ A) @ L2[rows].reshape(A.shape[1], -1)).reshape(nz, nz)
         return Hs
 
     def second_order_node(self, k: int, traj: Trajectory, ev=None):
@@ -462,7 +555,63 @@ class ContactProblem:
         return {**self._description, "target_rotation": np.eye(3), "target_angular_velocity": np.zeros(3)}
 
 
-# ------------------------------------------------------------------ Crocoddyl's quadruped gaits
+# ------------------------------------------------------------------ Crocoddyl's gaits
+def _frame_ids(model: pin.Model, names) -> tuple[int, ...]:
+    missing = [f for f in names if not model.existFrame(f)]
+    if missing:
+        raise InputError("feet", f"frames {missing} are not in the model")
+    return tuple(int(model.getFrameId(f)) for f in names)
+
+
+def _posture(model: pin.Model, q_default: np.ndarray | None, name: str) -> np.ndarray:
+    if q_default is not None:
+        return q_default
+    if name not in model.referenceConfigurations:
+        raise InputError("q_default", f"the model has no {name!r} reference configuration; give q_default")
+    return model.referenceConfigurations[name].copy()
+
+
+def _start(model: pin.Model, ids: tuple[int, ...], q0: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """(the feet's positions (3,) at q0, m; the CoM's start: their mean with the CoM's height)."""
+    d = model.createData()
+    pin.forwardKinematics(model, d, q0)
+    pin.updateFramePlacements(model, d)
+    pos = [d.oMf[i].translation.copy() for i in ids]
+    com = sum(pos) / len(pos)
+    com[2] = pin.centerOfMass(model, d, q0)[2]
+    return pos, com
+
+
+def footstep(com0: np.ndarray, feet_pos: list[np.ndarray], length: float, height: float, knots: int,
+             support, swing) -> list[Node]:
+    """Crocoddyl's ``createFootstepModels``: ``knots`` contact nodes on the ``support`` feet (frame
+    ids), the ``swing`` feet (at ``feet_pos`` (3,), m) tracking an arc ``length`` m forward and
+    ``height`` m up, the CoM the share of the step the swing feet carry (len(swing) / all feet);
+    then the impulse node of their landing. Moves ``com0`` and ``feet_pos`` (in place) to the end
+    of the step, as Crocoddyl's builder does for the next one."""
+    nodes = []
+    pct = len(swing) / (len(support) + len(swing))
+    ph = knots / 2
+    tasks = ()
+    for k in range(knots):
+        tasks = []
+        for i, p in zip(swing, feet_pos):
+            if k < ph:
+                dp = np.array([length * (k + 1) / knots, 0.0, height * k / ph])
+            elif k == ph:
+                dp = np.array([length * (k + 1) / knots, 0.0, height])
+            else:
+                dp = np.array([length * (k + 1) / knots, 0.0, height * (1 - float(k - ph) / ph)])
+            tasks.append((i, p + dp))
+        com = np.array([length * (k + 1) / knots, 0.0, 0.0]) * pct + com0
+        nodes.append(Node("contact", tuple(support), com=com, swing=tuple(tasks)))
+    nodes.append(Node("impulse", tuple(swing), swing=tuple(tasks)))
+    com0 += [length * pct, 0.0, 0.0]
+    for p in feet_pos:
+        p += [length, 0.0, 0.0]
+    return nodes
+
+
 @dataclass
 class QuadrupedGait:
     """The schedules of Crocoddyl's ``SimpleQuadrupedalGaitProblem`` (crocoddyl.utils.quadruped),
@@ -479,70 +628,30 @@ class QuadrupedGait:
     ids: tuple[int, ...] = field(init=False)
 
     def __post_init__(self) -> None:
-        missing = [f for f in self.feet if not self.model.existFrame(f)]
-        if missing:
-            raise InputError("feet", f"frames {missing} are not in the model")
-        self.ids = tuple(int(self.model.getFrameId(f)) for f in self.feet)
-        if self.q_default is None:
-            if "standing" not in self.model.referenceConfigurations:
-                raise InputError("q_default", "the model has no 'standing' reference configuration; give q_default")
-            self.q_default = self.model.referenceConfigurations["standing"].copy()
-
-    def _start(self, q0):
-        m = self.model
-        d = m.createData()
-        pin.forwardKinematics(m, d, q0)
-        pin.updateFramePlacements(m, d)
-        pos = [d.oMf[i].translation.copy() for i in self.ids]
-        com = sum(pos) / 4
-        com[2] = pin.centerOfMass(m, d, q0)[2]
-        return pos, com
-
-    @staticmethod
-    def _footstep(com0, feet_pos, length, height, knots, support, swing):
-        nodes = []
-        pct = len(swing) / (len(support) + len(swing))
-        ph = knots / 2
-        tasks = ()
-        for k in range(knots):
-            tasks = []
-            for i, p in zip(swing, feet_pos):
-                if k < ph:
-                    dp = np.array([length * (k + 1) / knots, 0.0, height * k / ph])
-                elif k == ph:
-                    dp = np.array([length * (k + 1) / knots, 0.0, height])
-                else:
-                    dp = np.array([length * (k + 1) / knots, 0.0, height * (1 - float(k - ph) / ph)])
-                tasks.append((i, p + dp))
-            com = np.array([length * (k + 1) / knots, 0.0, 0.0]) * pct + com0
-            nodes.append(Node("contact", tuple(support), com=com, swing=tuple(tasks)))
-        nodes.append(Node("impulse", tuple(swing), swing=tuple(tasks)))
-        com0 += [length * pct, 0.0, 0.0]
-        for p in feet_pos:
-            p += [length, 0.0, 0.0]
-        return nodes
+        self.ids = _frame_ids(self.model, self.feet)
+        self.q_default = _posture(self.model, self.q_default, "standing")
 
     def walk(self, q0, length: float, height: float, knots: int, support_knots: int) -> tuple[list[Node], Node]:
         """Crocoddyl's createWalkingProblem (first call): RH, RF half steps, then LH, LF steps."""
         lf, rf, lh, rh = self.ids
-        (plf, prf, plh, prh), com = self._start(q0)
+        (plf, prf, plh, prh), com = _start(self.model, self.ids, q0)
         ds = [Node("contact", (lf, rf, lh, rh)) for _ in range(support_knots)]
         nodes = list(ds)
-        nodes += self._footstep(com, [prh], 0.5 * length, height, knots, [lf, rf, lh], [rh])
-        nodes += self._footstep(com, [prf], 0.5 * length, height, knots, [lf, lh, rh], [rf])
-        lh_step = self._footstep(com, [plh], length, height, knots, [lf, rf, rh], [lh])
-        lf_step = self._footstep(com, [plf], length, height, knots, [rf, lh, rh], [lf])
+        nodes += footstep(com, [prh], 0.5 * length, height, knots, [lf, rf, lh], [rh])
+        nodes += footstep(com, [prf], 0.5 * length, height, knots, [lf, lh, rh], [rf])
+        lh_step = footstep(com, [plh], length, height, knots, [lf, rf, rh], [lh])
+        lf_step = footstep(com, [plf], length, height, knots, [rf, lh, rh], [lf])
         nodes += ds + lh_step + lf_step
         return nodes, ds[0]
 
     def trot(self, q0, length: float, height: float, knots: int, support_knots: int) -> tuple[list[Node], Node]:
         """Crocoddyl's createTrottingProblem (first call): RF+LH half step, then LF+RH step."""
         lf, rf, lh, rh = self.ids
-        (plf, prf, plh, prh), com = self._start(q0)
+        (plf, prf, plh, prh), com = _start(self.model, self.ids, q0)
         ds = [Node("contact", (lf, rf, lh, rh)) for _ in range(support_knots)]
         nodes = list(ds)
-        nodes += self._footstep(com, [prf, plh], 0.5 * length, height, knots, [lf, rh], [rf, lh])
-        nodes += ds + self._footstep(com, [plf, prh], length, height, knots, [rf, lh], [lf, rh])
+        nodes += footstep(com, [prf, plh], 0.5 * length, height, knots, [lf, rh], [rf, lh])
+        nodes += ds + footstep(com, [plf, prh], length, height, knots, [rf, lh], [lf, rh])
         return nodes, ds[0]
 
     def jump(self, q0, height: float, length, ground_knots: int, flying_knots: int) -> tuple[list[Node], Node]:
@@ -553,7 +662,7 @@ class QuadrupedGait:
         height change of the feet)."""
         lf, rf, lh, rh = self.ids
         feet = (lf, rf, lh, rh)
-        (plf, prf, plh, prh), _ = self._start(q0)
+        (plf, prf, plh, prh), _ = _start(self.model, self.ids, q0)
         length = np.asarray(length, dtype=float).copy()
         df = length[2] - prf[2]
         for p in (plf, prf, plh, prh):
@@ -570,3 +679,39 @@ class QuadrupedGait:
         landed_com = com + np.array([length[0], length[1], df])
         landed = [Node("contact", feet, com=landed_com) for _ in range(ground_knots)]
         return nodes + landed[:-1], landed[-1]
+
+
+@dataclass
+class BipedGait:
+    """The walk of Crocoddyl's ``SimpleBipedGaitProblem`` (crocoddyl.utils.biped), node for node, for
+    a fresh instance (its first, half, step): :meth:`walk`. The feet are meant as flat feet ("6d"
+    contacts of :class:`geoddp.models.contact.ContactDynamics`, :meth:`GaitCosts.biped`).
+
+    Attributes:
+        model: the robot (``pin.Model`` with a free-flyer root and a "half_sitting" reference
+            configuration unless ``q_default`` is given); feet: the sole frames' names (right, left).
+    """
+
+    model: pin.Model
+    feet: tuple[str, str]
+    q_default: np.ndarray | None = None
+    ids: tuple[int, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        if len(self.feet) != 2:
+            raise InputError("feet", f"expected two feet (right, left), got {len(self.feet)}")
+        self.ids = _frame_ids(self.model, self.feet)
+        self.q_default = _posture(self.model, self.q_default, "half_sitting")
+
+    def walk(self, q0, length: float, height: float, knots: int, support_knots: int) -> tuple[list[Node], Node]:
+        """Crocoddyl's createWalkingProblem (first call): ``support_knots`` on both feet, the right
+        foot's half step, ``support_knots`` on both feet, the left foot's full step
+        (2 support_knots + 2 knots + 1 nodes); the last node, the left foot's landing impulse, is
+        the terminal node (Crocoddyl's walk ends on it)."""
+        rf, lf = self.ids
+        (prf, plf), com = _start(self.model, self.ids, q0)
+        ds = [Node("contact", (rf, lf)) for _ in range(support_knots)]
+        r_step = footstep(com, [prf], 0.5 * length, height, knots, [lf], [rf])
+        l_step = footstep(com, [plf], length, height, knots, [rf], [lf])
+        nodes = ds + r_step + ds + l_step
+        return nodes[:-1], nodes[-1]

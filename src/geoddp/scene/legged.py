@@ -1,5 +1,5 @@
-"""Legged scenes: Crocoddyl's ANYmal gaits as Python builders and the legged scene files
-(``[model] kind = "legged"``) that describe them and any other contact schedule.
+"""Legged scenes: Crocoddyl's ANYmal gaits and Talos walk as Python builders and the legged scene
+files (``[model] kind = "legged"``) that describe them and any other contact schedule.
 
 Built-in problems (Crocoddyl's example quadrupedal_gaits_fwddyn.py):
 
@@ -14,6 +14,13 @@ node for node (contact nodes with Baumgarte gains (0, 50), impulse nodes at touc
 costs and weights: :mod:`geoddp.problem.legged`). The same problems are the built-in scene files
 ``anymal_walk``, ``anymal_trot`` and ``anymal_jump`` (``geoddp run anymal_trot``).
 
+And a biped on flat feet (Crocoddyl's example bipedal_gaits_fwddyn.py, its walking phase):
+
+* :func:`talos_walk`: Talos' legs ("talos_legs", posture "half_sitting"), 6D contacts of the soles
+  (Baumgarte gains (0, 30)), step length 0.6 m, height 0.1 m, dt 0.03 s, 15 step knots, 4 support
+  knots: Crocoddyl's ``SimpleBipedGaitProblem`` walk, node for node; the built-in scene
+  ``talos_walk``.
+
 Schema of a legged scene file (``?`` = optional, with its default; paths as in error messages)::
 
     name? = file stem                   description? = ""
@@ -21,9 +28,13 @@ Schema of a legged scene file (``?`` = optional, with its default; paths as in e
                  feet (contact frame names; a [gait] takes four: LF, RF, LH, RH),
                  posture? = "standing" (a reference configuration of the robot: the start at
                  rest and the state regularisation's posture)
-    [contact]    dt (s), baumgarte? = [0.0, 50.0] (Kp 1/s^2, Kd 1/s)
+    [contact]    dt (s), baumgarte? = [0.0, 50.0] (Kp 1/s^2, Kd 1/s),
+                 kind? = "3d" (point feet) | "6d" (flat feet: 6D contacts, placement tracking,
+                 wrench cones; the [costs] default to Crocoddyl's biped's, GaitCosts.biped)
     exactly one of
     [gait]       type = "walk" | "trot": step_length (m), step_height (m), step_knots, support_knots
+                 (a walk of two feet [right, left] is Crocoddyl's biped walk: it ends on the
+                 left foot's landing impulse)
                  type = "jump": jump_height (m), jump_length (3, m), ground_knots, flying_knots
     [[phases]]   contacts (feet on the ground, [] in flight), knots (contact nodes),
                  step_length? (m, along x: the swing feet step and the CoM follows, as
@@ -31,12 +42,13 @@ Schema of a legged scene file (``?`` = optional, with its default; paths as in e
                  node after the phase for the swing feet that are down in the next phase, or
                  in the terminal node; default: true when some foot touches down)
     [costs]?     weights of geoddp.problem.legged.GaitCosts: com, friction_cone, mu, foot, state,
-                 control, bounds, impulse_foot, impulse_state (Crocoddyl's by default)
+                 control, bounds, impulse_foot, impulse_state (Crocoddyl's by default: its
+                 quadruped's for point feet, its biped's for flat feet)
     [solver]?    expansion, switch_ratio, tol, rtol, grad_tol, grad_rtol, max_iter,
                  initial_controls? = "quasi_static" ("quasi_static" | "zero")
 
 The terminal node has every foot on the ground and the state terms only (Crocoddyl's walk and
-trot); a jump's terminal node also tracks the landed CoM.
+trot); a jump's terminal node also tracks the landed CoM; a biped walk's is its last landing.
 """
 from __future__ import annotations
 
@@ -51,7 +63,8 @@ import pinocchio as pin
 
 from .. import validate as v
 from ..models.contact import ContactDynamics
-from ..problem.legged import ContactProblem, GaitCosts, Node, QuadrupedGait
+from ..models.multibody import geometry_records
+from ..problem.legged import BipedGait, ContactProblem, GaitCosts, Node, QuadrupedGait, footstep
 from ..solver.options import DEFAULT_EXPANSION, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, EXPANSIONS
 from ..validate import InputError
 from .common import CommonSpec, readonly
@@ -61,6 +74,10 @@ FEET = ("LF_FOOT", "RF_FOOT", "LH_FOOT", "RH_FOOT")
 GAITS = {"walk": (0.25, 0.15, 0.01, 25, 2), "trot": (0.15, 0.1, 0.01, 25, 2),
          "jump": (0.15, (0.0, 0.3, 0.0), 0.01, 10, 20)}  # jump: height, length (3,), dt, ground, flying knots
 GAINS = (0.0, 50.0)  # Crocoddyl's Baumgarte gains (Kp, Kd) in its quadruped gaits
+TALOS_FEET = ("right_sole_link", "left_sole_link")
+TALOS_WALK = (0.6, 0.1, 0.03, 15, 4)  # step length, height, dt, step knots, support knots
+TALOS_GAINS = (0.0, 30.0)  # Crocoddyl's Baumgarte gains in its biped gaits
+FOOT_KINDS = ("3d", "6d")  # [contact].kind: point feet, flat feet (world-aligned 6D contacts)
 
 GAIT_TYPES = ("walk", "trot", "jump")
 _GAIT_KEYS = {"walk": ("step_length", "step_height", "step_knots", "support_knots"),
@@ -72,7 +89,7 @@ SOLVER_KEYS = ("expansion", "switch_ratio", "tol", "rtol", "grad_tol", "grad_rto
 PHASE_KEYS = ("contacts", "knots", "step_length", "step_height", "impulse")
 SCHEMA: Schema = {  # [table] -> key -> required?
     "model": {"kind": True, "robot": True, "feet": True, "posture": False},
-    "contact": {"dt": True, "baumgarte": False},
+    "contact": {"dt": True, "baumgarte": False, "kind": False},
     "gait": {"type": True, **{k: False for keys in _GAIT_KEYS.values() for k in keys}},
     "costs": {k: False for k in COST_KEYS},
     "solver": {k: False for k in SOLVER_KEYS},
@@ -107,20 +124,27 @@ def load_anymal():
 
 def contact_problem(robot, nodes: list[Node], terminal: Node, q0: np.ndarray, dt: float,
                     gains: tuple[float, float] = GAINS, costs: GaitCosts | None = None,
-                    feet: tuple[str, ...] | None = None) -> ContactProblem:
+                    feet: tuple[str, ...] | None = None, foot_kind: str = "3d") -> ContactProblem:
     """The ContactProblem of a schedule on ``robot`` (a RobotWrapper) from q0 (nq,) at rest, the
     regularisation posture q0; its description carries the model (for the viewer) and, when
-    ``feet`` (frame names) are given, the contact schedule (:func:`schedule`)."""
+    ``feet`` (frame names) are given, the contact schedule (:func:`schedule`). ``foot_kind``: the
+    contact kind of ``feet`` ("3d" point feet, "6d" flat feet). A model that is not its URDF's
+    (talos_legs: the loader cut Talos to its legs) carries its visual geometry as records instead
+    (:func:`geoddp.models.multibody.geometry_records`): the URDF's links beyond it would not load."""
     model = robot.model
     v0 = np.zeros(model.nv)
     urdf = Path(robot.urdf) if getattr(robot, "urdf", None) else None
     desc = {"kind": "multibody", "root": "free_flyer", "nq": model.nq, "nv": model.nv, "dt": dt,
             "integrator": "semi_implicit", "pin_model": model.saveToString()}
     if urdf is not None and urdf.is_file():
-        desc.update(urdf=str(urdf), urdf_xml=urdf.read_text())
+        if pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer()).nv == model.nv:
+            desc.update(urdf=str(urdf), urdf_xml=urdf.read_text())
+        elif getattr(robot, "visual_model", None) is not None:
+            desc["geometry_objects"] = geometry_records(model, robot.visual_model)
     if feet is not None:
         desc["contact_schedule"] = schedule(model, feet, nodes, terminal, gains)
-    return ContactProblem(ContactDynamics(model, dt, gains=gains), nodes, terminal, q0, v0,
+    kinds = {f: foot_kind for f in feet} if feet is not None and foot_kind != "3d" else {}
+    return ContactProblem(ContactDynamics(model, dt, gains=gains, contact_kinds=kinds), nodes, terminal, q0, v0,
                           (q0.copy(), v0.copy()), costs=costs, description=desc)
 
 
@@ -169,6 +193,22 @@ def anymal_jump(robot=None) -> ContactProblem:
     return anymal_gait("jump", robot)
 
 
+def talos_walk(robot=None) -> ContactProblem:
+    """Crocoddyl's biped walk (its example bipedal_gaits_fwddyn.py, ``SimpleBipedGaitProblem``'s
+    createWalkingProblem from a fresh instance) on Talos' legs (example-robot-data's "talos_legs"),
+    node for node: from "half_sitting" at rest on flat feet (6D contacts of "right_sole_link" and
+    "left_sole_link", Baumgarte gains (0, 30)), 4 support knots, the right foot's 0.3 m half step,
+    4 support knots, the left foot's 0.6 m step, 0.1 m high, 15 knots each, dt 0.03 s; the left
+    foot's landing impulse is the terminal node (H = 39: 1 impulse node). Costs: Crocoddyl's biped's
+    (:meth:`geoddp.problem.legged.GaitCosts.biped`). ``robot``: the loaded RobotWrapper, or None."""
+    robot = robot or load_robot("talos_legs")
+    model = robot.model
+    q0 = model.referenceConfigurations["half_sitting"].copy()
+    length, height, dt, knots, support = TALOS_WALK
+    nodes, terminal = BipedGait(model, TALOS_FEET).walk(q0, length, height, knots, support)
+    return contact_problem(robot, nodes, terminal, q0, dt, TALOS_GAINS, GaitCosts.biped(), TALOS_FEET, "6d")
+
+
 # ------------------------------------------------------------------ schedules of a scene file
 @dataclass(frozen=True)
 class PhaseSpec:
@@ -187,7 +227,7 @@ def phase_nodes(model: pin.Model, feet: tuple[str, ...], q0: np.ndarray, phases:
                 ) -> tuple[list[Node], Node]:
     """The nodes of a ``[[phases]]`` schedule and its terminal node (every foot down, no targets).
 
-    A phase with a step is Crocoddyl's footstep (:meth:`geoddp.problem.legged.QuadrupedGait._footstep`):
+    A phase with a step is Crocoddyl's footstep (:func:`geoddp.problem.legged.footstep`):
     per knot the swing feet track a stepping arc and the CoM the fraction of the step the swing
     feet carry; the feet's and the CoM's positions carry over to the next phase. Its impulse node
     tracks the landing feet at their last targets. Written as phases, Crocoddyl's walk and trot are
@@ -206,8 +246,8 @@ def phase_nodes(model: pin.Model, feet: tuple[str, ...], q0: np.ndarray, phases:
         swing = [ids[f] for f in swing_names]
         tasks: tuple = ()
         if ph.step_length is not None:
-            step = QuadrupedGait._footstep(com, [pos[f] for f in swing_names], ph.step_length, ph.step_height,
-                                           ph.knots, support, swing)
+            step = footstep(com, [pos[f] for f in swing_names], ph.step_length, ph.step_height,
+                            ph.knots, support, swing)
             nodes += step[:-1]
             tasks = step[-1].swing
         else:
@@ -228,6 +268,7 @@ class LeggedSceneSpec(CommonSpec):
         robot: example-robot-data's name; posture: its reference configuration (the start at rest
             and the regularisation posture); feet: contact frame names; nv: the robot's nv.
         dt: time step of the contact nodes, s; baumgarte: (Kp 1/s^2, Kd 1/s).
+        foot_kind: "3d" (point feet) or "6d" (flat feet: 6D contacts, Crocoddyl's biped costs).
         gait: the ``[gait]`` table as a dict (``type`` and its four keys; ``jump_length`` a
             tuple), or None; phases: the ``[[phases]]`` as :class:`PhaseSpec`, or () with a gait.
         costs: the ``[costs]`` weights given, as (name, value) pairs (the rest: Crocoddyl's).
@@ -249,6 +290,7 @@ class LeggedSceneSpec(CommonSpec):
     phases: tuple[PhaseSpec, ...]
     costs: tuple[tuple[str, float], ...] = ()
     initial_controls: str = "quasi_static"
+    foot_kind: str = "3d"
 
     kind = "legged"
 
@@ -268,6 +310,8 @@ class LeggedSceneSpec(CommonSpec):
         g = self.gait
         if g is None:
             return sum(p.knots + bool(p.landing) for p in self.phases)
+        if g["type"] == "walk" and len(self.feet) == 2:  # the biped's: its last landing is terminal
+            return 2 * g["support_knots"] + 2 * (g["step_knots"] + 1) - 1
         if g["type"] == "walk":
             return 2 * g["support_knots"] + 4 * (g["step_knots"] + 1)
         if g["type"] == "trot":
@@ -283,6 +327,9 @@ class LeggedSceneSpec(CommonSpec):
         g = self.gait
         if g is None:
             nodes, terminal = phase_nodes(model, self.feet, q0, self.phases)
+        elif len(self.feet) == 2:
+            nodes, terminal = BipedGait(model, self.feet, q0).walk(
+                q0, g["step_length"], g["step_height"], g["step_knots"], g["support_knots"])
         elif g["type"] == "jump":
             nodes, terminal = QuadrupedGait(model, self.feet, q0).jump(
                 q0, g["jump_height"], g["jump_length"], g["ground_knots"], g["flying_knots"])
@@ -290,10 +337,10 @@ class LeggedSceneSpec(CommonSpec):
             nodes, terminal = getattr(QuadrupedGait(model, self.feet, q0), g["type"])(
                 q0, g["step_length"], g["step_height"], g["step_knots"], g["support_knots"])
         try:
-            costs = GaitCosts(**dict(self.costs))
+            costs = (GaitCosts.biped if self.foot_kind == "6d" else GaitCosts)(**dict(self.costs))
         except TypeError as exc:
             raise InputError("costs", f"expected fields of GaitCosts, got {dict(self.costs)} ({exc})") from None
-        return contact_problem(robot, nodes, terminal, q0, self.dt, self.baumgarte, costs, self.feet)
+        return contact_problem(robot, nodes, terminal, q0, self.dt, self.baumgarte, costs, self.feet, self.foot_kind)
 
     def initial_control_sequence(self) -> np.ndarray | None:
         """None for the solver's default start (the quasi-static controls), zeros (H, m) for "zero"."""
@@ -332,7 +379,10 @@ def parse_legged_scene(data: Mapping[str, Any], source: str, base_dir: Path, def
     if robot.root != "free_flyer":
         raise r.err("[model].robot", f"expected a robot with a free-flyer root (a legged robot), got {robot.name!r} "
                     f"(fixed base)")
-    pm = pin.buildModelFromUrdf(str(robot.urdf), pin.JointModelFreeFlyer())
+    if robot.loader_model:  # its model is the loader's (talos_legs: the legs of Talos' URDF), loaded here
+        pm = load_robot(robot.name, "[model].robot").model
+    else:
+        pm = pin.buildModelFromUrdf(str(robot.urdf), pin.JointModelFreeFlyer())
     postures = r.check(robots.postures, pm, robot.srdf, "[model].robot")
     posture = r.string(mt.get("posture", "standing"), "[model].posture")
     if posture not in postures:
@@ -348,6 +398,7 @@ def parse_legged_scene(data: Mapping[str, Any], source: str, base_dir: Path, def
     gains = r.check(v.finite_array, ct.get("baumgarte", list(GAINS)), "[contact].baumgarte", (2,))
     if np.any(gains < 0):
         raise r.err("[contact].baumgarte", f"expected gains [Kp, Kd] >= 0, got {gains.tolist()}")
+    foot_kind = r.check(v.choice, ct.get("kind", "3d"), "[contact].kind", FOOT_KINDS)
 
     # ---- schedule: exactly one of [gait] and [[phases]]
     if ("gait" in data) == ("phases" in data):
@@ -376,7 +427,7 @@ def parse_legged_scene(data: Mapping[str, Any], source: str, base_dir: Path, def
            for key in ("tol", "rtol", "grad_tol", "grad_rtol")})
     return LeggedSceneSpec(name=name, description=description, source=source, robot=robot.name, posture=posture,
                            feet=feet, nv=int(pm.nv), dt=dt, baumgarte=(float(gains[0]), float(gains[1])), gait=gait,
-                           phases=phases, costs=costs, **solver)
+                           phases=phases, costs=costs, foot_kind=foot_kind, **solver)
 
 
 def _feet(r: Reader, val: Any, pm: pin.Model) -> tuple[str, ...]:
@@ -407,8 +458,10 @@ def _gait(r: Reader, t: Mapping[str, Any], feet: tuple[str, ...]) -> dict[str, A
     for key in uses:
         if key not in t:
             raise r.err(f"[gait].{key}", f'missing required key for type = "{kind}"')
-    if len(feet) != 4:
-        raise r.err("[model].feet", f"a [gait] moves a quadruped: expected four feet (LF, RF, LH, RH), got {len(feet)}")
+    if len(feet) != 4 and not (kind == "walk" and len(feet) == 2):  # a biped walks on (right, left)
+        walk = "; a walk also takes two (right, left)" if kind == "walk" else ""
+        raise r.err("[model].feet", f"a [gait] of type {kind!r} moves a quadruped: expected four feet (LF, RF, LH, RH)"
+                    f"{walk}, got {len(feet)}")
     out: dict[str, Any] = {"type": kind}
     if kind == "jump":
         out["jump_height"] = r.check(v.finite_float, t["jump_height"], "[gait].jump_height")
