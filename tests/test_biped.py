@@ -50,6 +50,25 @@ def test_the_walk_schedule(walk, robot):
     assert walk.describe()["contact_schedule"]["feet"] == list(TALOS_FEET)
 
 
+def test_contact_forces_of_flat_feet(walk):
+    """contact_forces along the quasi-static rollout: each sole's force and torque are its node's
+    (world-aligned), the forces sum to m (a_com - g), the centre of pressure is (-tau_y, tau_x) / f_z;
+    the description carries the legs' visual geometry (talos_legs is not its URDF's model)."""
+    from geoddp.problem.legged_forces import contact_forces
+
+    traj = walk.trajectory(walk.quasi_static_controls())
+    c = contact_forces(walk, traj.q, traj.v, traj.u)
+    assert c.feet == TALOS_FEET and c.torques.shape == c.forces.shape == (walk.horizon, 2, 3)
+    ev = walk.node(2, traj.q[2], traj.v[2], traj.u[2])[0]
+    assert np.array_equal(np.concatenate([c.forces[2, 0], c.torques[2, 0], c.forces[2, 1], c.torques[2, 1]]), ev.forces)
+    assert np.abs(c.total - c.momentum_change).max() < 1e-9 * c.mass * 9.81
+    on = c.active[:, 0]
+    cop = np.stack([-c.torques[on, 0, 1], c.torques[on, 0, 0]], axis=-1) / c.forces[on, 0, 2][:, None]
+    assert np.array_equal(c.cop[on, 0], cop) and np.all(np.isnan(c.cop[~on, 0]))
+    desc = walk.describe()
+    assert "urdf_xml" not in desc and len(desc["geometry_objects"]) > 0
+
+
 def test_builtin_scene_is_talos_walk(walk, robot):
     """``talos_walk`` (scene file) builds talos_walk(): the same nodes bit for bit, dynamics, costs
     and J on random controls."""

@@ -19,6 +19,11 @@ Friction-cone margins (flat ground, normal +z, friction coefficient mu; positive
   approximation (``facet_margin >= cone_margin``).
 
 Impulses have margins too (the same cone, in N s).
+
+A flat foot (a "6d" contact) also carries a torque about its frame's origin (world-aligned axes):
+``torques``, and the centre of pressure ``cop`` (where on the ground plane through the foot's origin
+the force acts, relative to that origin, world-aligned x and y): inside the sole while the torque
+keeps to the wrench cone (:func:`geoddp.models.contact.wrench_cone`).
 """
 from __future__ import annotations
 
@@ -48,6 +53,8 @@ class ContactForces:
             the feet that land and those that stood at the node before; frame H: the terminal node's).
         forces: (H, nf, 3) world-frame forces, N (contact nodes), impulses, N s (impulse nodes); 0
             where not active.
+        torques: (H, nf, 3) a flat foot's torque about its frame's origin, world-aligned axes, N m
+            (N m s at impulse nodes); 0 for point feet and where not active.
         positions: (H + 1, nf, 3) the feet's world positions, m.
         velocities: (H + 1, nf, 3) the feet's world linear velocities, m/s.
         momentum_change: (H, 3) m (a_com - g), N (contact nodes); m (v_com+ - v_com), N s (impulse
@@ -64,6 +71,7 @@ class ContactForces:
     active: np.ndarray
     on_ground: np.ndarray
     forces: np.ndarray
+    torques: np.ndarray
     positions: np.ndarray
     velocities: np.ndarray
     momentum_change: np.ndarray
@@ -101,6 +109,16 @@ class ContactForces:
         NaN where not active."""
         A = friction_cone(self.mu, self.facets)[0][: self.facets]
         return self._masked(np.min(-(self.forces @ A.T), axis=-1))
+
+    @property
+    def cop(self) -> np.ndarray:
+        """(H, nf, 2) centre of pressure of each foot relative to its frame's origin, m, in the
+        world-aligned (x, y): (-tau_y, tau_x) / f_z (the torque about the origin of the force
+        acting there); 0 for a point foot, NaN where the foot is not active."""
+        fz = self.forces[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cop = np.stack([-self.torques[..., 1], self.torques[..., 0]], axis=-1) / fz[..., None]
+        return np.where(self.active[..., None], cop, np.nan)
 
     @property
     def total(self) -> np.ndarray:
@@ -165,6 +183,7 @@ def contact_forces(problem, configurations, velocities, controls, *, mu: float |
     active = np.zeros((H, nf), dtype=bool)
     on_ground = np.zeros((H + 1, nf), dtype=bool)
     forces = np.zeros((H, nf, 3))
+    torques = np.zeros((H, nf, 3))
     momentum = np.zeros((H, 3))
     for k, node in enumerate(problem.nodes):
         cols = [col[f] for f in node.feet]
@@ -182,7 +201,11 @@ def contact_forces(problem, configurations, velocities, controls, *, mu: float |
             ev = problem.dyn.contact(Q[k], V[k], U[k], node.feet)
             pin.centerOfMass(m, d, Q[k], V[k], ev.acc)
             momentum[k] = mass * (d.acom[0] - gravity)
-        forces[k, cols] = np.asarray(ev.forces, dtype=float).reshape(-1, 3)
+        start = 0
+        for c, n in zip(cols, problem.dyn.force_dims(node.feet)):  # (force,) or (force, torque) per foot
+            forces[k, c] = ev.forces[start:start + 3]
+            torques[k, c] = ev.forces[start + 3:start + n] if n == 6 else 0.0
+            start += n
     on_ground[H, [col[f] for f in problem.terminal_node.feet]] = True
     positions = np.empty((H + 1, nf, 3))
     vels = np.empty((H + 1, nf, 3))
@@ -194,5 +217,5 @@ def contact_forces(problem, configurations, velocities, controls, *, mu: float |
             vels[k, i] = pin.getFrameVelocity(m, d, f, pin.LOCAL_WORLD_ALIGNED).linear
     return ContactForces(feet=tuple(m.frames[f].name for f in ids), frame_ids=tuple(ids), dt=float(problem.dt),
                          times=problem.dt * np.arange(H), impulse=impulse, active=active, on_ground=on_ground,
-                         forces=forces, positions=positions, velocities=vels, momentum_change=momentum, mass=mass,
-                         gravity=gravity, mu=mu, facets=int(facets))
+                         forces=forces, torques=torques, positions=positions, velocities=vels,
+                         momentum_change=momentum, mass=mass, gravity=gravity, mu=mu, facets=int(facets))
