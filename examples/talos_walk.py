@@ -45,13 +45,15 @@ assert result.iterations <= 25  # 17 here
 # ------------------------------------
 # :func:`geoddp.viz.legged_forces` re-evaluates every node along the solution. A flat foot carries a
 # torque about its sole frame's origin besides the force; ``cop`` is where the force acts on the
-# ground, (-tau_y, tau_x) / f_z from that origin. The wrench cone asks for it inside the sole (|x| <=
-# 0.05 m, |y| <= 0.025 m), but as a cost (Crocoddyl's quadratic barrier, weight 10), not a
-# constraint: through most of the walk it sits at the sole's toe or heel edge, and while a foot
-# unloads in double support it passes the edge by up to about 35 mm (a foot about to lift, carrying
-# a few newtons, has an ill-defined one: left out below). The forces sum to m (a_com - g) as
+# ground, (-tau_y, tau_x) / f_z from that origin. The wrench cone asks for it inside the sole (x
+# within 0.05 m of the sole frame's origin, y within 0.025 m), but as a cost (Crocoddyl's quadratic
+# barrier, weight 10), not a constraint: through most of the walk it sits at the sole's toe or heel
+# edge, and while a foot unloads in double support it passes the edge by up to 33 mm (a foot about
+# to lift, carrying a few newtons, has an ill-defined one: left out below). The forces sum to m (a_com - g) as
 # Newton's law wants. The swing feet rise about 3 cm, not the 0.1 m of their targets: in Crocoddyl's
-# costs the placement tracking trades against the posture's (FDDP lands at the same J*).
+# costs the placement tracking trades against the posture's (FDDP lands at the same J*). Each foot
+# lands where its arc's last target is, 1.3 cm up, and stays there: a contact holds the sole's
+# acceleration, and with Kp = 0 nothing pulls it down to the ground (it drifts by 3 mm).
 forces = legged_forces(result, problem)
 stance = forces.active & ~forces.impulse[:, None]
 newton = np.abs(forces.total - forces.momentum_change).max()

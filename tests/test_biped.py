@@ -155,3 +155,15 @@ def test_second_order_terms_against_the_differences(walk, k, what):
         assert err < 1e-7, (what, err)
     err = np.max(np.abs(Hc - Hf)) / np.max(np.abs(Hf))
     assert err < 1e-7, (what, err)
+
+
+def test_feet_in_local_axes_refused(walk):
+    """The gait costs read a flat foot's wrench in world-aligned axes: a schedule on "6d_local"
+    feet is refused, naming the contact kinds."""
+    from geoddp.models.contact import ContactDynamics
+    from geoddp.problem.legged import ContactProblem
+
+    local = {f: "6d_local" for f in walk.dyn.contact_kinds}
+    dyn = ContactDynamics(walk.model, walk.dt, gains=(0.0, 30.0), contact_kinds=local)
+    with pytest.raises(InputError, match="contact_kinds"):
+        ContactProblem(dyn, walk.nodes, walk.terminal_node, walk.q0, walk.v0, (walk.q_ref, walk.v_ref), walk.costs)
