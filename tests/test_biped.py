@@ -5,7 +5,9 @@ Its schedule (39 nodes, the left foot's landing impulse terminal, 6D soles, Croc
 weights); the built-in scene ``talos_walk`` builds the same problem; a [gait] walk takes two feet
 or four; and the exact second-order terms of its nodes (the flat feet's placement tracking, the
 wrench cones, the state and CoM terms) against tests/oracle_legged.py's differences of the
-analytic Jacobians, every entry, 1e-7 relative, with wrench-cone rows active.
+analytic Jacobians, every entry, 1e-7 relative, with wrench-cone rows active; the same with one
+point foot beside a flat one; the soles' torques and centres of pressure (contact_forces); feet in
+local axes refused by the gait costs.
 """
 from __future__ import annotations
 
@@ -167,3 +169,22 @@ def test_feet_in_local_axes_refused(walk):
     dyn = ContactDynamics(walk.model, walk.dt, gains=(0.0, 30.0), contact_kinds=local)
     with pytest.raises(InputError, match="contact_kinds"):
         ContactProblem(dyn, walk.nodes, walk.terminal_node, walk.q0, walk.v0, (walk.q_ref, walk.v_ref), walk.costs)
+
+
+@pytest.mark.parametrize("k", [2, 10, 30])
+def test_mixed_feet_second_order(walk, k):
+    """A point foot beside a flat one (the right sole 6D, the left a 3D point): each foot's rows of
+    the forces get its own cone and its tracking its own residual; the exact second order against
+    the differences (1e-7)."""
+    from geoddp.models.contact import ContactDynamics
+    from geoddp.problem.legged import ContactProblem
+
+    rf, lf = walk.dyn.contact_kinds
+    dyn = ContactDynamics(walk.model, walk.dt, gains=(0.0, 30.0), contact_kinds={rf: "6d", lf: "3d"})
+    mixed = ContactProblem(dyn, walk.nodes, walk.terminal_node, walk.q0, walk.v0, (walk.q_ref, walk.v_ref), walk.costs)
+    traj = nominal(mixed, k, np.random.default_rng(3 + k))
+    assert active_cone_rows(mixed, k, traj) > 0
+    T, Hc = mixed.second_order_node(k, traj)
+    Tf, Hf = fd_second_order_node(mixed, k, traj)
+    assert np.max(np.abs(T - Tf)) / np.max(np.abs(Tf)) < 1e-7
+    assert np.max(np.abs(Hc - Hf)) / np.max(np.abs(Hf)) < 1e-7

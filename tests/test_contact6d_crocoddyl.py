@@ -3,6 +3,9 @@ examples build them: DifferentialActionModelContactFwdDynamics with ContactModel
 and LOCAL, Baumgarte gains (0, 30) as SimpleBipedGaitProblem's and with a position gain) under
 IntegratedActionModelEuler, and ActionModelImpulseFwdDynamics with ImpulseModel6D: the same next
 state (1e-12) and contact forces at random states and controls, the same quasi-static controls.
+And the biped walk (geoddp.scene.legged.talos_walk, Crocoddyl's SimpleBipedGaitProblem walk): the
+wrench cone, every node (kind, feet, next state 1e-12, cost 1e-10), the terminal node, rollouts'
+costs, and geoddp's solution at FDDP's J* (1e-9).
 Needs the bench environment (crocoddyl 3.2.1 + pin 4.0.0, example-robot-data); skipped without
 crocoddyl unless GEODDP_REQUIRE_CROCODDYL=1 (CI)."""
 import os

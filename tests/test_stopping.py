@@ -63,7 +63,7 @@ def test_every_satellite_scene_file_keeps_the_papers_absolute_tol():
             assert opt.absolute() and opt.cost_tolerance(510.0) == 1e-8 and opt.grad_tolerance(510.0) == 1e-10
         else:
             assert spec.tol is None and spec.rtol is None and not opt.absolute(), path
-    assert sum(k == "SceneSpec" for k in kinds.values()) == 18 and len(kinds) == 29, kinds
+    assert sum(k == "SceneSpec" for k in kinds.values()) == 18 and len(kinds) == 30, kinds
     assert geoddp  # the package data was found
 
 
