@@ -170,7 +170,7 @@ BAD = {
                          "quasi_static"),
     "max_iter": (lambda d: {**d, "solver": {"max_iter": 0}}, "[solver].max_iter", "integer >= 1"),
     "solver_limits_key": (lambda d: {**d, "solver": {"constraint_tol": 1e-6}}, "[solver].constraint_tol",
-                          "unknown key"),
+                          "only with [[constraints]]"),
 }
 
 

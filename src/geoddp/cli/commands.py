@@ -153,6 +153,7 @@ def _visualise_legged(result, args, spec) -> None:
     from ..scene import build_problem
 
     problem = build_problem(spec)
+    problem = getattr(problem, "problem", problem)  # a scene with constraints: its contact problem
     if getattr(args, "plots", None):
         for path in viz.legged_figures(result, problem, args.plots):
             wrote(path)

@@ -3,6 +3,7 @@ augmented Lagrangian outer loop around the exact second-order DDP.
 
     kinds.py       the constraint kinds: values, Jacobians and contracted Hessians on the group
     kinematics.py  frame kinematics with first and contracted second derivatives (Pinocchio)
+    contact_forces.py  the friction cone on a legged problem's contact forces (state and controls)
     augmented.py   the PHR augmented Lagrangian terms and the inner problem that adds them
     problem.py     ConstrainedProblem (a problem, its constraints, ConstraintOptions)
     outer.py       solve_constrained: the outer loop, its statuses and the constraints' report
@@ -14,6 +15,7 @@ From Python::
     result = solve_constrained(cp, SolverOptions(expansion="second"))
 """
 from .augmented import AugmentedLagrangianProblem, Placed
+from .contact_forces import FrictionCone
 from .kinds import (KINDS, TERMINAL_ONLY, Bound, Constraint, FrameHalfspace, FramePlacementConstraint,
                     FrameSphereKeepOut, JointLimits, PointingKeepOut, StateConstraint)
 from .outer import (CONSTRAINED_STATUSES, STATUS_INFEASIBLE, STATUS_INNER_FAILED, STATUS_KKT, STATUS_OUTER_MAX_ITER,
@@ -21,6 +23,6 @@ from .outer import (CONSTRAINED_STATUSES, STATUS_INFEASIBLE, STATUS_INNER_FAILED
 from .problem import ConstrainedProblem, ConstraintOptions
 
 __all__ = ["KINDS", "TERMINAL_ONLY", "Bound", "Constraint", "FrameHalfspace", "FramePlacementConstraint",
-           "FrameSphereKeepOut", "JointLimits", "PointingKeepOut", "StateConstraint", "AugmentedLagrangianProblem",
+           "FrameSphereKeepOut", "JointLimits", "PointingKeepOut", "StateConstraint", "FrictionCone", "AugmentedLagrangianProblem",
            "Placed", "ConstrainedProblem", "ConstraintOptions", "solve_constrained", "STATUS_KKT", "STATUS_INFEASIBLE",
            "STATUS_OUTER_MAX_ITER", "STATUS_INNER_FAILED", "CONSTRAINED_STATUSES"]

@@ -19,6 +19,7 @@ import numpy as np
 from ..problem.contract import Trajectory
 from ..validate import InputError, keywords_checked, nonnegative_float, positive_float, positive_int
 from .augmented import AugmentedLagrangianProblem, Placed
+from .contact_forces import ForcePlaced
 from .kinds import TERMINAL_ONLY, Constraint
 
 __all__ = ["ConstraintOptions", "ConstrainedProblem"]
@@ -104,11 +105,21 @@ class ConstrainedProblem:
         H = int(problem.horizon)
         self.constraints = tuple(self._checked(constraints, "constraints"))
         self.terminal_constraints = tuple(self._checked(terminal_constraints, "terminal_constraints"))
-        self.placed: list[Placed] = []
+        self.placed: list[Placed | ForcePlaced] = []
         self.kinds: list[tuple[str, Constraint]] = []  # ("path" | "terminal", constraint), as placed
         for where, items, nodes in (("constraints", self.constraints, np.arange(1, H + 1)),
                                     ("terminal_constraints", self.terminal_constraints, np.array([H]))):
             for i, c in enumerate(items):
+                if getattr(c, "on_contact_forces", False):  # forces at the contact nodes k = 0..H-1
+                    if where == "terminal_constraints":
+                        raise InputError(f"{where}[{i}]", f'a "{c.type}" constraint acts on the contact forces of '
+                                         "the contact nodes; the terminal node has none: put it in constraints")
+                    try:
+                        self.placed.append(c.place(problem))
+                    except InputError as e:
+                        raise InputError(f"{where}[{i}].{e.parameter}", e.detail) from None
+                    self.kinds.append(("path", c))
+                    continue
                 if where == "constraints" and c.type in TERMINAL_ONLY:
                     raise InputError(f"{where}[{i}]", f'a "{c.type}" equality pins the state at every node; it is a '
                                      "terminal constraint: put it in terminal_constraints ([[terminal_constraints]])")
@@ -199,12 +210,33 @@ class ConstrainedProblem:
 
     # ---------------------------------------------------------------- what the outer loop uses
     def values(self, traj: Trajectory) -> list[np.ndarray]:
-        """c (N_j, nc_j) of every placed constraint along ``traj``."""
-        return [p.bound.value(*p.states(traj)) for p in self.placed]
+        """c (N_j, nc_j) of every placed constraint along ``traj`` (a force constraint's from the
+        contact forces of its nodes, each node's dynamics evaluated once)."""
+        forces: dict[int, np.ndarray] = {}
+        out = []
+        for p in self.placed:
+            if isinstance(p, ForcePlaced):
+                for k in p.nodes.tolist():
+                    if k not in forces:
+                        forces[k] = self.problem.node(k, traj.q[k], traj.v[k], traj.u[k])[0].forces
+                f = np.array([forces[k][3 * i:3 * i + 3] for k, i in zip(p.nodes.tolist(), p.slots.tolist())])
+                out.append(p.bound.value(f))
+            else:
+                out.append(p.bound.value(*p.states(traj)))
+        return out
 
     def augmented(self, multipliers: list[np.ndarray], penalties: list[float]) -> AugmentedLagrangianProblem:
-        """The inner problem for these multipliers and penalties."""
-        return AugmentedLagrangianProblem(self.problem, self.placed, multipliers, penalties)
+        """The inner problem for these multipliers and penalties: the state constraints' terms
+        around the problem, the force constraints' inside its node costs
+        (:meth:`geoddp.problem.legged.ContactProblem.with_force_terms`)."""
+        inner = self.problem
+        force = [(p, lam, mu) for p, lam, mu in zip(self.placed, multipliers, penalties) if isinstance(p, ForcePlaced)]
+        if force:
+            inner = inner.with_force_terms(force)
+        state = [(p, lam, mu) for p, lam, mu in zip(self.placed, multipliers, penalties)
+                 if not isinstance(p, ForcePlaced)]
+        return AugmentedLagrangianProblem(inner, [p for p, _, _ in state], [lam for _, lam, _ in state],
+                                          [mu for _, _, mu in state])
 
     def solve_constrained(self, options: Any = None, initial_controls: np.ndarray | None = None) -> Any:
         """:func:`geoddp.constraints.solve_constrained` of this problem (a Result)."""

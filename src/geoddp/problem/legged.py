@@ -32,6 +32,7 @@ Result has ``controls`` (H, nu) with zero rows at impulse nodes.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -151,6 +152,9 @@ class ContactProblem:
         self.q_ref = finite_array(x_ref[0], "x_ref.q", (m.nq,))
         self.v_ref = finite_array(x_ref[1], "x_ref.v", (m.nv,))
         self.costs = costs or GaitCosts()
+        # augmented Lagrangian terms of hard constraints on the contact forces, per node k
+        # (:meth:`with_force_terms`; none in a problem built here)
+        self._force_at: dict[int, list] = {}
         nv = m.nv
         self.nx, self.nu, self.horizon, self.dt = 2 * nv, nv - 6, len(self.nodes), dynamics.dt
         self.impulse_rows = np.array([n.kind == "impulse" for n in self.nodes])
@@ -193,6 +197,11 @@ class ContactProblem:
         rMf = pin.SE3(np.eye(3), np.asarray(p, dtype=float)).actInv(d.oMf[f])
         r = pin.log6(rMf).vector
         return r, (pin.Jlog6(rMf) @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL) if derivatives else None)
+
+    def force_rows(self, feet: tuple[int, ...]) -> list[int]:
+        """The first row of each foot's force in a contact node's ``NodeEval.forces``: 3 rows per
+        point foot, 6 per flat foot (its force, then its torque, world-aligned axes)."""
+        return [rows.start for rows, _ in self._cones(feet)]
 
     def _cones(self, feet: tuple[int, ...]) -> list[tuple[slice, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
         """Per foot of a contact node: (its rows of ``NodeEval.forces``, its cone (A, lb, ub)):
@@ -291,7 +300,62 @@ class ContactProblem:
         else:
             ev = self.dyn.contact(q, v, u, node.feet, derivatives)
         val, g, Hs = self._cost(node, q, v, u, ev, derivatives)
+        if k in self._force_at:  # hard constraints on the forces: their augmented Lagrangian terms
+            fv, fg, fH = self._force_terms(k, ev, derivatives)
+            val += fv
+            if derivatives:
+                g += fg
+                Hs += fH
         return ev, val, g, Hs
+
+    # ------------------------------------------------------------ constraints on the contact forces
+    def with_force_terms(self, terms: list) -> "ContactProblem":
+        """This problem with the augmented Lagrangian terms of constraints on its contact forces
+        added to its node costs (the inner problem of :func:`geoddp.constraints.solve_constrained`
+        for a legged problem with :class:`geoddp.constraints.contact_forces.FrictionCone`).
+
+        Args:
+            terms: ``(placed, multipliers, penalty)`` per constraint: a
+                :class:`~geoddp.constraints.contact_forces.ForcePlaced` (its (node, foot) pairs and
+                rows G f - h <= 0), multipliers (N, nc) >= 0 and the penalty mu > 0.
+
+        At node k, per pair, the PHR terms (Nocedal & Wright, eq. 17.65) phi = sum_r (max(0, lambda_r +
+        mu c_r)^2 - lambda_r^2) / (2 mu), with c = G f_foot - h in newtons (not scaled by dt: they
+        are the constraints' terms, not a running cost); gradient lhat G Lz (lhat = max(0, lambda
+        + mu c)), Gauss-Newton Hessian mu (G Lz)^T (G Lz) on the rows with lambda + mu c > 0, and in
+        the exact second order the forces' curvature sum_r lhat_r G_r L2 (:meth:`_cost_hessian`).
+        The copy shares the dynamics and the schedule; this problem is unchanged."""
+        new = copy.copy(self)
+        new._force_at = {}
+        for placed, lam, mu in terms:
+            lam = np.asarray(lam, dtype=float)
+            for j, (k, slot) in enumerate(zip(placed.nodes.tolist(), placed.slots.tolist())):
+                start = new.force_rows(new.nodes[k].feet)[slot]  # a flat foot's wrench takes 6 rows
+                new._force_at.setdefault(k, []).append((placed.bound, lam[j], float(mu), start))
+        return new
+
+    def _force_terms(self, k: int, ev, derivatives: bool, L2: np.ndarray | None = None):
+        """The force constraints' terms at contact node k: (value, gradient (nz,), Gauss-Newton
+        Hessian (nz, nz)), or with ``L2`` (the forces' second derivatives (rows of forces, nz, nz)) the
+        exact curvature sum_r lhat_r G_r L2 (nz, nz) alone (value and gradient then None)."""
+        nz = self.nx + self.nu
+        val, g, H = 0.0, np.zeros(nz), np.zeros((nz, nz))
+        for bound, lam, mu, start in self._force_at[k]:
+            rows = slice(start, start + 3)  # the foot's force (a flat foot's wrench: its first 3 rows)
+            c = bound.G @ ev.forces[rows] - bound.h
+            t = lam + mu * c
+            lhat = np.maximum(t, 0.0)
+            if L2 is not None:
+                if lhat.any():
+                    H += ((lhat @ bound.G) @ L2[rows].reshape(3, -1)).reshape(nz, nz)
+                continue
+            val += float(lhat @ lhat - lam @ lam) / (2.0 * mu)
+            if derivatives and lhat.any():
+                Jr = bound.G @ ev.Lz[rows]
+                g += Jr.T @ lhat
+                on = Jr[t > 0.0]
+                H += mu * (on.T @ on)
+        return (None, None, H) if L2 is not None else (val, g, H)
 
     # ------------------------------------------------------------ the solver's contract
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
@@ -440,6 +504,8 @@ class ContactProblem:
         d = self.dyn.data
         if gauss_newton is None:
             _, _, Hs = self._cost(node, q, v, u, ev, True, terminal=terminal)  # leaves the kinematics in dyn.data
+            if k in self._force_at:  # node() adds the force constraints' Gauss-Newton part
+                Hs += self._force_terms(k, ev, True)[2]
         else:
             Hs = gauss_newton
             pin.forwardKinematics(m, d, q)
@@ -480,6 +546,8 @@ class ContactProblem:
                 ex, mask = _barrier(A @ ev.forces[rows], lb, ub)
                 if mask.any():  # inside the cone the barrier is flat
                     Hs += (c.friction_cone * self.dt) * ((ex @ A) @ L2[rows].reshape(A.shape[1], -1)).reshape(nz, nz)
+            if k in self._force_at:
+                Hs += self._force_terms(k, ev, True, L2)[2]
         return Hs
 
     def second_order_node(self, k: int, traj: Trajectory, ev=None):

@@ -85,7 +85,9 @@ _GAIT_KEYS = {"walk": ("step_length", "step_height", "step_knots", "support_knot
               "jump": ("jump_height", "jump_length", "ground_knots", "flying_knots")}
 COST_KEYS = ("com", "friction_cone", "mu", "foot", "state", "control", "bounds", "impulse_foot", "impulse_state")
 INITIAL_CONTROLS = ("quasi_static", "zero")
-SOLVER_KEYS = ("expansion", "switch_ratio", "tol", "rtol", "grad_tol", "grad_rtol", "max_iter", "initial_controls")
+SOLVER_KEYS = ("expansion", "switch_ratio", "tol", "rtol", "grad_tol", "grad_rtol", "max_iter", "initial_controls",
+               "constraint_tol")
+CONSTRAINT_KEYS = ("type", "name", "mu", "facets", "min_normal_force", "max_normal_force", "feet")
 PHASE_KEYS = ("contacts", "knots", "step_length", "step_height", "impulse")
 SCHEMA: Schema = {  # [table] -> key -> required?
     "model": {"kind": True, "robot": True, "feet": True, "posture": False},
@@ -94,7 +96,7 @@ SCHEMA: Schema = {  # [table] -> key -> required?
     "costs": {k: False for k in COST_KEYS},
     "solver": {k: False for k in SOLVER_KEYS},
 }
-ARRAYS = ("phases",)
+ARRAYS = ("phases", "constraints")
 REQUIRED = ("model", "contact")
 
 
@@ -340,7 +342,12 @@ class LeggedSceneSpec(CommonSpec):
             costs = (GaitCosts.biped if self.foot_kind == "6d" else GaitCosts)(**dict(self.costs))
         except TypeError as exc:
             raise InputError("costs", f"expected fields of GaitCosts, got {dict(self.costs)} ({exc})") from None
-        return contact_problem(robot, nodes, terminal, q0, self.dt, self.baumgarte, costs, self.feet, self.foot_kind)
+        problem = contact_problem(robot, nodes, terminal, q0, self.dt, self.baumgarte, costs, self.feet, self.foot_kind)
+        if not self.constraints:
+            return problem
+        from ..constraints import ConstrainedProblem, ConstraintOptions
+
+        return ConstrainedProblem(problem, self.constraints, options=ConstraintOptions(constraint_tol=self.constraint_tol))
 
     def initial_control_sequence(self) -> np.ndarray | None:
         """None for the solver's default start (the quasi-static controls), zeros (H, m) for "zero"."""
@@ -359,6 +366,11 @@ class LeggedSceneSpec(CommonSpec):
                 guess = v.closest(k, allowed)
                 hint = f"; did you mean {guess!r}?" if guess else ""
                 raise InputError(k, f"cannot override this LeggedSceneSpec field{hint} (allowed: {', '.join(allowed)})")
+        if "constraint_tol" in overrides:
+            if not self.constraints:
+                raise InputError("constraint_tol", "applies only to a scene with [[constraints]] tables "
+                                 f"({self.name!r} has none)")
+            overrides["constraint_tol"] = v.nonnegative_float(overrides["constraint_tol"], "constraint_tol")
         return dataclasses.replace(self, **overrides)
 
 
@@ -425,9 +437,52 @@ def parse_legged_scene(data: Mapping[str, Any], source: str, base_dir: Path, def
                                  INITIAL_CONTROLS),
         **{key: r.check(v.nonnegative_float, s[key], f"[solver].{key}") if key in s else None
            for key in ("tol", "rtol", "grad_tol", "grad_rtol")})
+    if "constraint_tol" in s:
+        solver["constraint_tol"] = r.check(v.nonnegative_float, s["constraint_tol"], "[solver].constraint_tol")
+    solver["constraints"] = tuple(_force_constraint(r, t, path, feet) for path, t in r.array("constraints"))
+    if "constraint_tol" in s and not solver["constraints"]:
+        raise r.err("[solver].constraint_tol", "applies only with [[constraints]] tables (this scene has none)")
     return LeggedSceneSpec(name=name, description=description, source=source, robot=robot.name, posture=posture,
                            feet=feet, nv=int(pm.nv), dt=dt, baumgarte=(float(gains[0]), float(gains[1])), gait=gait,
                            phases=phases, costs=costs, foot_kind=foot_kind, **solver)
+
+
+def _force_constraint(r: Reader, t: Mapping[str, Any], path: str, feet: tuple[str, ...]):
+    """One ``[[constraints]]`` table of a legged scene: ``type = "friction_cone"`` (the contact
+    forces' hard constraints, :class:`geoddp.constraints.FrictionCone`) with ``mu?`` (0.7),
+    ``facets?`` (4), ``min_normal_force?`` (0 N), ``max_normal_force?`` (none), ``feet?`` (all)
+    and ``name?``; errors name the key path."""
+    from ..constraints import FrictionCone
+
+    r.keys(t, CONSTRAINT_KEYS, path)
+    if "type" not in t:
+        raise r.err(f"{path}.type", 'missing required key (a legged scene\'s constraints: "friction_cone")')
+    r.check(v.choice, t["type"], f"{path}.type", ("friction_cone",))
+    kw: dict[str, Any] = {}
+    if "mu" in t:
+        kw["mu"] = r.check(v.positive_float, t["mu"], f"{path}.mu")
+    if "min_normal_force" in t:
+        kw["min_normal_force"] = r.check(v.nonnegative_float, t["min_normal_force"], f"{path}.min_normal_force")
+    if "max_normal_force" in t:  # a number of newtons, or inf (TOML's inf) for none
+        kw["max_normal_force"] = t["max_normal_force"]
+    if "facets" in t:
+        kw["facets"] = r.check(v.positive_int, t["facets"], f"{path}.facets")
+    if "name" in t:
+        kw["name"] = r.string(t["name"], f"{path}.name")
+    if "feet" in t:
+        names = t["feet"]
+        if not isinstance(names, list) or not names:
+            raise r.err(f"{path}.feet", f"expected a list of the scene's feet ({', '.join(feet)}), got {names!r}")
+        for i, name in enumerate(names):
+            if name not in feet:
+                guess = v.closest(str(name), list(feet))
+                hint = f"; did you mean {guess!r}?" if guess else ""
+                raise r.err(f"{path}.feet[{i}]", f"expected one of [model].feet ({', '.join(feet)}), got {name!r}{hint}")
+        kw["feet"] = tuple(names)
+    try:
+        return FrictionCone(**kw)
+    except InputError as e:
+        raise r.err(f"{path}.{e.parameter}", e.detail) from None
 
 
 def _feet(r: Reader, val: Any, pm: pin.Model) -> tuple[str, ...]:
