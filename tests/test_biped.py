@@ -188,3 +188,28 @@ def test_mixed_feet_second_order(walk, k):
     Tf, Hf = fd_second_order_node(mixed, k, traj)
     assert np.max(np.abs(T - Tf)) / np.max(np.abs(Tf)) < 1e-7
     assert np.max(np.abs(Hc - Hf)) / np.max(np.abs(Hf)) < 1e-7
+
+
+def test_friction_cone_constraint_on_flat_feet(walk):
+    """A FrictionCone hard constraint on the soles reads each foot's force, the first 3 of its 6
+    rows (not the first foot's torque): its values and its augmented terms at a double-support node
+    are those of the node's forces."""
+    from geoddp.constraints import ConstrainedProblem, FrictionCone
+
+    cp = ConstrainedProblem(walk, [FrictionCone(mu=0.5, min_normal_force=5.0)])
+    traj = walk.trajectory(walk.quasi_static_controls())
+    c = cp.values(traj)[0]
+    placed = cp.placed[0]
+    k = 2
+    ev = walk.node(k, traj.q[k], traj.v[k], traj.u[k])[0]
+    pairs = np.flatnonzero(placed.nodes == k)
+    assert placed.slots[pairs].tolist() == [0, 1]
+    for j, start in zip(pairs, (0, 6)):
+        assert np.array_equal(c[j], placed.bound.value(ev.forces[None, start:start + 3])[0])
+    lam = np.where(np.arange(c.size).reshape(c.shape) % 2 == 0, 1.0, 0.0)
+    aug = cp.augmented([lam], [0.3]).problem
+    assert [s for *_, s in aug._force_at[k]] == [0, 6]
+    val = aug.node(k, traj.q[k], traj.v[k], traj.u[k])[1] - walk.node(k, traj.q[k], traj.v[k], traj.u[k])[1]
+    t = lam[pairs] + 0.3 * c[pairs]
+    expect = float(np.sum(np.maximum(t, 0.0) ** 2 - lam[pairs] ** 2) / 0.6)
+    assert val == pytest.approx(expect, rel=1e-12)

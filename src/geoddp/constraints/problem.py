@@ -219,7 +219,9 @@ class ConstrainedProblem:
                 for k in p.nodes.tolist():
                     if k not in forces:
                         forces[k] = self.problem.node(k, traj.q[k], traj.v[k], traj.u[k])[0].forces
-                f = np.array([forces[k][3 * i:3 * i + 3] for k, i in zip(p.nodes.tolist(), p.slots.tolist())])
+                starts = [self.problem.force_rows(self.problem.nodes[k].feet)[i]  # a flat foot: 6 rows
+                          for k, i in zip(p.nodes.tolist(), p.slots.tolist())]
+                f = np.array([forces[k][s:s + 3] for k, s in zip(p.nodes.tolist(), starts)])
                 out.append(p.bound.value(f))
             else:
                 out.append(p.bound.value(*p.states(traj)))
