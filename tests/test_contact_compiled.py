@@ -5,14 +5,19 @@ On ANYmal's walk and trot (example-robot-data) at random states and controls aro
 quasi-static start: every node (contact nodes with and without swing feet and CoM targets, impulse
 nodes, the terminal node) evaluated by both, next state, forces, cost, gradient and Gauss-Newton
 Hessian, Fz and Lz, to 1e-12 relative to each array's largest entry (1 when that is smaller); the
-friction-cone barrier active at some of them.
+friction-cone barrier active at some of them. Along whole trajectories: the kernel's rollout,
+node costs and first-order expansion; the problem's own (``backend`` "compiled", the default,
+against "python", the reference): open-loop and closed-loop rollouts, node and trajectory costs,
+the first-order expansion, and a whole first-order solve.
 """
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from geoddp.models.contact_compiled import build_kernel
+from geoddp.problem.contract import Trajectory
 from geoddp.scene.legged import anymal_gait, load_anymal
+from geoddp.solver import SolverOptions, solve
 
 TOL = 1e-12
 
@@ -21,6 +26,12 @@ TOL = 1e-12
 def gaits():
     robot = load_anymal()
     return {g: anymal_gait(g, robot) for g in ("walk", "trot")}
+
+
+def python_twin(problem):
+    """The same problem object forced to the Python node models (restored by the caller)."""
+    problem.backend = "python"
+    return problem
 
 
 def close(a, b, tol=TOL):
@@ -127,3 +138,119 @@ def test_kernel_trajectory_agrees(gaits, gait):
     for name in ("lf_x", "lf_xx"):
         ok, err = close(out[name], getattr(lin, name))
         assert ok, (gait, name, err)
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_trajectory_agrees(gaits, gait):
+    problem = gaits[gait]
+    rng = np.random.default_rng(21 if gait == "walk" else 22)
+    U = perturbed_controls(problem, rng, NOISE[gait])
+    traj_c = problem.trajectory(U)
+    costs_c = problem.node_costs(traj_c)
+    Jc = problem.trajectory_cost(traj_c)
+    lin_c = problem.linearise(traj_c, 1)
+    try:
+        python_twin(problem)
+        traj_p = problem.trajectory(U)
+        for a, b in ((traj_c.q, traj_p.q), (traj_c.v, traj_p.v), (traj_c.u, traj_p.u)):
+            assert close(a, b, 1e-11)[0], close(a, b)[1]  # 108 steps: the round-off compounds a little
+        # along the same trajectory: node costs, trajectory cost, the first-order expansion
+        costs_p = problem.node_costs(traj_c)
+        Jp = problem.trajectory_cost(traj_c)
+        lin_p = problem.linearise(traj_c, 1)
+    finally:
+        problem.backend = "compiled"
+    assert np.allclose(costs_c, costs_p, rtol=TOL, atol=0.0), np.max(np.abs(costs_c / costs_p - 1))
+    assert Jc == pytest.approx(Jp, rel=TOL)
+    for name in ("Phi", "B", "l_x", "l_u", "l_xx", "l_ux", "l_uu", "lf_x", "lf_xx"):
+        a, b = getattr(lin_c, name), getattr(lin_p, name)
+        per_node = a.ndim > 1 and name not in ("lf_xx",)
+        for k in range(a.shape[0]) if per_node else [None]:
+            ak, bk = (a[k], b[k]) if k is not None else (a, b)
+            ok, err = close(ak, bk)
+            assert ok, (gait, name, k, err)
+    assert lin_c.order == lin_p.order == 1 and lin_c.gauss_newton and lin_p.gauss_newton
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_closed_loop_rollout_agrees(gaits, gait):
+    problem = gaits[gait]
+    rng = np.random.default_rng(31 if gait == "walk" else 32)
+    nominal = problem.trajectory(perturbed_controls(problem, rng, NOISE[gait]))
+    H, nu, nx = problem.horizon, problem.nu, problem.nx
+    k = NOISE[gait] * rng.standard_normal((H, nu))
+    K = 0.1 * rng.standard_normal((H, nu, nx))
+    trial_c = problem.rollout_policy(nominal, k, K, 0.5)
+    Jc = problem.trajectory_cost(trial_c)
+    try:
+        python_twin(problem)
+        trial_p = problem.rollout_policy(nominal, k, K, 0.5)
+        Jp = problem.trajectory_cost(trial_p)
+    finally:
+        problem.backend = "compiled"
+    for a, b in ((trial_c.q, trial_p.q), (trial_c.v, trial_p.v), (trial_c.u, trial_p.u)):
+        assert close(a, b, 1e-11)[0], close(a, b)[1]
+    assert np.all(trial_c.u[problem.impulse_rows] == 0.0)
+    assert Jc == pytest.approx(Jp, rel=1e-11)
+
+
+def test_diverging_rollout_returns_none(gaits):
+    problem = gaits["trot"]
+    nominal = problem.trajectory(problem.quasi_static_controls())
+    H, nu, nx = problem.horizon, problem.nu, problem.nx
+    k = np.full((H, nu), -1e300)
+    assert problem.rollout_policy(nominal, k, np.zeros((H, nu, nx)), 1.0) is None
+    assert problem.trajectory_cost(Trajectory(np.full_like(nominal.q, np.nan), nominal.v, nominal.u)) == np.inf
+
+
+def test_cost_cache_follows_the_values(gaits):
+    """The node costs a rollout computed are reused only for the very same arrays' values."""
+    problem = gaits["trot"]
+    traj = problem.trajectory(problem.quasi_static_controls())
+    J = problem.trajectory_cost(traj)
+    traj.v[5, 0] += 0.5  # changed in place: the remembered costs no longer apply
+    J2 = problem.trajectory_cost(traj)
+    assert J2 != J
+    try:
+        python_twin(problem)
+        assert J2 == pytest.approx(problem.trajectory_cost(traj), rel=TOL)
+    finally:
+        problem.backend = "compiled"
+
+
+def test_backend_is_checked(gaits):
+    from geoddp.problem.legged import ContactProblem
+    from geoddp.validate import InputError
+
+    p = gaits["trot"]
+    with pytest.raises(InputError, match="backend"):
+        ContactProblem(p.dyn, p.nodes, p.terminal_node, p.q0, p.v0, (p.q_ref, p.v_ref), backend="fortran")
+
+
+def test_first_order_solve_is_the_same(gaits):
+    """The trot with expansion="first": the compiled backend's solve is the Python one's (same
+    iterations, J* to 1e-10 relative, the same controls to round-off)."""
+    problem = gaits["trot"]
+    res_c = solve(problem, SolverOptions(expansion="first"))
+    try:
+        python_twin(problem)
+        res_p = solve(problem, SolverOptions(expansion="first"))
+    finally:
+        problem.backend = "compiled"
+    assert res_c.iterations == res_p.iterations
+    assert res_c.converged and res_p.converged
+    assert res_c.cost == pytest.approx(res_p.cost, rel=1e-10)
+    assert np.max(np.abs(res_c.controls - res_p.controls)) <= 1e-6 * np.max(np.abs(res_p.controls))
+
+
+def test_copies_rebuild_the_kernel(gaits):
+    """deepcopy / pickle (a sweep's workers) leave the compiled kernel behind; the copy builds its own."""
+    import copy
+    import pickle
+
+    problem = gaits["trot"]
+    U = problem.quasi_static_controls()
+    J = problem.trajectory_cost(problem.trajectory(U))
+    for other in (copy.deepcopy(problem), pickle.loads(pickle.dumps(problem))):
+        assert other._core is None
+        assert other.trajectory_cost(other.trajectory(U)) == pytest.approx(J, rel=TOL)

@@ -33,11 +33,13 @@ from .. import kernels
 from ..lie import NONCOMMUTATIVE
 from ..lie import product as cfg
 from ..models import integrators as integ
+from ..models import contact_compiled
 from ..models.contact import ContactDynamics, friction_cone
-from ..validate import InputError, finite_array
+from ..validate import InputError, finite_array, nonnegative_int, threads_from_environment
 from .contract import Linearisation, Trajectory
 
 KINDS = ("contact", "impulse")
+BACKENDS = ("compiled", "python")
 # contact nodes per call of the Euler step's second-order expansion in linearise (one call per
 # node costs as much as the rest of it; one call for the whole horizon makes arrays of tens of MB)
 _EXPAND_BLOCK = 8
@@ -98,11 +100,21 @@ class ContactProblem:
         q0 (nq,), v0 (nv,): the initial state.
         x_ref: (q_ref (nq,), v_ref (nv,)) the default posture of the state regularisation.
         costs: :class:`GaitCosts`. describe: the model description a Result carries (multibody).
+        backend: "compiled" (default): the rollouts, the trajectory cost and the first-order
+            expansion run in the compiled core (:mod:`geoddp.models.contact_compiled`, the same
+            arithmetic as the Python node models to round-off); "python": everything in the Python
+            node models (the reference; the tests' oracle). The exact second order (``second``,
+            ``switch``) is Python's either way. The attribute may be changed after construction.
+        threads: worker threads of the compiled first-order expansion and node costs (node-parallel);
+            0 = GEODDP_THREADS if set, else the core's default (min(2, cores)).
+
+    The compiled kernel copies the schedule, targets, weights and (q0, v0) when first used: change
+    them on a fresh problem (or set ``backend`` to "python").
     """
 
     def __init__(self, dynamics: ContactDynamics, nodes: list[Node], terminal: Node, q0: np.ndarray,
                  v0: np.ndarray, x_ref: tuple[np.ndarray, np.ndarray], costs: GaitCosts | None = None,
-                 description: dict | None = None) -> None:
+                 description: dict | None = None, backend: str = "compiled", threads: int = 0) -> None:
         if not nodes:
             raise InputError("nodes", "expected at least one node")
         self.dyn = dynamics
@@ -132,6 +144,12 @@ class ContactProblem:
         self.groups = cfg.joint_groups(m)
         self.cone = friction_cone(self.costs.mu, 4)
         self._index = (np.arange(nv), np.arange(nv, 2 * nv), np.arange(2 * nv, 2 * nv + self.nu))
+        if backend not in BACKENDS:
+            raise InputError("backend", f"expected one of {BACKENDS}, got {backend!r}")
+        self.backend = backend
+        self.threads = nonnegative_int(threads, "threads") or threads_from_environment()
+        self._core = None  # the compiled kernel, built on first use
+        self._last_costs = None  # (Q, V, U, node costs) of the last compiled rollout
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
                                             "dt": self.dt, "integrator": "semi_implicit"}
 
@@ -232,7 +250,7 @@ class ContactProblem:
         val, g, Hs = self._cost(node, q, v, u, ev, derivatives)
         return ev, val, g, Hs
 
-    # ------------------------------------------------------------ the solver's contract
+    # ------------------------------------------------------------ controls
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
         """Validated (H, nu) copy; the rows of impulse nodes are set to zero (they act on nothing)."""
         U = finite_array(controls, name, (self.horizon, self.nu)).copy()
@@ -248,10 +266,48 @@ class ContactProblem:
                 U[k] = self.dyn.quasi_static(self.q0, n.feet)
         return U
 
+    # ------------------------------------------------------------ the compiled backend
+    def __getstate__(self) -> dict:
+        """Pickled (a sweep's workers, deepcopy) without the compiled kernel: rebuilt on first use."""
+        state = dict(self.__dict__)
+        state["_core"], state["_last_costs"] = None, None
+        return state
+
+    @property
+    def compiled(self) -> bool:
+        """True when the rollouts, costs and first-order expansion run in the compiled core."""
+        return self.backend == "compiled"
+
+    def kernel(self):
+        """The compiled twin of this problem (:func:`geoddp.models.contact_compiled.build_kernel`),
+        built on first use."""
+        if self._core is None:
+            self._core = contact_compiled.build_kernel(self)
+        return self._core
+
+    def _remember(self, traj: Trajectory, costs: np.ndarray) -> None:
+        """Keep the node costs a compiled rollout computed along ``traj`` (copies: compared by value)."""
+        self._last_costs = (traj.q.copy(), traj.v.copy(), traj.u.copy(), costs)
+
+    def _remembered(self, traj: Trajectory) -> np.ndarray | None:
+        last = self._last_costs
+        if last is None:
+            return None
+        Q, V, U, costs = last
+        same = (traj.q.shape == Q.shape and traj.v.shape == V.shape and traj.u.shape == U.shape
+                and np.array_equal(traj.q, Q) and np.array_equal(traj.v, V) and np.array_equal(traj.u, U))
+        return costs if same else None
+
+    # ------------------------------------------------------------ the solver's contract
     def trajectory(self, controls: np.ndarray) -> Trajectory:
         H = self.horizon
         U = np.array(controls, dtype=float)
         U[self.impulse_rows] = 0.0
+        if self.compiled:
+            Q, V, costs = self.kernel().rollout(np.ascontiguousarray(U))
+            traj = Trajectory(Q, V, U)
+            self._remember(traj, costs)
+            return traj
         Q, V = np.empty((H + 1, self.model.nq)), np.empty((H + 1, self.model.nv))
         Q[0], V[0] = self.q0, self.v0
         for k in range(H):
@@ -261,6 +317,13 @@ class ContactProblem:
 
     def node_costs(self, traj: Trajectory) -> np.ndarray:
         """(H + 1,) cost of each node along ``traj`` (running nodes dt-scaled, as Crocoddyl's)."""
+        if self.compiled:
+            costs = self._remembered(traj)
+            if costs is None:
+                c64 = np.ascontiguousarray
+                costs = self.kernel().costs(c64(traj.q, dtype=float), c64(traj.v, dtype=float),
+                                            c64(traj.u, dtype=float), self.threads)
+            return costs.copy()
         out = np.empty(self.horizon + 1)
         for k in range(self.horizon):
             out[k] = self.node(k, traj.q[k], traj.v[k], traj.u[k])[1]
@@ -274,6 +337,17 @@ class ContactProblem:
 
     def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
         H, m = self.horizon, self.model
+        if self.compiled:
+            c64 = np.ascontiguousarray
+            out = self.kernel().rollout_closed_loop(c64(traj.q, dtype=float), c64(traj.v, dtype=float),
+                                                    c64(traj.u, dtype=float), c64(k, dtype=float),
+                                                    c64(K, dtype=float), float(step))
+            if out is None:
+                return None
+            Q, V, U, costs = out
+            trial = Trajectory(Q, V, U)
+            self._remember(trial, costs)
+            return trial
         Q, V, U = np.empty_like(traj.q), np.empty_like(traj.v), np.zeros_like(traj.u)
         Q[0], V[0] = self.q0, self.v0
         for j in range(H):
@@ -420,6 +494,12 @@ class ContactProblem:
 
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         H, nx, nu, nv = self.horizon, self.nx, self.nu, self.model.nv
+        if order == 1 and self.compiled:
+            c64 = np.ascontiguousarray
+            Phi, B, lx, lu, lxx, lux, luu, gf, Hf, _ = self.kernel().linearise(
+                c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)
+            return Linearisation(order=1, Phi=Phi, B=B, Theta=None, Gamma=None, Xi=None, l_x=lx, l_u=lu, l_xx=lxx,
+                                 l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=True)
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
         evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
