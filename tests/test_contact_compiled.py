@@ -6,9 +6,10 @@ quasi-static start: every node (contact nodes with and without swing feet and Co
 nodes, the terminal node) evaluated by both, next state, forces, cost, gradient and Gauss-Newton
 Hessian, Fz and Lz, to 1e-12 relative to each array's largest entry (1 when that is smaller); the
 friction-cone barrier active at some of them. Along whole trajectories: the kernel's rollout,
-node costs and first-order expansion; the problem's own (``backend`` "compiled", the default,
-against "python", the reference): open-loop and closed-loop rollouts, node and trajectory costs,
-the first-order expansion, and a whole first-order solve.
+node costs, first-order expansion and node-parallel evaluation; the problem's own (``backend``
+"compiled", the default, against "python", the reference): open-loop and closed-loop rollouts,
+node and trajectory costs, the first- and second-order expansions, and whole first-order and
+switch solves.
 """
 import numpy as np
 import pinocchio as pin
@@ -88,7 +89,8 @@ def test_nodes_agree(gaits, gait):
                 if derivatives:
                     pairs += [("g", out["g"], g), ("Hs", out["Hs"], Hs)]
                     if ev is not None:
-                        pairs += [("Fz", out["Fz"], ev.Fz), ("Lz", out["Lz"], ev.Lz)]
+                        pairs += [("Fz", out["Fz"], ev.Fz), ("Lz", out["Lz"], ev.Lz),
+                                  ("Az", out["Az"], ev.Az)]
                 for name, a, b in pairs:
                     ok, err = close(a, b)
                     worst[name] = max(worst.get(name, 0.0), err)
@@ -254,3 +256,67 @@ def test_copies_rebuild_the_kernel(gaits):
     for other in (copy.deepcopy(problem), pickle.loads(pickle.dumps(problem))):
         assert other._core is None
         assert other.trajectory_cost(other.trajectory(U)) == pytest.approx(J, rel=TOL)
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_evaluate_agrees(gaits, gait):
+    """The kernel's node-parallel evaluation (the second order's input) against the Python nodes."""
+    problem = gaits[gait]
+    rng = np.random.default_rng(51 if gait == "walk" else 52)
+    traj = problem.trajectory(perturbed_controls(problem, rng, NOISE[gait]))
+    out = problem.kernel().evaluate(traj.q, traj.v, traj.u, 2)
+    assert len(out) == problem.horizon + 1
+    for k, o in enumerate(out):
+        ev, cost, g, Hs = problem.node(k, traj.q[k], traj.v[k], traj.u[k] if k < problem.horizon else None, True)
+        assert o["cost"] == pytest.approx(cost, rel=TOL, abs=1e-300)
+        pairs = [("g", o["g"], g), ("Hs", o["Hs"], Hs)]
+        if ev is not None:
+            pairs += [(f, o[f], getattr(ev, f)) for f in ("q_next", "v_next", "forces", "Fz", "Lz", "Az")]
+            assert (o["acc"] is None) == (ev.acc is None)
+            if ev.acc is not None:  # the KKT solve's round-off, before dt scales it into v+ (1e-12 above)
+                ok, err = close(o["acc"], ev.acc, 1e-11)
+                assert ok, (gait, k, "acc", err)
+        for name, a, b in pairs:
+            ok, err = close(a, b)
+            assert ok, (gait, k, name, err)
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_second_order_expansion_agrees(gaits, gait):
+    """linearise(traj, 2) from the compiled node derivatives (compiled_second_order_inputs)
+    against the all-Python one."""
+    problem = gaits[gait]
+    rng = np.random.default_rng(61 if gait == "walk" else 62)
+    traj = problem.trajectory(perturbed_controls(problem, rng, NOISE[gait]))
+    try:
+        problem.compiled_second_order_inputs = True
+        lin_c = problem.linearise(traj, 2)
+        python_twin(problem)
+        lin_p = problem.linearise(traj, 2)
+    finally:
+        problem.backend = "compiled"
+        problem.compiled_second_order_inputs = False
+    for name in ("Phi", "B", "Theta", "Gamma", "Xi", "l_x", "l_u", "l_xx", "l_ux", "l_uu"):
+        a, b = getattr(lin_c, name), getattr(lin_p, name)
+        for k in range(problem.horizon):
+            ok, err = close(a[k], b[k], 1e-11)
+            assert ok, (gait, name, k, err)
+    for name in ("lf_x", "lf_xx"):
+        ok, err = close(getattr(lin_c, name), getattr(lin_p, name))
+        assert ok, (gait, name, err)
+    assert lin_c.order == lin_p.order == 2 and not lin_c.gauss_newton
+
+
+def test_switch_solve_is_the_same(gaits):
+    """The trot with expansion="switch" (second-order steps, compiled rollouts and first order):
+    the same iterations and J* to 1e-10."""
+    problem = gaits["trot"]
+    res_c = solve(problem, SolverOptions(expansion="switch"))
+    try:
+        python_twin(problem)
+        res_p = solve(problem, SolverOptions(expansion="switch"))
+    finally:
+        problem.backend = "compiled"
+    assert res_c.iterations == res_p.iterations
+    assert res_c.converged and res_p.converged
+    assert res_c.cost == pytest.approx(res_p.cost, rel=1e-10)

@@ -1,6 +1,7 @@
 // Bindings of the contact-schedule kernels (dynamics/contact.hpp): the class ContactKernel holds a
 // problem (the robot, its contact model, the schedule and the costs' data) and runs its rollouts,
-// node costs, first-order expansion and single nodes (for the tests' comparisons).
+// node costs, first-order expansion, every node's first-order terms (the second-order expansion's
+// input) and single nodes (for the tests' comparisons).
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
@@ -11,6 +12,7 @@
 #include "bindings/checks.hpp"
 #include "bindings/pin_model.hpp"
 #include "dynamics/contact.hpp"
+#include "runtime/parallel.hpp"
 
 namespace geoddp {
 
@@ -32,6 +34,18 @@ struct ContactKernel {
   py::object model_ref;
   dyn::ContactSetup s;
 };
+
+Arr vec_array(const Eigen::VectorXd& x) {
+  Arr a = empty({(py::ssize_t)x.size()});
+  if (x.size()) Eigen::Map<Eigen::VectorXd>(a.mutable_data(), x.size()) = x;
+  return a;
+}
+
+Arr mat_array(const RowMat& x) {
+  Arr a = empty({(py::ssize_t)x.rows(), (py::ssize_t)x.cols()});
+  if (x.size()) MatMap(a.mutable_data(), x.rows(), x.cols()) = x;
+  return a;
+}
 
 std::unique_ptr<ContactKernel> make_kernel(py::object pm, double dt, double Kp, double Kd, double impulse_damping,
                                            const py::list& nodes, const Arr& weights, const Arr& q0, const Arr& v0,
@@ -181,6 +195,61 @@ void bind_contact(py::module_& m) {
           py::arg("Q"), py::arg("V"), py::arg("U"), py::arg("threads") = 0,
           "First-order expansion: (Phi, B, lx, lu, lxx, lux, luu, lfx, lfxx, node costs).")
       .def(
+          "evaluate",
+          [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
+            const auto& s = k.s;
+            const int H = s.horizon(), nq = s.model->nq, nv = s.nv(), nu = s.nu();
+            check_shape(Q, {H + 1, nq}, "Q");
+            check_shape(V, {H + 1, nv}, "V");
+            check_shape(U, {H, nu}, "U");
+            std::vector<dyn::ContactEval> evs((size_t)H);
+            std::vector<Eigen::VectorXd> gs((size_t)H + 1);
+            std::vector<RowMat> Hss((size_t)H + 1);
+            std::vector<double> costs((size_t)H + 1);
+            {
+              py::gil_scoped_release nogil;
+              const double *Qd = Q.data(), *Vd = V.data(), *Ud = U.data();
+              parallel_nodes(H + 1, threads, [&](int b, int e) {
+                dyn::ContactWork w(*s.model);
+                Eigen::VectorXd q(nq), v(nv), u(nu);
+                for (int j = b; j < e; ++j) {
+                  q = CVecMap(Qd + (size_t)j * nq, nq);
+                  v = CVecMap(Vd + (size_t)j * nv, nv);
+                  if (j == H) {
+                    costs[(size_t)j] = dyn::contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true,
+                                                              gs[(size_t)j], Hss[(size_t)j]);
+                    continue;
+                  }
+                  u = CVecMap(Ud + (size_t)j * nu, nu);
+                  costs[(size_t)j] = dyn::contact_step(s, w, j, q, v, u, true, evs[(size_t)j], gs[(size_t)j],
+                                                       Hss[(size_t)j]);
+                }
+              });
+            }
+            py::list out;
+            for (int j = 0; j <= H; ++j) {
+              py::dict d;
+              d["cost"] = costs[(size_t)j];
+              d["g"] = vec_array(gs[(size_t)j]);
+              d["Hs"] = mat_array(Hss[(size_t)j]);
+              if (j < H) {
+                const dyn::ContactEval& ev = evs[(size_t)j];
+                d["q_next"] = vec_array(ev.q_next);
+                d["v_next"] = vec_array(ev.v_next);
+                d["forces"] = vec_array(ev.forces);
+                d["acc"] = s.nodes[(size_t)j].impulse ? py::object(py::none()) : py::object(vec_array(ev.acc));
+                d["Fz"] = mat_array(ev.Fz);
+                d["Lz"] = mat_array(ev.Lz);
+                d["Az"] = mat_array(ev.Az);
+              }
+              out.append(d);
+            }
+            return out;
+          },
+          py::arg("Q"), py::arg("V"), py::arg("U"), py::arg("threads") = 0,
+          "Every node along (Q, V, U) with first derivatives (node-parallel): H + 1 dicts of cost, g, Hs and, "
+          "below the terminal node, q_next, v_next, forces, acc (None at an impulse node), Fz, Lz, Az.")
+      .def(
           "node",
           [](const ContactKernel& k, int j, const Arr& q, const Arr& v, const Arr& u, bool derivatives) {
             const auto& s = k.s;
@@ -198,16 +267,8 @@ void bind_contact(py::module_& m) {
                                                      g, Hs);
               else c = dyn::contact_step(s, w, j, qq, vv, uu, derivatives, ev, g, Hs);
             }
-            auto arr = [](const Eigen::VectorXd& x) {
-              Arr a = empty({(py::ssize_t)x.size()});
-              if (x.size()) Eigen::Map<Eigen::VectorXd>(a.mutable_data(), x.size()) = x;
-              return a;
-            };
-            auto mat = [](const RowMat& x) {
-              Arr a = empty({(py::ssize_t)x.rows(), (py::ssize_t)x.cols()});
-              if (x.size()) MatMap(a.mutable_data(), x.rows(), x.cols()) = x;
-              return a;
-            };
+            const auto arr = vec_array;
+            const auto mat = mat_array;
             py::dict out;
             out["cost"] = c;
             if (j < H) {
@@ -221,13 +282,14 @@ void bind_contact(py::module_& m) {
               if (j < H) {
                 out["Fz"] = mat(ev.Fz);
                 out["Lz"] = mat(ev.Lz);
+                out["Az"] = mat(ev.Az);
               }
             }
             return out;
           },
           py::arg("k"), py::arg("q"), py::arg("v"), py::arg("u"), py::arg("derivatives") = false,
           "Node k at (q, v, u): a dict of cost and, below the terminal node, q_next, v_next, forces; with "
-          "derivatives g, Hs and Fz, Lz.");
+          "derivatives g, Hs and Fz, Lz, Az.");
 }
 
 }  // namespace geoddp

@@ -62,11 +62,13 @@ struct ContactSetup {
   int nu() const { return model->nv - 6; }
 };
 
-// One node evaluated: next state, forces in the world frame (3 per foot), and with derivatives
-// Fz (2 nv, nz) of (q+, v+) in the tangent at (q+, v+) and Lz (3 nc, nz) of the forces.
+// One node evaluated: next state, forces in the world frame (3 per foot), the accelerations acc
+// (contact node; empty at an impulse node), and with derivatives Fz (2 nv, nz) of (q+, v+) in the
+// tangent at (q+, v+), Lz (3 nc, nz) of the forces and Az (nv, nz) of the accelerations (contact
+// node) or of v+ (impulse node): the Python NodeEval's fields.
 struct ContactEval {
   Eigen::VectorXd q_next, v_next, forces, acc;
-  RowMat Fz, Lz;
+  RowMat Fz, Lz, Az;
 };
 
 // A node's scratch: a Pinocchio Data and the per-foot terms.

@@ -150,6 +150,7 @@ void contact_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   ev.Fz.topRows(nv) = dt * (Dw * dvn);
   ev.Fz.block(0, 0, nv, nv) += Dq;
   ev.Fz.bottomRows(nv) = dvn;
+  ev.Az = sol.topRows(nv);
 }
 
 void impulse_node(const ContactSetup& s, ContactWork& w, const ContactNode& node, const Eigen::VectorXd& q,
@@ -210,6 +211,7 @@ void impulse_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   ev.Fz = RowMat::Zero(2 * nv, nz);
   ev.Fz.block(0, 0, nv, nv).diagonal().setOnes();
   ev.Fz.bottomRows(nv) = sol.topRows(nv);
+  ev.Az = sol.topRows(nv);
 }
 
 }  // namespace dyn

@@ -15,27 +15,25 @@ U (H, nu), node costs (H + 1) (running contact nodes dt-scaled, as the Python co
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from ..kernels import core as _core
 
-if TYPE_CHECKING:  # pragma: no cover
-    from ..problem.legged import ContactProblem, Node
-
 __all__ = ["build_kernel"]
 
 
-def _node(node: "Node") -> tuple:
-    """(impulse, feet, com (3,) or None, ((frame id, target (3,)), ...)) as the kernel reads a node."""
+def _node(node) -> tuple:
+    """``node`` (:class:`geoddp.problem.legged.Node`) as the kernel reads it: (impulse, feet,
+    com (3,) or None, ((frame id, target (3,)), ...))."""
     com = None if node.com is None else np.ascontiguousarray(node.com, dtype=np.float64)
     swing = tuple((int(f), np.ascontiguousarray(p, dtype=np.float64)) for f, p in node.swing)
     return (node.kind == "impulse", [int(f) for f in node.feet], com, swing)
 
 
-def build_kernel(problem: "ContactProblem") -> "_core.ContactKernel":
-    """The compiled twin of ``problem`` (its robot, contact model, schedule and costs as they are now)."""
+def build_kernel(problem):
+    """The compiled twin (``geoddp._core.ContactKernel``) of ``problem``
+    (:class:`geoddp.problem.legged.ContactProblem`): its robot, contact model, schedule and costs as
+    they are now."""
     dyn, c = problem.dyn, problem.costs
     Kp, Kd = dyn.gains
     weights = np.array([c.com, c.friction_cone, c.foot, c.state, c.control, c.bounds, c.impulse_foot,

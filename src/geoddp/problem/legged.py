@@ -34,7 +34,7 @@ from ..lie import NONCOMMUTATIVE
 from ..lie import product as cfg
 from ..models import integrators as integ
 from ..models import contact_compiled
-from ..models.contact import ContactDynamics, friction_cone
+from ..models.contact import ContactDynamics, NodeEval, friction_cone
 from ..validate import InputError, finite_array, nonnegative_int, threads_from_environment
 from .contract import Linearisation, Trajectory
 
@@ -103,8 +103,13 @@ class ContactProblem:
         backend: "compiled" (default): the rollouts, the trajectory cost and the first-order
             expansion run in the compiled core (:mod:`geoddp.models.contact_compiled`, the same
             arithmetic as the Python node models to round-off); "python": everything in the Python
-            node models (the reference; the tests' oracle). The exact second order (``second``,
-            ``switch``) is Python's either way. The attribute may be changed after construction.
+            node models (the reference; the tests' oracle). The exact second order (the KKT system
+            differentiated twice, the costs' curvature) is Python's either way, and so, unless
+            ``compiled_second_order_inputs`` is set, are the node derivatives it starts from: the
+            stopping tests of ``second`` and ``switch`` sit at round-off-sensitive borders (the
+            compiled inputs, equal to 1e-12, end the trot's switch solve one iteration later and
+            the walk's second one earlier, at the same J* to 1e-14) for a gain of a few percent.
+            The attributes may be changed after construction.
         threads: worker threads of the compiled first-order expansion and node costs (node-parallel);
             0 = GEODDP_THREADS if set, else the core's default (min(2, cores)).
 
@@ -148,6 +153,7 @@ class ContactProblem:
             raise InputError("backend", f"expected one of {BACKENDS}, got {backend!r}")
         self.backend = backend
         self.threads = nonnegative_int(threads, "threads") or threads_from_environment()
+        self.compiled_second_order_inputs = False  # linearise(order=2): node derivatives from the kernel
         self._core = None  # the compiled kernel, built on first use
         self._last_costs = None  # (Q, V, U, node costs) of the last compiled rollout
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
@@ -492,6 +498,24 @@ class ContactProblem:
         T[:, nx:, :nx] = e.Gamma[0].transpose(0, 2, 1)
         return T, self._cost_hessian(k, q, v, u, ev, L2)
 
+    def _first_order_nodes(self, traj: Trajectory, compiled: bool):
+        """Every node along ``traj`` with first derivatives: H + 1 (NodeEval or None at the terminal
+        node, cost gradient (nz,), Gauss-Newton Hessian (nz, nz)), from the compiled kernel
+        (node-parallel) or the Python node models."""
+        H = self.horizon
+        if not compiled:
+            for k in range(H + 1):
+                ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k] if k < H else None, derivatives=True)
+                yield ev, g, Hs
+            return
+        c64 = np.ascontiguousarray
+        out = self.kernel().evaluate(c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float),
+                                     self.threads)
+        for k, o in enumerate(out):
+            ev = None if k == H else NodeEval(o["q_next"], o["v_next"], o["forces"], Fz=o["Fz"], Lz=o["Lz"],
+                                              acc=o["acc"], Az=o["Az"])
+            yield ev, o["g"], o["Hs"]
+
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         H, nx, nu, nv = self.horizon, self.nx, self.nu, self.model.nv
         if order == 1 and self.compiled:
@@ -505,14 +529,16 @@ class ContactProblem:
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
         lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
         hess = []
-        for k in range(H):
-            ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k], derivatives=True)
+        nodes = self._first_order_nodes(traj, self.compiled and self.compiled_second_order_inputs)
+        for k, (ev, g, Hs) in enumerate(nodes):
+            if k == H:
+                gf, Hf = g, Hs
+                break
             evs.append(ev)
             hess.append(Hs)
             Phi[k], B[k] = ev.Fz[:, :nx], ev.Fz[:, nx:]
             lx[k], lu[k] = g[:nx], g[nx:]
             lxx[k], lux[k], luu[k] = Hs[:nx, :nx], Hs[nx:, :nx], Hs[nx:, nx:]
-        _, _, gf, Hf = self.node(H, traj.q[H], traj.v[H], None, derivatives=True)
         Theta = Gamma = Xi = None
         if order == 2:
             Theta, Gamma, Xi = np.zeros((H, nx, nx, nx)), np.zeros((H, nx, nx, nu)), np.zeros((H, nx, nu, nu))
