@@ -16,7 +16,15 @@ on one thread (OPENBLAS_NUM_THREADS=1 unless set): its node models' products are
 rows), and on two shared cores BLAS's threads made the trot's second-order solve 1.4x slower;
 FDDP keeps its default threads.
 
+Rounds (``--rounds N``, default 3): every round runs every solver once per gait, so the solvers
+alternate and a load spike on the shared cores hits one round's solves, not one solver's; the log
+has every solve (its ``round``) and then, per gait and solver, the median wall and CPU times
+(``"summary": true``). geoddp's legged problems run their rollouts, node costs and first-order
+expansions in the compiled core (``ContactProblem.backend`` "compiled", node-parallel on the
+core's default threads); the exact second-order terms stay in Python.
+
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py            # all, results log
+    .venv-bench/bin/python benchmarks/legged_vs_fddp.py --rounds 1 walk trot   # some gaits, one round
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py one fddp trot      # or fddp1, first, second, switch
 """
 from __future__ import annotations
@@ -119,22 +127,45 @@ def one(solver: str, gait: str) -> dict:
     return fddp(gait, threads=1) if solver == "fddp1" else geoddp(gait, solver)
 
 
+def summary(rows: list[dict]) -> list[dict]:
+    """Per gait and solver: the medians of the rounds' wall and CPU times (and the first round's
+    iterations, J and status: the solves are deterministic)."""
+    out = []
+    for gait in dict.fromkeys(r["gait"] for r in rows):
+        for solver in dict.fromkeys(r["solver"] for r in rows if r["gait"] == gait):
+            runs = [r for r in rows if r["gait"] == gait and r["solver"] == solver]
+            row = {k: v for k, v in runs[0].items() if k not in ("time_s", "cpu_s", "round")}
+            row.update(summary=True, rounds=len(runs), time_s=float(np.median([r["time_s"] for r in runs])),
+                       cpu_s=float(np.median([r["cpu_s"] for r in runs])),
+                       iterations_all_rounds=sorted({r["iterations"] for r in runs}))
+            out.append(row)
+    return out
+
+
 def main(argv: list[str]) -> None:
     if argv and argv[0] == "one":
         print(json.dumps(one(argv[1], argv[2])))
         return
+    rounds = 3
+    if argv and argv[0] == "--rounds":
+        rounds, argv = int(argv[1]), argv[2:]
+    gaits = tuple(argv) or GAITS
     rows = []
-    for gait in GAITS:
-        for solver in SOLVERS:
-            env = dict(os.environ)
-            if not solver.startswith("fddp"):
-                env.setdefault("OPENBLAS_NUM_THREADS", "1")
-            out = subprocess.run([sys.executable, __file__, "one", solver, gait], capture_output=True, text=True,
-                                 check=True, env=env)
-            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
-            print(json.dumps(rows[-1]), flush=True)
+    for r in range(rounds):
+        for gait in gaits:
+            for solver in SOLVERS:
+                env = dict(os.environ)
+                if not solver.startswith("fddp"):
+                    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+                out = subprocess.run([sys.executable, __file__, "one", solver, gait], capture_output=True, text=True,
+                                     check=True, env=env)
+                rows.append({**json.loads(out.stdout.strip().splitlines()[-1]), "round": r})
+                print(json.dumps(rows[-1]), flush=True)
+    summ = summary(rows)
+    for row in summ:
+        print(json.dumps(row), flush=True)
     log = Path(__file__).resolve().parent / "results" / "legged_vs_fddp.log"
-    log.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    log.write_text("\n".join(json.dumps(r) for r in rows + summ) + "\n")
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@
 #include "bindings/bind_lie.cpp"
 #include "bindings/bind_rigid_body.cpp"
 #include "bindings/bind_dynamics.cpp"
+#include "bindings/bind_contact.cpp"
 #include "bindings/bind_riccati.cpp"
 #include "bindings/bind_contracted.cpp"
 #include "bindings/bind_costs.cpp"

@@ -11,6 +11,7 @@ void bind_runtime(pybind11::module_& m, pybind11::module_& t);    // workers, sp
 void bind_lie(pybind11::module_& t);                              // Jr's derivatives, block operators
 void bind_rigid_body(pybind11::module_& t);                       // kinetic and RNEA Hessians
 void bind_dynamics(pybind11::module_& m, pybind11::module_& t);   // rollouts, expansions
+void bind_contact(pybind11::module_& m);                          // contact schedules: rollouts, costs, expansion
 void bind_riccati(pybind11::module_& m, pybind11::module_& t);    // backward passes over tensors
 void bind_contracted(pybind11::module_& m, pybind11::module_& t); // the factored second order
 void bind_costs(pybind11::module_& m, pybind11::module_& t);      // cost terms, right Jacobians

@@ -33,6 +33,7 @@ PYBIND11_MODULE(_core, m) {
   geoddp::bind_lie(testing);
   geoddp::bind_rigid_body(testing);
   geoddp::bind_dynamics(m, testing);
+  geoddp::bind_contact(m);
   geoddp::bind_riccati(m, testing);
   geoddp::bind_contracted(m, testing);
   geoddp::bind_costs(m, testing);

@@ -43,11 +43,13 @@ from .. import kernels
 from ..lie import NONCOMMUTATIVE
 from ..lie import product as cfg
 from ..models import integrators as integ
-from ..models.contact import ContactDynamics, friction_cone, wrench_cone
-from ..validate import InputError, finite_array
+from ..models import contact_compiled
+from ..models.contact import ContactDynamics, NodeEval, friction_cone, wrench_cone
+from ..validate import InputError, finite_array, nonnegative_int, threads_from_environment
 from .contract import Linearisation, Trajectory
 
 KINDS = ("contact", "impulse")
+BACKENDS = ("compiled", "python")
 # contact nodes per call of the Euler step's second-order expansion in linearise (one call per
 # node costs as much as the rest of it; one call for the whole horizon makes arrays of tens of MB)
 _EXPAND_BLOCK = 8
@@ -134,11 +136,27 @@ class ContactProblem:
         q0 (nq,), v0 (nv,): the initial state.
         x_ref: (q_ref (nq,), v_ref (nv,)) the default posture of the state regularisation.
         costs: :class:`GaitCosts`. describe: the model description a Result carries (multibody).
+        backend: "compiled" (default): the rollouts, the trajectory cost and the first-order
+            expansion run in the compiled core (:mod:`geoddp.models.contact_compiled`, the same
+            arithmetic as the Python node models to round-off); "python": everything in the Python
+            node models (the reference; the tests' oracle). The exact second order (the KKT system
+            differentiated twice, the costs' curvature) is Python's either way, and so, unless
+            ``compiled_second_order_inputs`` is set, are the node derivatives it starts from: the
+            stopping tests of ``second`` and ``switch`` sit at round-off-sensitive borders (the
+            compiled inputs, equal to 1e-12, end the trot's switch solve one iteration later and
+            the walk's second one earlier, at the same J* to 1e-14) for a gain of a few percent.
+            The attributes may be changed after construction. A problem with flat feet (6D
+            contacts) or with the terms of force constraints runs in Python (:attr:`compiled`).
+        threads: worker threads of the compiled first-order expansion and node costs (node-parallel);
+            0 = GEODDP_THREADS if set, else the core's default (min(2, cores)).
+
+    The compiled kernel copies the schedule, targets, weights and (q0, v0) when first used: change
+    them on a fresh problem (or set ``backend`` to "python").
     """
 
     def __init__(self, dynamics: ContactDynamics, nodes: list[Node], terminal: Node, q0: np.ndarray,
                  v0: np.ndarray, x_ref: tuple[np.ndarray, np.ndarray], costs: GaitCosts | None = None,
-                 description: dict | None = None) -> None:
+                 description: dict | None = None, backend: str = "compiled", threads: int = 0) -> None:
         if not nodes:
             raise InputError("nodes", "expected at least one node")
         self.dyn = dynamics
@@ -161,6 +179,7 @@ class ContactProblem:
         self.w_state = state_weight_vector(self.costs.state_weights, nv)
         self.w_impulse = state_weight_vector(self.costs.impulse_state_weights, nv)
         flat = [f for f in dynamics.contact_kinds if any(f in n.feet for n in [*self.nodes, terminal])]
+        self.flat_feet = tuple(f for f in flat if dynamics.kind(f) != "3d")  # the compiled kernel: point feet only
         if any(dynamics.kind(f) == "6d_local" for f in flat):
             raise InputError("dynamics.contact_kinds", "the gait costs take flat feet in world-aligned axes ('6d'), "
                              "not '6d_local'")
@@ -175,6 +194,13 @@ class ContactProblem:
         self.cone = friction_cone(self.costs.mu, 4)  # a point foot's (A, lb, ub) over its force (3,)
         self.wrench = wrench_cone(self.costs.mu, self.costs.sole, 4)  # a flat foot's over (force, torque) (6,)
         self._index = (np.arange(nv), np.arange(nv, 2 * nv), np.arange(2 * nv, 2 * nv + self.nu))
+        if backend not in BACKENDS:
+            raise InputError("backend", f"expected one of {BACKENDS}, got {backend!r}")
+        self.backend = backend
+        self.threads = nonnegative_int(threads, "threads") or threads_from_environment()
+        self.compiled_second_order_inputs = False  # linearise(order=2): node derivatives from the kernel
+        self._core = None  # the compiled kernel, built on first use
+        self._last_costs = None  # (Q, V, U, node costs) of the last compiled rollout
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
                                             "dt": self.dt, "integrator": "semi_implicit"}
 
@@ -357,7 +383,7 @@ class ContactProblem:
                 H += mu * (on.T @ on)
         return (None, None, H) if L2 is not None else (val, g, H)
 
-    # ------------------------------------------------------------ the solver's contract
+    # ------------------------------------------------------------ controls
     def check_controls(self, controls: np.ndarray, name: str = "initial_controls") -> np.ndarray:
         """Validated (H, nu) copy; the rows of impulse nodes are set to zero (they act on nothing)."""
         U = finite_array(controls, name, (self.horizon, self.nu)).copy()
@@ -373,10 +399,51 @@ class ContactProblem:
                 U[k] = self.dyn.quasi_static(self.q0, n.feet)
         return U
 
+    # ------------------------------------------------------------ the compiled backend
+    def __getstate__(self) -> dict:
+        """Pickled (a sweep's workers, deepcopy) without the compiled kernel: rebuilt on first use."""
+        state = dict(self.__dict__)
+        state["_core"], state["_last_costs"] = None, None
+        return state
+
+    @property
+    def compiled(self) -> bool:
+        """True when the rollouts, costs and first-order expansion run in the compiled core: with
+        backend "compiled", point feet only (the kernel has no 6D contacts) and no terms of force
+        constraints (the augmented Lagrangian's inner problems, :meth:`with_force_terms`, run in
+        Python)."""
+        return self.backend == "compiled" and not self.flat_feet and not self._force_at
+
+    def kernel(self):
+        """The compiled twin of this problem (:func:`geoddp.models.contact_compiled.build_kernel`),
+        built on first use."""
+        if self._core is None:
+            self._core = contact_compiled.build_kernel(self)
+        return self._core
+
+    def _remember(self, traj: Trajectory, costs: np.ndarray) -> None:
+        """Keep the node costs a compiled rollout computed along ``traj`` (copies: compared by value)."""
+        self._last_costs = (traj.q.copy(), traj.v.copy(), traj.u.copy(), costs)
+
+    def _remembered(self, traj: Trajectory) -> np.ndarray | None:
+        last = self._last_costs
+        if last is None:
+            return None
+        Q, V, U, costs = last
+        same = (traj.q.shape == Q.shape and traj.v.shape == V.shape and traj.u.shape == U.shape
+                and np.array_equal(traj.q, Q) and np.array_equal(traj.v, V) and np.array_equal(traj.u, U))
+        return costs if same else None
+
+    # ------------------------------------------------------------ the solver's contract
     def trajectory(self, controls: np.ndarray) -> Trajectory:
         H = self.horizon
         U = np.array(controls, dtype=float)
         U[self.impulse_rows] = 0.0
+        if self.compiled:
+            Q, V, costs = self.kernel().rollout(np.ascontiguousarray(U))
+            traj = Trajectory(Q, V, U)
+            self._remember(traj, costs)
+            return traj
         Q, V = np.empty((H + 1, self.model.nq)), np.empty((H + 1, self.model.nv))
         Q[0], V[0] = self.q0, self.v0
         for k in range(H):
@@ -386,6 +453,13 @@ class ContactProblem:
 
     def node_costs(self, traj: Trajectory) -> np.ndarray:
         """(H + 1,) cost of each node along ``traj`` (running nodes dt-scaled, as Crocoddyl's)."""
+        if self.compiled:
+            costs = self._remembered(traj)
+            if costs is None:
+                c64 = np.ascontiguousarray
+                costs = self.kernel().costs(c64(traj.q, dtype=float), c64(traj.v, dtype=float),
+                                            c64(traj.u, dtype=float), self.threads)
+            return costs.copy()
         out = np.empty(self.horizon + 1)
         for k in range(self.horizon):
             out[k] = self.node(k, traj.q[k], traj.v[k], traj.u[k])[1]
@@ -399,6 +473,17 @@ class ContactProblem:
 
     def rollout_policy(self, traj: Trajectory, k: np.ndarray, K: np.ndarray, step: float) -> Trajectory | None:
         H, m = self.horizon, self.model
+        if self.compiled:
+            c64 = np.ascontiguousarray
+            out = self.kernel().rollout_closed_loop(c64(traj.q, dtype=float), c64(traj.v, dtype=float),
+                                                    c64(traj.u, dtype=float), c64(k, dtype=float),
+                                                    c64(K, dtype=float), float(step))
+            if out is None:
+                return None
+            Q, V, U, costs = out
+            trial = Trajectory(Q, V, U)
+            self._remember(trial, costs)
+            return trial
         Q, V, U = np.empty_like(traj.q), np.empty_like(traj.v), np.zeros_like(traj.u)
         Q[0], V[0] = self.q0, self.v0
         for j in range(H):
@@ -579,21 +664,47 @@ class ContactProblem:
         T[:, nx:, :nx] = e.Gamma[0].transpose(0, 2, 1)
         return T, self._cost_hessian(k, q, v, u, ev, L2)
 
+    def _first_order_nodes(self, traj: Trajectory, compiled: bool):
+        """Every node along ``traj`` with first derivatives: H + 1 (NodeEval or None at the terminal
+        node, cost gradient (nz,), Gauss-Newton Hessian (nz, nz)), from the compiled kernel
+        (node-parallel) or the Python node models."""
+        H = self.horizon
+        if not compiled:
+            for k in range(H + 1):
+                ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k] if k < H else None, derivatives=True)
+                yield ev, g, Hs
+            return
+        c64 = np.ascontiguousarray
+        out = self.kernel().evaluate(c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float),
+                                     self.threads)
+        for k, o in enumerate(out):
+            ev = None if k == H else NodeEval(o["q_next"], o["v_next"], o["forces"], Fz=o["Fz"], Lz=o["Lz"],
+                                              acc=o["acc"], Az=o["Az"])
+            yield ev, o["g"], o["Hs"]
+
     def linearise(self, traj: Trajectory, order: int) -> Linearisation:
         H, nx, nu, nv = self.horizon, self.nx, self.nu, self.model.nv
+        if order == 1 and self.compiled:
+            c64 = np.ascontiguousarray
+            Phi, B, lx, lu, lxx, lux, luu, gf, Hf, _ = self.kernel().linearise(
+                c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)
+            return Linearisation(order=1, Phi=Phi, B=B, Theta=None, Gamma=None, Xi=None, l_x=lx, l_u=lu, l_xx=lxx,
+                                 l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=True)
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
         evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
         lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
         hess = []
-        for k in range(H):
-            ev, _, g, Hs = self.node(k, traj.q[k], traj.v[k], traj.u[k], derivatives=True)
+        nodes = self._first_order_nodes(traj, self.compiled and self.compiled_second_order_inputs)
+        for k, (ev, g, Hs) in enumerate(nodes):
+            if k == H:
+                gf, Hf = g, Hs
+                break
             evs.append(ev)
             hess.append(Hs)
             Phi[k], B[k] = ev.Fz[:, :nx], ev.Fz[:, nx:]
             lx[k], lu[k] = g[:nx], g[nx:]
             lxx[k], lux[k], luu[k] = Hs[:nx, :nx], Hs[nx:, :nx], Hs[nx:, nx:]
-        _, _, gf, Hf = self.node(H, traj.q[H], traj.v[H], None, derivatives=True)
         Theta = Gamma = Xi = None
         if order == 2:
             Theta, Gamma, Xi = np.zeros((H, nx, nx, nx)), np.zeros((H, nx, nx, nu)), np.zeros((H, nx, nu, nu))

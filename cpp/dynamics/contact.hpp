@@ -1,0 +1,119 @@
+// Legged robots on flat ground: rigid point contacts and impulses on a floating-base multibody,
+// Crocoddyl's gait costs, and a whole contact schedule's rollouts and first-order expansion in one
+// call. Twin of geoddp.models.contact.ContactDynamics (the node dynamics) and of
+// geoddp.problem.legged.ContactProblem (the schedule's costs, the rollouts, linearise at order 1);
+// same arithmetic, same Pinocchio calls, the same results to round-off (tests/test_contact_compiled.py).
+//
+// Contact node (contact_node.cpp): computeAllTerms, per foot the LOCAL Jacobian, velocity and
+// classical acceleration with the Baumgarte drift a0 = alpha_f + Kp oRf^T p_f + Kd v_f (rotated to
+// the world), Pinocchio's forwardDynamics with the world-aligned contact Jacobian (ABA with no
+// foot on the ground), then semi-implicit Euler v+ = v + dt a, q+ = integrate(q, dt v+).
+// Impulse node: Pinocchio's impulseDynamics (restitution 0), q+ = q. First derivatives by
+// implicit differentiation of the KKT system (RNEA derivatives with the contact forces as
+// external forces, the frames' velocity and acceleration derivatives), in z = (dq, dv, du).
+//
+// Costs (contact_costs.cpp): the node's state regularisation, state-bounds barrier, CoM and
+// swing-foot tracking, control regularisation and the friction-cone barrier on the contact
+// forces; running contact nodes dt-scaled; gradients and Gauss-Newton Hessians in z.
+//
+// Every array is float64, row-major. nz = 2 nv + nu, nu = nv - 6 (the free flyer unactuated).
+#pragma once
+
+#include <pinocchio/multibody.hpp>
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "runtime/arrays.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+// One node of a schedule: a contact node (feet on the ground) or an impulse node (feet touching
+// down; no controls), with its cost targets.
+struct ContactNode {
+  bool impulse = false;
+  std::vector<int> feet;
+  bool has_com = false;
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();
+  std::vector<int> swing;                    // frame ids of the foot-tracking terms
+  std::vector<Eigen::Vector3d> swing_target; // their target positions, m
+};
+
+// The gait costs' weights (geoddp.problem.legged.GaitCosts).
+struct GaitWeights {
+  double com, friction_cone, foot, state, control, bounds, impulse_foot, impulse_state, impulse_control;
+};
+
+// A whole problem: the robot, its contact model, the schedule (H running nodes then the terminal
+// node) and the costs' data.
+struct ContactSetup {
+  const pinocchio::Model* model = nullptr;
+  double dt = 0.0, Kp = 0.0, Kd = 0.0, impulse_damping = 0.0;
+  std::vector<ContactNode> nodes;  // H + 1: the running nodes, then the terminal node
+  GaitWeights w{};
+  Eigen::VectorXd q0, v0;
+  Eigen::VectorXd w_state, w_impulse, lb, ub;  // (2 nv): weights (squared) and state bounds
+  Eigen::VectorXd q_ref, v_ref, q_neutral;
+  RowMat cone_A;                               // (r, 3): the linearised friction cone
+  Eigen::VectorXd cone_lb, cone_ub;            // (r)
+  int horizon() const { return (int)nodes.size() - 1; }
+  int nv() const { return model->nv; }
+  int nu() const { return model->nv - 6; }
+};
+
+// One node evaluated: next state, forces in the world frame (3 per foot), the accelerations acc
+// (contact node; empty at an impulse node), and with derivatives Fz (2 nv, nz) of (q+, v+) in the
+// tangent at (q+, v+), Lz (3 nc, nz) of the forces and Az (nv, nz) of the accelerations (contact
+// node) or of v+ (impulse node): the Python NodeEval's fields.
+struct ContactEval {
+  Eigen::VectorXd q_next, v_next, forces, acc;
+  RowMat Fz, Lz, Az;
+};
+
+// A node's scratch: a Pinocchio Data and the per-foot terms.
+struct ContactWork {
+  pinocchio::Data data;
+  explicit ContactWork(const pinocchio::Model& model) : data(model) {}
+};
+
+// The node dynamics (contact_node.cpp).
+void contact_node(const ContactSetup& s, ContactWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+                  const Eigen::VectorXd& v, const Eigen::VectorXd& u, bool derivatives, ContactEval& ev);
+void impulse_node(const ContactSetup& s, ContactWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+                  const Eigen::VectorXd& v, bool derivatives, ContactEval& ev);
+
+// Node k's cost (k = H: the terminal node, ev unused) at (q, v, u); with derivatives its gradient g
+// (nz) and Gauss-Newton Hessian Hs (nz, nz) (contact_costs.cpp).
+double contact_node_cost(const ContactSetup& s, ContactWork& w, int k, const Eigen::VectorXd& q,
+                         const Eigen::VectorXd& v, const Eigen::VectorXd& u, const ContactEval* ev,
+                         bool derivatives, Eigen::VectorXd& g, RowMat& Hs);
+
+// Node k (< H) evaluated: its dynamics, then its cost (contact_trajectory.cpp).
+double contact_step(const ContactSetup& s, ContactWork& w, int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                    const Eigen::VectorXd& u, bool derivatives, ContactEval& ev, Eigen::VectorXd& g, RowMat& Hs);
+
+// Open-loop rollout from (q0, v0): U (H, nu) (the impulse rows act on nothing) -> Q (H+1, nq),
+// V (H+1, nv), costs (H+1) (each node's cost, the terminal's last).
+void contact_rollout(const ContactSetup& s, const double* U, double* Q, double* V, double* costs);
+
+// The forward pass u = u_bar - gamma k - K zeta at contact nodes (zero controls at impulse nodes),
+// zeta = (difference(q_bar, q), v - v_bar): writes Qout, Vout, Uout, costs; false (and stops) as soon
+// as a state is non-finite.
+bool contact_rollout_closed_loop(const ContactSetup& s, const double* Qbar, const double* Vbar, const double* Ubar,
+                                 const double* kff, const double* K, double gamma, double* Qout, double* Vout,
+                                 double* Uout, double* costs);
+
+// Each node's cost along (Q, V, U).
+void contact_costs(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                   double* costs);
+
+// The first-order expansion along (Q, V, U): Phi (H, n, n), B (H, n, nu), the running costs'
+// gradients lx (H, n), lu (H, nu) and Gauss-Newton Hessians lxx (H, n, n), lux (H, nu, n),
+// luu (H, nu, nu), the terminal's lfx (n), lfxx (n, n), and the costs (H+1). Node-parallel.
+void contact_linearise(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                       double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
+                       double* lfx, double* lfxx, double* costs);
+
+}  // namespace dyn
+}  // namespace geoddp

@@ -1,0 +1,145 @@
+// A contact schedule's rollouts, node costs and first-order expansion over the whole horizon (see
+// contact.hpp): the twin of geoddp.problem.legged.ContactProblem's trajectory, rollout_policy,
+// node_costs and linearise(order=1). Compiled inside dynamics/core_algorithms.cpp.
+#include <pinocchio/algorithm/joint-configuration.hpp>
+
+#include <memory>
+#include <vector>
+
+#include "dynamics/contact.hpp"
+#include "runtime/parallel.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+double contact_step(const ContactSetup& s, ContactWork& w, int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                    const Eigen::VectorXd& u, bool derivatives, ContactEval& ev, Eigen::VectorXd& g, RowMat& Hs) {
+  const ContactNode& node = s.nodes[(size_t)k];
+  if (node.impulse) impulse_node(s, w, node, q, v, derivatives, ev);
+  else contact_node(s, w, node, q, v, u, derivatives, ev);
+  return contact_node_cost(s, w, k, q, v, u, &ev, derivatives, g, Hs);
+}
+
+void contact_rollout(const ContactSetup& s, const double* U, double* Q, double* V, double* costs) {
+  const pinocchio::Model& m = *s.model;
+  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu();
+  ContactWork w(m);
+  ContactEval ev;
+  Eigen::VectorXd g;
+  RowMat Hs;
+  CMatMap Um(U, H, nu);
+  MatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv);
+  Qm.row(0) = s.q0.transpose();
+  Vm.row(0) = s.v0.transpose();
+  Eigen::VectorXd q(nq), v(nv), u(nu);
+  for (int k = 0; k < H; ++k) {
+    q = Qm.row(k).transpose();
+    v = Vm.row(k).transpose();
+    if (s.nodes[(size_t)k].impulse) u.setZero();
+    else u = Um.row(k).transpose();
+    costs[k] = contact_step(s, w, k, q, v, u, false, ev, g, Hs);
+    Qm.row(k + 1) = ev.q_next.transpose();
+    Vm.row(k + 1) = ev.v_next.transpose();
+  }
+  q = Qm.row(H).transpose();
+  v = Vm.row(H).transpose();
+  costs[H] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, false, g, Hs);
+}
+
+bool contact_rollout_closed_loop(const ContactSetup& s, const double* Qbar, const double* Vbar, const double* Ubar,
+                                 const double* kff, const double* K, double gamma, double* Qout, double* Vout,
+                                 double* Uout, double* costs) {
+  const pinocchio::Model& m = *s.model;
+  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv;
+  ContactWork w(m);
+  ContactEval ev;
+  Eigen::VectorXd g;
+  RowMat Hs;
+  CMatMap Qb(Qbar, H + 1, nq), Vb(Vbar, H + 1, nv), Ub(Ubar, H, nu), kf(kff, H, nu);
+  MatMap Qo(Qout, H + 1, nq), Vo(Vout, H + 1, nv), Uo(Uout, H, nu);
+  Qo.row(0) = s.q0.transpose();
+  Vo.row(0) = s.v0.transpose();
+  Eigen::VectorXd q(nq), v(nv), u(nu), zeta(n), dq(nv), qb(nq);
+  for (int k = 0; k < H; ++k) {
+    q = Qo.row(k).transpose();
+    v = Vo.row(k).transpose();
+    if (s.nodes[(size_t)k].impulse) {
+      u.setZero();
+    } else {
+      qb = Qb.row(k).transpose();
+      pinocchio::difference(m, qb, q, dq);
+      zeta.head(nv) = dq;
+      zeta.tail(nv) = v - Vb.row(k).transpose();
+      CMatMap Kk(K + (size_t)k * nu * n, nu, n);
+      u = Ub.row(k).transpose() - gamma * kf.row(k).transpose() - Kk * zeta;
+    }
+    Uo.row(k) = u.transpose();
+    costs[k] = contact_step(s, w, k, q, v, u, false, ev, g, Hs);
+    if (!ev.q_next.allFinite() || !ev.v_next.allFinite()) return false;
+    Qo.row(k + 1) = ev.q_next.transpose();
+    Vo.row(k + 1) = ev.v_next.transpose();
+  }
+  q = Qo.row(H).transpose();
+  v = Vo.row(H).transpose();
+  costs[H] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, false, g, Hs);
+  return true;
+}
+
+void contact_costs(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                   double* costs) {
+  const pinocchio::Model& m = *s.model;
+  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu();
+  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
+  parallel_for(H + 1, threads, [&](int b, int e, int) {
+    ContactWork w(m);
+    ContactEval ev;
+    Eigen::VectorXd g, q(nq), v(nv), u(nu);
+    RowMat Hs;
+    for (int k = b; k < e; ++k) {
+      q = Qm.row(k).transpose();
+      v = Vm.row(k).transpose();
+      if (k == H) {
+        costs[k] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, false, g, Hs);
+        continue;
+      }
+      u = Um.row(k).transpose();
+      costs[k] = contact_step(s, w, k, q, v, u, false, ev, g, Hs);
+    }
+  });
+}
+
+void contact_linearise(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                       double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
+                       double* lfx, double* lfxx, double* costs) {
+  const pinocchio::Model& m = *s.model;
+  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv;
+  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
+  parallel_for(H + 1, threads, [&](int b, int e, int) {
+    ContactWork w(m);
+    ContactEval ev;
+    Eigen::VectorXd g, q(nq), v(nv), u(nu);
+    RowMat Hs;
+    for (int k = b; k < e; ++k) {
+      q = Qm.row(k).transpose();
+      v = Vm.row(k).transpose();
+      if (k == H) {
+        costs[k] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
+        VecMap(lfx, n) = g.head(n);
+        MatMap(lfxx, n, n) = Hs.topLeftCorner(n, n);
+        continue;
+      }
+      u = Um.row(k).transpose();
+      costs[k] = contact_step(s, w, k, q, v, u, true, ev, g, Hs);
+      MatMap(Phi + (size_t)k * n * n, n, n) = ev.Fz.leftCols(n);
+      MatMap(B + (size_t)k * n * nu, n, nu) = ev.Fz.rightCols(nu);
+      VecMap(lx + (size_t)k * n, n) = g.head(n);
+      VecMap(lu + (size_t)k * nu, nu) = g.tail(nu);
+      MatMap(lxx + (size_t)k * n * n, n, n) = Hs.topLeftCorner(n, n);
+      MatMap(lux + (size_t)k * nu * n, nu, n) = Hs.bottomLeftCorner(nu, n);
+      MatMap(luu + (size_t)k * nu * nu, nu, nu) = Hs.bottomRightCorner(nu, nu);
+    }
+  });
+}
+
+}  // namespace dyn
+}  // namespace geoddp

@@ -1,0 +1,322 @@
+"""The compiled legged backend (geoddp._core.ContactKernel, cpp/dynamics/contact.hpp) against the
+Python node models it twins (geoddp.models.contact.ContactDynamics, geoddp.problem.legged.ContactProblem).
+
+On ANYmal's walk and trot (example-robot-data) at random states and controls around the
+quasi-static start: every node (contact nodes with and without swing feet and CoM targets, impulse
+nodes, the terminal node) evaluated by both, next state, forces, cost, gradient and Gauss-Newton
+Hessian, Fz and Lz, to 1e-12 relative to each array's largest entry (1 when that is smaller); the
+friction-cone barrier active at some of them. Along whole trajectories: the kernel's rollout,
+node costs, first-order expansion and node-parallel evaluation; the problem's own (``backend``
+"compiled", the default, against "python", the reference): open-loop and closed-loop rollouts,
+node and trajectory costs, the first- and second-order expansions, and whole first-order and
+switch solves.
+"""
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geoddp.models.contact_compiled import build_kernel
+from geoddp.problem.contract import Trajectory
+from geoddp.scene.legged import anymal_gait, load_anymal
+from geoddp.solver import SolverOptions, solve
+
+TOL = 1e-12
+
+
+@pytest.fixture(scope="module")
+def gaits():
+    robot = load_anymal()
+    return {g: anymal_gait(g, robot) for g in ("walk", "trot")}
+
+
+def python_twin(problem):
+    """The same problem object forced to the Python node models (restored by the caller)."""
+    problem.backend = "python"
+    return problem
+
+
+def close(a, b, tol=TOL):
+    """|a - b| <= tol max(1, max |b|), entrywise; the worst relative error for the message."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    assert a.shape == b.shape, (a.shape, b.shape)
+    scale = max(1.0, float(np.max(np.abs(b)))) if b.size else 1.0
+    err = float(np.max(np.abs(a - b))) / scale if b.size else 0.0
+    return err <= tol, err
+
+
+def random_point(problem, k, rng):
+    """(q, v, u) near the posture, velocities random, controls quasi-static plus noise (zero at
+    impulse nodes and the terminal node)."""
+    m = problem.model
+    q = pin.integrate(m, problem.q0, 0.05 * rng.standard_normal(m.nv))
+    v = 0.3 * rng.standard_normal(m.nv)
+    if k == problem.horizon or problem.impulse_rows[k]:
+        u = np.zeros(problem.nu)
+    else:
+        u = problem.dyn.quasi_static(q, problem.nodes[k].feet) + 5.0 * rng.standard_normal(problem.nu)
+    return q, v, u
+
+
+def node_indices(problem):
+    """Every impulse node, the terminal node, and contact nodes of each kind (four feet, swing
+    feet with a CoM target, the first after each impulse)."""
+    H = problem.horizon
+    ks = {0, 1, H}
+    for k, n in enumerate(problem.nodes):
+        if n.kind == "impulse":
+            ks.update({k, min(k + 1, H)})
+        elif n.swing:
+            ks.add(k)
+    return sorted(ks)[:24]
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_nodes_agree(gaits, gait):
+    problem = gaits[gait]
+    kernel = build_kernel(problem)
+    rng = np.random.default_rng(11 if gait == "walk" else 12)
+    worst, cone_active = {}, 0
+    for k in node_indices(problem):
+        for _ in range(2):
+            q, v, u = random_point(problem, k, rng)
+            for derivatives in (False, True):
+                ev, cost, g, Hs = problem.node(k, q, v, u, derivatives=derivatives)
+                out = kernel.node(k, q, v, u, derivatives)
+                pairs = [("cost", out["cost"], cost)]
+                if ev is not None:
+                    pairs += [("q_next", out["q_next"], ev.q_next), ("v_next", out["v_next"], ev.v_next),
+                              ("forces", out["forces"], ev.forces)]
+                if derivatives:
+                    pairs += [("g", out["g"], g), ("Hs", out["Hs"], Hs)]
+                    if ev is not None:
+                        pairs += [("Fz", out["Fz"], ev.Fz), ("Lz", out["Lz"], ev.Lz),
+                                  ("Az", out["Az"], ev.Az)]
+                for name, a, b in pairs:
+                    ok, err = close(a, b)
+                    worst[name] = max(worst.get(name, 0.0), err)
+                    assert ok, (gait, k, name, derivatives, err)
+                if ev is not None and len(ev.forces):
+                    A, lb, ub = problem.cone
+                    r = ev.forces.reshape(-1, 3) @ A.T
+                    cone_active += int(np.any((r < lb) | (r > ub)))
+    assert cone_active > 0  # the barrier's derivatives were compared where they are nonzero
+    assert max(worst.values()) <= TOL, worst
+
+
+# control noise (N m) of the whole-trajectory tests: the walk's open loop is unstable and amplifies it,
+# and the round-off with it (at 0.1 some seeds' states part by 1e-10 after 108 steps, as they would
+# between two BLAS builds, and some rollouts diverge); the trot's much less
+NOISE = {"walk": 0.01, "trot": 1.0}
+
+
+def perturbed_controls(problem, rng, scale):
+    U = problem.quasi_static_controls()
+    U += scale * rng.standard_normal(U.shape)
+    U[problem.impulse_rows] = 0.0
+    return U
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_kernel_trajectory_agrees(gaits, gait):
+    """The kernel's rollout, node costs and first-order expansion against the Python problem's."""
+    problem = gaits[gait]
+    kernel = build_kernel(problem)
+    rng = np.random.default_rng(41 if gait == "walk" else 42)
+    U = perturbed_controls(problem, rng, NOISE[gait])
+    traj = problem.trajectory(U)
+    Q, V, costs = kernel.rollout(U)
+    assert close(Q, traj.q, 1e-11)[0] and close(V, traj.v, 1e-11)[0]  # 108 steps: the round-off compounds a little
+    costs_p = problem.node_costs(traj)
+    assert np.allclose(kernel.costs(traj.q, traj.v, traj.u, 1), costs_p, rtol=TOL, atol=0.0)
+    assert float(kernel.costs(traj.q, traj.v, traj.u, 2).sum()) == pytest.approx(problem.trajectory_cost(traj), rel=TOL)
+    lin = problem.linearise(traj, 1)
+    out = dict(zip(("Phi", "B", "l_x", "l_u", "l_xx", "l_ux", "l_uu", "lf_x", "lf_xx", "costs"),
+                   kernel.linearise(traj.q, traj.v, traj.u, 2)))
+    assert np.allclose(out["costs"], costs_p, rtol=TOL, atol=0.0)
+    for name in ("Phi", "B", "l_x", "l_u", "l_xx", "l_ux", "l_uu"):
+        for k in range(problem.horizon):
+            ok, err = close(out[name][k], getattr(lin, name)[k])
+            assert ok, (gait, name, k, err)
+    for name in ("lf_x", "lf_xx"):
+        ok, err = close(out[name], getattr(lin, name))
+        assert ok, (gait, name, err)
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_trajectory_agrees(gaits, gait):
+    problem = gaits[gait]
+    rng = np.random.default_rng(21 if gait == "walk" else 22)
+    U = perturbed_controls(problem, rng, NOISE[gait])
+    traj_c = problem.trajectory(U)
+    costs_c = problem.node_costs(traj_c)
+    Jc = problem.trajectory_cost(traj_c)
+    lin_c = problem.linearise(traj_c, 1)
+    try:
+        python_twin(problem)
+        traj_p = problem.trajectory(U)
+        for a, b in ((traj_c.q, traj_p.q), (traj_c.v, traj_p.v), (traj_c.u, traj_p.u)):
+            assert close(a, b, 1e-11)[0], close(a, b)[1]  # 108 steps: the round-off compounds a little
+        # along the same trajectory: node costs, trajectory cost, the first-order expansion
+        costs_p = problem.node_costs(traj_c)
+        Jp = problem.trajectory_cost(traj_c)
+        lin_p = problem.linearise(traj_c, 1)
+    finally:
+        problem.backend = "compiled"
+    assert np.allclose(costs_c, costs_p, rtol=TOL, atol=0.0), np.max(np.abs(costs_c / costs_p - 1))
+    assert Jc == pytest.approx(Jp, rel=TOL)
+    for name in ("Phi", "B", "l_x", "l_u", "l_xx", "l_ux", "l_uu", "lf_x", "lf_xx"):
+        a, b = getattr(lin_c, name), getattr(lin_p, name)
+        per_node = a.ndim > 1 and name not in ("lf_xx",)
+        for k in range(a.shape[0]) if per_node else [None]:
+            ak, bk = (a[k], b[k]) if k is not None else (a, b)
+            ok, err = close(ak, bk)
+            assert ok, (gait, name, k, err)
+    assert lin_c.order == lin_p.order == 1 and lin_c.gauss_newton and lin_p.gauss_newton
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_closed_loop_rollout_agrees(gaits, gait):
+    problem = gaits[gait]
+    rng = np.random.default_rng(31 if gait == "walk" else 32)
+    nominal = problem.trajectory(perturbed_controls(problem, rng, NOISE[gait]))
+    H, nu, nx = problem.horizon, problem.nu, problem.nx
+    k = NOISE[gait] * rng.standard_normal((H, nu))
+    K = 0.1 * rng.standard_normal((H, nu, nx))
+    trial_c = problem.rollout_policy(nominal, k, K, 0.5)
+    Jc = problem.trajectory_cost(trial_c)
+    try:
+        python_twin(problem)
+        trial_p = problem.rollout_policy(nominal, k, K, 0.5)
+        Jp = problem.trajectory_cost(trial_p)
+    finally:
+        problem.backend = "compiled"
+    for a, b in ((trial_c.q, trial_p.q), (trial_c.v, trial_p.v), (trial_c.u, trial_p.u)):
+        assert close(a, b, 1e-11)[0], close(a, b)[1]
+    assert np.all(trial_c.u[problem.impulse_rows] == 0.0)
+    assert Jc == pytest.approx(Jp, rel=1e-11)
+
+
+def test_diverging_rollout_returns_none(gaits):
+    problem = gaits["trot"]
+    nominal = problem.trajectory(problem.quasi_static_controls())
+    H, nu, nx = problem.horizon, problem.nu, problem.nx
+    k = np.full((H, nu), -1e300)
+    assert problem.rollout_policy(nominal, k, np.zeros((H, nu, nx)), 1.0) is None
+    assert problem.trajectory_cost(Trajectory(np.full_like(nominal.q, np.nan), nominal.v, nominal.u)) == np.inf
+
+
+def test_cost_cache_follows_the_values(gaits):
+    """The node costs a rollout computed are reused only for the very same arrays' values."""
+    problem = gaits["trot"]
+    traj = problem.trajectory(problem.quasi_static_controls())
+    J = problem.trajectory_cost(traj)
+    traj.v[5, 0] += 0.5  # changed in place: the remembered costs no longer apply
+    J2 = problem.trajectory_cost(traj)
+    assert J2 != J
+    try:
+        python_twin(problem)
+        assert J2 == pytest.approx(problem.trajectory_cost(traj), rel=TOL)
+    finally:
+        problem.backend = "compiled"
+
+
+def test_backend_is_checked(gaits):
+    from geoddp.problem.legged import ContactProblem
+    from geoddp.validate import InputError
+
+    p = gaits["trot"]
+    with pytest.raises(InputError, match="backend"):
+        ContactProblem(p.dyn, p.nodes, p.terminal_node, p.q0, p.v0, (p.q_ref, p.v_ref), backend="fortran")
+
+
+def test_first_order_solve_is_the_same(gaits):
+    """The trot with expansion="first": the compiled backend's solve is the Python one's (same
+    iterations, J* to 1e-10 relative, the same controls to round-off)."""
+    problem = gaits["trot"]
+    res_c = solve(problem, SolverOptions(expansion="first"))
+    try:
+        python_twin(problem)
+        res_p = solve(problem, SolverOptions(expansion="first"))
+    finally:
+        problem.backend = "compiled"
+    assert res_c.iterations == res_p.iterations
+    assert res_c.converged and res_p.converged
+    assert res_c.cost == pytest.approx(res_p.cost, rel=1e-10)
+    assert np.max(np.abs(res_c.controls - res_p.controls)) <= 1e-6 * np.max(np.abs(res_p.controls))
+
+
+def test_copies_rebuild_the_kernel(gaits):
+    """deepcopy / pickle (a sweep's workers) leave the compiled kernel behind; the copy builds its own."""
+    import copy
+    import pickle
+
+    problem = gaits["trot"]
+    U = problem.quasi_static_controls()
+    J = problem.trajectory_cost(problem.trajectory(U))
+    for other in (copy.deepcopy(problem), pickle.loads(pickle.dumps(problem))):
+        assert other._core is None
+        assert other.trajectory_cost(other.trajectory(U)) == pytest.approx(J, rel=TOL)
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_evaluate_agrees(gaits, gait):
+    """The kernel's node-parallel evaluation (the second order's input) against the Python nodes."""
+    problem = gaits[gait]
+    rng = np.random.default_rng(51 if gait == "walk" else 52)
+    traj = problem.trajectory(perturbed_controls(problem, rng, NOISE[gait]))
+    out = problem.kernel().evaluate(traj.q, traj.v, traj.u, 2)
+    assert len(out) == problem.horizon + 1
+    for k, o in enumerate(out):
+        ev, cost, g, Hs = problem.node(k, traj.q[k], traj.v[k], traj.u[k] if k < problem.horizon else None, True)
+        assert o["cost"] == pytest.approx(cost, rel=TOL, abs=1e-300)
+        pairs = [("g", o["g"], g), ("Hs", o["Hs"], Hs)]
+        if ev is not None:
+            pairs += [(f, o[f], getattr(ev, f)) for f in ("q_next", "v_next", "forces", "Fz", "Lz", "Az")]
+            assert (o["acc"] is None) == (ev.acc is None)
+            if ev.acc is not None:  # the KKT solve's round-off, before dt scales it into v+ (1e-12 above)
+                ok, err = close(o["acc"], ev.acc, 1e-11)
+                assert ok, (gait, k, "acc", err)
+        for name, a, b in pairs:
+            ok, err = close(a, b)
+            assert ok, (gait, k, name, err)
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_second_order_expansion_agrees(gaits, gait):
+    """linearise(traj, 2) from the compiled node derivatives (compiled_second_order_inputs)
+    against the all-Python one."""
+    problem = gaits[gait]
+    rng = np.random.default_rng(61 if gait == "walk" else 62)
+    traj = problem.trajectory(perturbed_controls(problem, rng, NOISE[gait]))
+    try:
+        problem.compiled_second_order_inputs = True
+        lin_c = problem.linearise(traj, 2)
+        python_twin(problem)
+        lin_p = problem.linearise(traj, 2)
+    finally:
+        problem.backend = "compiled"
+        problem.compiled_second_order_inputs = False
+    for name in ("Phi", "B", "Theta", "Gamma", "Xi", "l_x", "l_u", "l_xx", "l_ux", "l_uu"):
+        a, b = getattr(lin_c, name), getattr(lin_p, name)
+        for k in range(problem.horizon):
+            ok, err = close(a[k], b[k], 1e-11)
+            assert ok, (gait, name, k, err)
+    for name in ("lf_x", "lf_xx"):
+        ok, err = close(getattr(lin_c, name), getattr(lin_p, name))
+        assert ok, (gait, name, err)
+    assert lin_c.order == lin_p.order == 2 and not lin_c.gauss_newton
+
+
+def test_switch_solve_is_the_same(gaits):
+    """The trot with expansion="switch" (second-order steps, compiled rollouts and first order):
+    the same iterations and J* to 1e-10."""
+    problem = gaits["trot"]
+    res_c = solve(problem, SolverOptions(expansion="switch"))
+    try:
+        python_twin(problem)
+        res_p = solve(problem, SolverOptions(expansion="switch"))
+    finally:
+        problem.backend = "compiled"
+    assert res_c.iterations == res_p.iterations
+    assert res_c.converged and res_p.converged
+    assert res_c.cost == pytest.approx(res_p.cost, rel=1e-10)
