@@ -16,3 +16,6 @@
 #include "dynamics/variational_derivatives.cpp"
 #include "dynamics/expansion.cpp"
 #include "dynamics/trajectory.cpp"
+#include "dynamics/contact_node.cpp"
+#include "dynamics/contact_costs.cpp"
+#include "dynamics/contact_trajectory.cpp"
