@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from legged_vs_fddp import crocoddyl_cost  # the same check of a trajectory by Crocoddyl's problem
 
 SOLVERS = ("fddp", "fddp1", "fddp_rollout", "first", "second", "switch")
 WALK = (0.6, 0.1, 0.03, 15, 4)  # step length, height, dt, step knots, support knots: geoddp.scene.legged.TALOS_WALK
@@ -35,15 +36,6 @@ def crocoddyl_problem(robot):
     x0 = np.concatenate([q0, np.zeros(robot.model.nv)])
     builder = SimpleBipedGaitProblem(robot.model, "right_sole_link", "left_sole_link")  # fresh: its half step
     return builder.createWalkingProblem(x0, *WALK), x0
-
-
-def crocoddyl_cost(croc, problem, q, v, u) -> tuple[float, float]:
-    """(J of Crocoddyl's problem at the trajectory, largest transition gap |f(x_k, u_k) - x_k+1|)."""
-    xs = [np.concatenate([a, b]) for a, b in zip(q, v)]
-    us = [np.zeros(0) if problem.impulse_rows[k] else u[k] for k in range(problem.horizon)]
-    J = croc.calc(xs, us)
-    gap = max(float(np.max(np.abs(d.xnext - xs[k + 1]))) for k, d in enumerate(croc.runningDatas))
-    return float(J), gap
 
 
 def fddp(rollout: bool, max_iter: int = 200, threads: int | None = None) -> dict:
