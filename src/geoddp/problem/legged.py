@@ -139,12 +139,13 @@ class ContactProblem:
         backend: "compiled" (default): the rollouts, the trajectory cost and the first-order
             expansion run in the compiled core (:mod:`geoddp.models.contact_compiled`, the same
             arithmetic as the Python node models to round-off); "python": everything in the Python
-            node models (the reference; the tests' oracle). The exact second order (the KKT system
-            differentiated twice, the costs' curvature) is Python's either way, and so, unless
-            ``compiled_second_order_inputs`` is set, are the node derivatives it starts from: the
-            stopping tests of ``second`` and ``switch`` sit at round-off-sensitive borders (the
-            compiled inputs, equal to 1e-12, end the trot's switch solve one iteration later and
-            the walk's second one earlier, at the same J* to 1e-14) for a gain of a few percent.
+            node models (the reference; the tests' oracle). With "compiled" the exact second-order
+            expansion (``linearise(traj, 2)``: the KKT system differentiated twice, the
+            semi-implicit Euler step's chart terms, the costs' curvature) runs in the kernel too,
+            node-parallel, unless ``compiled_second_order`` is set False (then it is Python's, from
+            the Python node models). The two agree to round-off (1e-10 relative); the stopping
+            tests of ``second`` and ``switch`` sit at round-off-sensitive borders, so an iteration
+            count can differ by one between them at the same J* to 1e-12.
             The attributes may be changed after construction. A problem with flat feet (6D
             contacts) or with the terms of force constraints runs in Python (:attr:`compiled`).
         threads: worker threads of the compiled first-order expansion and node costs (node-parallel);
@@ -198,7 +199,7 @@ class ContactProblem:
             raise InputError("backend", f"expected one of {BACKENDS}, got {backend!r}")
         self.backend = backend
         self.threads = nonnegative_int(threads, "threads") or threads_from_environment()
-        self.compiled_second_order_inputs = False  # linearise(order=2): node derivatives from the kernel
+        self.compiled_second_order = True  # linearise(order=2) in the kernel when compiled
         self._core = None  # the compiled kernel, built on first use
         self._last_costs = None  # (Q, V, U, node costs) of the last compiled rollout
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
@@ -690,12 +691,18 @@ class ContactProblem:
                 c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)
             return Linearisation(order=1, Phi=Phi, B=B, Theta=None, Gamma=None, Xi=None, l_x=lx, l_u=lu, l_xx=lxx,
                                  l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=True)
+        if order == 2 and self.compiled and self.compiled_second_order:
+            c64 = np.ascontiguousarray
+            Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, gf, Hf, _ = self.kernel().linearise_second(
+                c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)
+            return Linearisation(order=2, Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi, l_x=lx, l_u=lu, l_xx=lxx,
+                                 l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=False)
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
         evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
         lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
         hess = []
-        nodes = self._first_order_nodes(traj, self.compiled and self.compiled_second_order_inputs)
+        nodes = self._first_order_nodes(traj, self.compiled and order == 1)
         for k, (ev, g, Hs) in enumerate(nodes):
             if k == H:
                 gf, Hf = g, Hs
