@@ -15,6 +15,9 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import re
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -399,3 +402,27 @@ def test_a_bad_cost_key_is_one_line_and_exit_2(tmp_path, capsys):
     assert main(["run", str(path), "--quiet"]) == EXIT_BAD_INPUT
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.startswith("geoddp: error: [costs].base_placement.translation: expected")
+
+
+GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "legged.md"
+
+
+def test_the_guides_snippet_and_errors_are_the_code(anymal):
+    """The legged guide's section on the two terms: its TOML block (with [model] and [contact]
+    added) parses to the weights and targets it states, and its error lines are the parser's."""
+    text = GUIDE.read_text()
+    text = text[text.index("(legged-base-forces)="):]
+    block = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
+    d = {**copy.deepcopy(SCENE), **tomllib.loads(block)}
+    del d["solver"]
+    p = parse_scene(d).build(anymal)
+    assert (p.costs.base_placement, p.costs.force_regularisation, p.costs.force_reference) == (1e5, 0.1, "weight_share")
+    assert [n.base.translation.tolist() for n in p.nodes] == [[0.0, 0.0, 0.45]] * 20
+    assert np.array_equal(p.terminal_node.base.translation, [0.0, 0.0, 0.45])
+    assert np.array_equal(parse_scene({**d, "phases": SCENE["phases"]}).build(anymal).nodes[0].base.translation,
+                          [0.02, 0.0, 0.4392])
+    errors = re.search(r"```text\n(.*?)```", text, re.S).group(1).strip().splitlines()
+    for line, case in zip(errors, ("base_translation_shape", "force_reference")):
+        with pytest.raises(InputError) as e:
+            parse_scene(_scene(**BAD[case][0]), "bad.toml")
+        assert "geoddp: error: " + str(e.value) == line, (str(e.value), line)
