@@ -242,7 +242,7 @@ class ContactProblem:
         # oMi[1] and its LOCAL Jacobian [I_6 0], so the base placement term is that of any frame
         self.base_frame = int(m.getFrameId(m.names[1], pin.FrameType.JOINT))
         # m |g|, N: the weight the support feet share in the "weight_share" force reference
-        self.weight = float(pin.computeTotalMass(m)) * float(np.linalg.norm(m.gravity.linear))
+        self.robot_weight = float(pin.computeTotalMass(m)) * float(np.linalg.norm(m.gravity.linear))
         self.groups = cfg.joint_groups(m)
         self.cone = friction_cone(self.costs.mu, 4)  # a point foot's (A, lb, ub) over its force (3,)
         self.wrench = wrench_cone(self.costs.mu, self.costs.sole, 4)  # a flat foot's over (force, torque) (6,)
@@ -290,7 +290,7 @@ class ContactProblem:
         the force regularisation there): (3,) N for a point foot, (6,) (N, N m) for a flat foot's
         wrench; (0, 0, m |g| / len(feet)) (and zero torque) for ``costs.force_reference`` =
         "weight_share", zeros for "zero"."""
-        share = self.weight / len(feet) if feet and self.costs.force_reference == "weight_share" else 0.0
+        share = self.robot_weight / len(feet) if feet and self.costs.force_reference == "weight_share" else 0.0
         out = []
         for rows, _ in self._cones(feet):
             ref = np.zeros(rows.stop - rows.start)
