@@ -21,7 +21,7 @@ alternate and a load spike on the shared cores hits one round's solves, not one 
 has every solve (its ``round``) and then, per gait and solver, the median wall and CPU times
 (``"summary": true``). geoddp's legged problems run their rollouts, node costs and first-order
 expansions in the compiled core (``ContactProblem.backend`` "compiled", node-parallel on the
-core's default threads); the exact second-order terms stay in Python.
+core's default threads), the exact second-order expansion included.
 
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py            # all, results log
     .venv-bench/bin/python benchmarks/legged_vs_fddp.py --rounds 1 walk trot   # some gaits, one round

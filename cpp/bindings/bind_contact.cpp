@@ -195,6 +195,51 @@ void bind_contact(py::module_& m) {
           py::arg("Q"), py::arg("V"), py::arg("U"), py::arg("threads") = 0,
           "First-order expansion: (Phi, B, lx, lu, lxx, lux, luu, lfx, lfxx, node costs).")
       .def(
+          "linearise_second",
+          [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
+            const auto& s = k.s;
+            const int H = s.horizon(), nv = s.nv(), nu = s.nu(), n = 2 * nv;
+            check_shape(Q, {H + 1, s.model->nq}, "Q");
+            check_shape(V, {H + 1, nv}, "V");
+            check_shape(U, {H, nu}, "U");
+            Arr Phi = empty({H, n, n}), B = empty({H, n, nu}), lx = empty({H, n}), lu = empty({H, nu});
+            Arr Theta = empty({H, n, n, n}), Gamma = empty({H, n, n, nu}), Xi = empty({H, n, nu, nu});
+            Arr lxx = empty({H, n, n}), lux = empty({H, nu, n}), luu = empty({H, nu, nu});
+            Arr lfx = empty({n}), lfxx = empty({n, n}), c = empty({H + 1});
+            {
+              py::gil_scoped_release nogil;
+              dyn::contact_linearise_second(s, Q.data(), V.data(), U.data(), threads, Phi.mutable_data(),
+                                            B.mutable_data(), Theta.mutable_data(), Gamma.mutable_data(),
+                                            Xi.mutable_data(), lx.mutable_data(), lu.mutable_data(),
+                                            lxx.mutable_data(), lux.mutable_data(), luu.mutable_data(),
+                                            lfx.mutable_data(), lfxx.mutable_data(), c.mutable_data());
+            }
+            return py::make_tuple(Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, lfx, lfxx, c);
+          },
+          py::arg("Q"), py::arg("V"), py::arg("U"), py::arg("threads") = 0,
+          "Exact second-order expansion: (Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, lfx, lfxx, node costs), "
+          "the cost Hessians exact.")
+      .def(
+          "node_second",
+          [](const ContactKernel& k, int j, const Arr& q, const Arr& v, const Arr& u) {
+            const auto& s = k.s;
+            const int H = s.horizon(), nv = s.nv(), nu = s.nu(), nz = 2 * nv + nu;
+            if (j < 0 || j > H) throw py::value_error("k: expected a node index in 0 .. H");
+            const Eigen::VectorXd qq = vec(q, s.model->nq, "q"), vv = vec(v, nv, "v"), uu = vec(u, nu, "u");
+            RowMat Y, Hs;
+            {
+              py::gil_scoped_release nogil;
+              dyn::contact_node_second_at(s, j, qq, vv, uu, Y, Hs);
+            }
+            Arr Ya = empty({(py::ssize_t)Y.rows(), nz, nz});
+            if (Y.size()) MatMap(Ya.mutable_data(), Y.rows(), Y.cols()) = Y;
+            return py::make_tuple(Ya, mat_array(Hs));
+          },
+          py::arg("k"), py::arg("q"), py::arg("v"), py::arg("u"),
+          "Node k at (q, v, u): (Y (nv + 3 nc, nz, nz): the exact second derivatives of its accelerations (contact "
+          "node) or v+ (impulse node), then of its world forces; empty at the terminal node; the exact cost Hessian "
+          "(nz, nz)).")
+      .def(
           "evaluate",
           [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
             const auto& s = k.s;

@@ -12,6 +12,10 @@
 // implicit differentiation of the KKT system (RNEA derivatives with the contact forces as
 // external forces, the frames' velocity and acceleration derivatives), in z = (dq, dv, du).
 //
+// Exact second order (contact_second.cpp): the accelerations' (v+'s) and forces' second
+// derivatives from the KKT system differentiated twice, the semi-implicit Euler step's chart terms
+// (dynamics/reconstruction.hpp) and the costs' curvature, for the second-order expansion.
+//
 // Costs (contact_costs.cpp): the node's state regularisation, state-bounds barrier, CoM and
 // swing-foot tracking, control regularisation and the friction-cone barrier on the contact
 // forces; running contact nodes dt-scaled; gradients and Gauss-Newton Hessians in z.
@@ -114,6 +118,42 @@ void contact_costs(const ContactSetup& s, const double* Q, const double* V, cons
 void contact_linearise(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
                        double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
                        double* lfx, double* lfxx, double* costs);
+
+// ------------------------------------------------------------------ exact second order (contact_second.cpp)
+// A worker's models for the second order: the robot without gravity and per foot frame a massless
+// copy carrying a unit point mass at the frame's origin (built for a setup's feet and swing feet).
+struct ContactSecondWork;
+
+// Node (q, v) evaluated with derivatives as ev: Y (nv + 3 nc, nz * nz), the exact second
+// derivatives (symmetric chart Hessians in z, row-major (nz, nz) per row) of the node's
+// accelerations a (contact node) or v+ (impulse node), then of its world forces (3 per foot), by
+// differentiating the KKT system twice (ContactDynamics.contact_second / impulse_second). Without
+// `forces`, only Y's first nv rows are computed (the rest left unset).
+void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+                         const Eigen::VectorXd& v, const ContactEval& ev, RowMat& Y, bool forces);
+
+// Whether a friction-cone barrier of the running node is active at ev's forces (its cost then has
+// the forces' curvature).
+bool cone_active(const ContactSetup& s, const ContactNode& node, const ContactEval& ev);
+
+// Add to Hs (nz, nz), node k's Gauss-Newton Hessian at (q, v) from contact_node_cost, the
+// residuals' curvature: the exact Hessian (ContactProblem._cost_hessian). ev and L2 (the forces'
+// rows of contact_node_second's Y): a running node's; null at the terminal node (k = H).
+void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, const Eigen::VectorXd& q,
+                            const Eigen::VectorXd& v, const ContactEval* ev, const RowMat* L2, RowMat& Hs);
+
+// The exact second-order expansion along (Q, V, U), ContactProblem.linearise(order=2): Phi, B,
+// lx, lu, lfx and the costs as contact_linearise; Theta (H, n, n, n), Gamma (H, n, n, nu),
+// Xi (H, n, nu, nu) of the semi-implicit Euler step with the KKT system's second derivatives; the
+// exact cost Hessians lxx, lux, luu, lfxx. Node-parallel.
+void contact_linearise_second(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                              double* Phi, double* B, double* Theta, double* Gamma, double* Xi, double* lx, double* lu,
+                              double* lxx, double* lux, double* luu, double* lfx, double* lfxx, double* costs);
+
+// Node k (< H: its dynamics' Y as contact_node_second, and the exact cost Hessian; k = H: Y empty
+// and the terminal's exact Hessian) at (q, v, u). For the tests.
+void contact_node_second_at(const ContactSetup& s, int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                            const Eigen::VectorXd& u, RowMat& Y, RowMat& Hs);
 
 }  // namespace dyn
 }  // namespace geoddp

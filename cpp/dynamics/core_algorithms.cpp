@@ -19,3 +19,4 @@
 #include "dynamics/contact_node.cpp"
 #include "dynamics/contact_costs.cpp"
 #include "dynamics/contact_trajectory.cpp"
+#include "dynamics/contact_second.cpp"

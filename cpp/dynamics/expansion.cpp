@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "dynamics/euler.hpp"
+#include "dynamics/reconstruction.hpp"
 #include "dynamics/rkmk4.hpp"
 #include "dynamics/trajectory.hpp"
 #include "dynamics/variational.hpp"
@@ -31,19 +32,6 @@ namespace dyn {
 
 using lie::block_ad_jr;
 using lie::GroupStructure;  // the reconstruction's structure constants C3[p], C6[p]
-
-// out = alpha Jr X for the block-diagonal right Jacobian Jr (nv, nv) of the reconstruction, X and
-// out (nv, c), out not aliasing X. Jr is the identity off the SO(3)/SE(3) groups, so only those
-// groups' rows are multiplied; the others are copied, scaled.
-template <typename XMat, typename OutMat>
-static void jr_times(const std::vector<JointGroup>& groups, const RowMat& Jr, double alpha, const XMat& X,
-                     OutMat& out) {
-  out = alpha * X;
-  for (const JointGroup& g : groups)
-    if (g.kind == SO3 || g.kind == SE3)
-      out.middleRows(g.idx_v, g.nv).noalias() =
-          alpha * Jr.block(g.idx_v, g.idx_v, g.nv, g.nv).lazyProduct(X.middleRows(g.idx_v, g.nv));
-}
 
 // The first-order blocks of node k (eta+ = A eta + Jr rho, rho = dt delta w; v+'s rows F1
 // (nv, nz)): W1 = d(delta w)/dz (F1 semi-implicit, the dv selector explicit), JW = Jr W1, and
@@ -64,41 +52,6 @@ static void first_order_blocks(const std::vector<JointGroup>& groups, bool semi,
   G1.bottomRows(nv) = F1;
   MatMap(Phi_k, n, n) = G1.leftCols(n);
   MatMap(B_k, n, m) = G1.rightCols(m);
-}
-
-// sym D[o+p, o+a, o+c] over (a, c) for the group at tangent offset o (Dt (nv, nv, nv) row-major,
-// the derivative of Jr from block_ad_jr): 1/2 dJr[rho] rho = rho^T Dsym_p rho.
-static inline double dsym_entry(const std::vector<double>& Dt, int nv, int o, int p, int a, int c) {
-  return 0.5 * (Dt[((size_t)(o + p) * nv + (o + a)) * nv + (o + c)] + Dt[((size_t)(o + p) * nv + (o + c)) * nv + (o + a)]);
-}
-
-// 1/2 [A eta, Jr rho]_p = z^T Mz z on the (eta in the group, z) block: Mz = dt/2 As^T C_p JWs
-// (As the group's block of A, JWs its rows of JW, row-major; Ds scratch). As^T C_p is a fixed-size
-// 3x3 or 6x6 product, and Ds JWs runs on linalg/small_gemm.hpp: Eigen's dynamic lazy product of
-// these d x nz blocks spends more on dispatch than on arithmetic.
-template <typename ABlock, typename JWBlock>
-static void bracket_block(const GroupStructure& gs, const JointGroup& g, int p, double dt, const ABlock& As,
-                          const JWBlock& JWs, RowMat& Ds, RowMat& Mz) {
-  const int d = g.nv;
-  if (g.kind == SO3) Ds = lie::Mat3(As).transpose() * gs.C3[p];
-  else Ds = lie::Mat6(As).transpose() * gs.C6[p];
-  const int nz = (int)JWs.cols();
-  Mz.resize(d, nz);
-  gemm::gemm(false, d, nz, d, 0.5 * dt, Ds.data(), d, JWs.data(), (int)JWs.outerStride(), false, Mz.data(), nz);
-}
-
-// Each of `rows` rows of X (rows, nz*nz) is an (nz, nz) matrix: make it exactly symmetric (the
-// products forming it round differently in (a, b) and (b, a)).
-static void symmetrise_rows(double* X, int rows, int nz) {
-  for (int r = 0; r < rows; ++r) {
-    double* x = X + (size_t)r * nz * nz;
-    for (int a = 0; a < nz; ++a)
-      for (int b = a + 1; b < nz; ++b) {
-        const double v = 0.5 * (x[(size_t)a * nz + b] + x[(size_t)b * nz + a]);
-        x[(size_t)a * nz + b] = v;
-        x[(size_t)b * nz + a] = v;
-      }
-  }
 }
 
 void expansion(const Setup& s, const double* Q, const double* V, const double* U, int N, int order, int threads,
@@ -162,32 +115,7 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
       block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), order >= 2 ? Dt.data() : nullptr);
       first_order_blocks(groups, semi, dt, F1, A, Jr, W1, JW, G1, Phi + (size_t)k * n * n, B + (size_t)k * n * m);
       if (order < 2) continue;
-      // eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho], rho = dt delta w
-      // (geoddp.integrators' module docstring; per non-commutative joint group).
-      G2.setZero();
-      for (const JointGroup& g : groups) {
-        if (g.kind != SO3 && g.kind != SE3) continue;
-        const int o = g.idx_v, d = g.nv;
-        const auto Ws = W1.middleRows(o, d);
-        const auto JWs = JW.middleRows(o, d);
-        const auto As = A.block(o, o, d, d);
-        Ds.resize(d, d);
-        for (int p = 0; p < d; ++p) {
-          // 1/2 dJr[rho] rho: dt^2 Ws^T Dsym_p Ws, Dsym_p(a, b) = sym D[p, a, b]
-          for (int a = 0; a < d; ++a)
-            for (int c = 0; c < d; ++c) Ds(a, c) = dsym_entry(Dt, nv, o, p, a, c);
-          Eigen::Map<RowMat> G2p(G2.row(o + p).data(), nz, nz);
-          // coefficient-based products: these are (nz, d) x (d, d) x (d, nz) with d <= 6, where
-          // Eigen's blocked GEMM spends more on packing than on arithmetic
-          Mz.noalias() = Ds.lazyProduct(Ws);
-          WDW.noalias() = Ws.transpose().lazyProduct(Mz);
-          G2p += (dt * dt) * WDW;
-          // 1/2 [A eta, Jr rho]_p = z^T Mz_p z, Mz_p = dt/2 A^T C_p JW on the (eta in s, z) block
-          bracket_block(gs, g, p, dt, As, JWs, Ds, Mz);
-          G2p.middleRows(o, d) += Mz;
-          G2p.middleCols(o, d) += Mz.transpose();
-        }
-      }
+      reconstruction_group_terms(groups, gs, dt, nv, Dt, A, W1, JW, G2, Ds, Mz, WDW);
       // velocity update: F2 (symmetric, zero off the active pairs) in the bottom rows and, for
       // the semi-implicit reconstruction, dt Jr F2 in the top rows (Jr is the identity outside
       // the SO(3)/SE(3) blocks, so only those blocks multiply)

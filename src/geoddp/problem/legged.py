@@ -26,6 +26,18 @@ the terms of its node that depend on the state alone (state regularisation and b
 tracking), undivided by dt (Crocoddyl's terminal ``calc(x)``); it may be an impulse node (the
 biped's walk ends on its last landing).
 
+Two terms beyond Crocoddyl's gaits, weight 0 by default (so the gaits above are unchanged bit for
+bit): a **base placement target** (:attr:`GaitCosts.base_placement`; Crocoddyl's
+``ResidualModelFramePlacement`` on the free flyer's frame), log6(M_ref^-1 oMb) (6,) toward the
+node's :attr:`Node.base`, at contact nodes and a contact terminal node that have one; and
+**contact-force regularisation** (:attr:`GaitCosts.force_regularisation`; Crocoddyl's
+``ResidualModelContactForce`` / ``ResidualModelContactWrench``), per support foot of a contact
+node the world force minus a reference (3,) N, or a flat foot's wrench (force, torque) minus
+(reference, 0) (6,): the quasi-static share of the weight m |g| / n_support along the ground's
+normal (+z), or zero (:attr:`GaitCosts.force_reference`). Impulse nodes carry neither (their
+forces are impulses, N s). A problem with either weight nonzero runs the Python node models
+(:attr:`ContactProblem.compiled`): the compiled kernel has neither term.
+
 Controls are (H, nu) at every node; at impulse nodes they act on nothing and stay zero (a unit
 quadratic on them keeps the node's control Hessian invertible and costs exactly 0 there), so a
 Result has ``controls`` (H, nu) with zero rows at impulse nodes.
@@ -50,6 +62,7 @@ from .contract import Linearisation, Trajectory
 
 KINDS = ("contact", "impulse")
 BACKENDS = ("compiled", "python")
+FORCE_REFERENCES = ("weight_share", "zero")  # GaitCosts.force_reference
 # contact nodes per call of the Euler step's second-order expansion in linearise (one call per
 # node costs as much as the rest of it; one call for the whole horizon makes arrays of tens of MB)
 _EXPAND_BLOCK = 8
@@ -64,17 +77,24 @@ class Node:
         feet: frame ids on the ground (contact) or touching down (impulse).
         com: (3,) CoM target, m, or None (contact nodes).
         swing: ((frame id, (3,) target position, m), ...): foot tracking terms.
+        base: the base's target placement in the world (``pin.SE3``: translation m, rotation), or
+            None; costed by :attr:`GaitCosts.base_placement` at a contact node (and a contact
+            terminal node), not at an impulse node.
     """
 
     kind: str
     feet: tuple[int, ...]
     com: np.ndarray | None = None
     swing: tuple[tuple[int, np.ndarray], ...] = ()
+    base: pin.SE3 | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise InputError("kind", f"expected one of {KINDS}, got {self.kind!r}")
         self.feet = tuple(int(f) for f in self.feet)
+        if self.base is not None and not isinstance(self.base, pin.SE3):
+            raise InputError("base", "expected a pinocchio.SE3 target placement or None, got "
+                             f"{type(self.base).__name__}")
 
 
 @dataclass
@@ -86,7 +106,14 @@ class GaitCosts:
     foot's wrench cone over a ``sole`` of (length, width) m). ``state_weights`` and
     ``impulse_state_weights``: the state regularisation's weights, squared, per (base position,
     base orientation, joint, base velocity, joint velocity) entry (each entry of the tangent
-    state (dq, dv) gets its group's)."""
+    state (dq, dv) gets its group's).
+
+    Beyond Crocoddyl's gaits (0 = off, the default): ``base_placement`` weighs the base placement
+    term 0.5 |log6(M_ref^-1 oMb)|^2 toward each contact node's :attr:`Node.base` (translation in m,
+    rotation in rad); ``force_regularisation`` weighs 0.5 |f - f_ref|^2 (N^2) per support foot of a
+    contact node, f its world force (3,) or a flat foot's wrench (6,), f_ref per
+    ``force_reference``: "weight_share" (m |g| / n_support along +z, zero torque) or "zero". Both
+    are running costs, times dt like the others."""
 
     com: float = 1e6
     friction_cone: float = 1e1
@@ -101,6 +128,17 @@ class GaitCosts:
     sole: tuple[float, float] = (0.1, 0.05)
     state_weights: tuple[float, float, float, float, float] = (0.0, 500.0, 0.01, 10.0, 1.0)
     impulse_state_weights: tuple[float, float, float, float, float] = (1.0, 1.0, 10.0, 10.0, 10.0)
+    base_placement: float = 0.0
+    force_regularisation: float = 0.0
+    force_reference: str = "weight_share"
+
+    def __post_init__(self) -> None:
+        if self.force_reference not in FORCE_REFERENCES:
+            raise InputError("force_reference", f"expected one of {FORCE_REFERENCES}, got {self.force_reference!r}")
+        for name in ("base_placement", "force_regularisation"):
+            w = getattr(self, name)
+            if not (isinstance(w, (int, float, np.floating, np.integer)) and np.isfinite(w) and w >= 0):
+                raise InputError(name, f"expected a finite weight >= 0, got {w!r}")
 
     @classmethod
     def biped(cls, **overrides: float) -> "GaitCosts":
@@ -117,6 +155,14 @@ def state_weight_vector(weights: tuple[float, ...], nv: int) -> np.ndarray:
     wp, wo, wj, wb, wv = (float(w) for w in weights)
     nj = nv - 6
     return np.array([wp] * 3 + [wo] * 3 + [wj] * nj + [wb] * 6 + [wv] * nj) ** 2
+
+
+def _placement(target: np.ndarray | pin.SE3) -> pin.SE3:
+    """A tracking target as a placement: a position (3,), m (a flat foot's target, the identity
+    rotation) or a ``pin.SE3`` as it is."""
+    if isinstance(target, pin.SE3):
+        return target
+    return pin.SE3(np.eye(3), np.asarray(target, dtype=float))
 
 
 def _barrier(r: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -139,14 +185,17 @@ class ContactProblem:
         backend: "compiled" (default): the rollouts, the trajectory cost and the first-order
             expansion run in the compiled core (:mod:`geoddp.models.contact_compiled`, the same
             arithmetic as the Python node models to round-off); "python": everything in the Python
-            node models (the reference; the tests' oracle). The exact second order (the KKT system
-            differentiated twice, the costs' curvature) is Python's either way, and so, unless
-            ``compiled_second_order_inputs`` is set, are the node derivatives it starts from: the
-            stopping tests of ``second`` and ``switch`` sit at round-off-sensitive borders (the
-            compiled inputs, equal to 1e-12, end the trot's switch solve one iteration later and
-            the walk's second one earlier, at the same J* to 1e-14) for a gain of a few percent.
+            node models (the reference; the tests' oracle). With "compiled" the exact second-order
+            expansion (``linearise(traj, 2)``: the KKT system differentiated twice, the
+            semi-implicit Euler step's chart terms, the costs' curvature) runs in the kernel too,
+            node-parallel, unless ``compiled_second_order`` is set False (then it is Python's, from
+            the Python node models). The two agree to round-off (1e-10 relative); the stopping
+            tests of ``second`` and ``switch`` sit at round-off-sensitive borders, so an iteration
+            count can differ by one between them at the same J* to 1e-12.
             The attributes may be changed after construction. A problem with flat feet (6D
-            contacts) or with the terms of force constraints runs in Python (:attr:`compiled`).
+            contacts), with the terms of force constraints, or with a nonzero
+            ``costs.base_placement`` or ``costs.force_regularisation`` weight (terms the compiled
+            kernel does not have) runs in Python (:attr:`compiled`).
         threads: worker threads of the compiled first-order expansion and node costs (node-parallel);
             0 = GEODDP_THREADS if set, else the core's default (min(2, cores)).
 
@@ -190,6 +239,11 @@ class ContactProblem:
         self.lb = np.concatenate([lbq[1:nv + 1], -m.velocityLimit])
         self.ub = np.concatenate([ubq[1:nv + 1], m.velocityLimit])
         self.q_neutral = pin.neutral(m)
+        # the free flyer's own frame (Pinocchio names it after the root joint): its placement is
+        # oMi[1] and its LOCAL Jacobian [I_6 0], so the base placement term is that of any frame
+        self.base_frame = int(m.getFrameId(m.names[1], pin.FrameType.JOINT))
+        # m |g|, N: the weight the support feet share in the "weight_share" force reference
+        self.robot_weight = float(pin.computeTotalMass(m)) * float(np.linalg.norm(m.gravity.linear))
         self.groups = cfg.joint_groups(m)
         self.cone = friction_cone(self.costs.mu, 4)  # a point foot's (A, lb, ub) over its force (3,)
         self.wrench = wrench_cone(self.costs.mu, self.costs.sole, 4)  # a flat foot's over (force, torque) (6,)
@@ -198,7 +252,7 @@ class ContactProblem:
             raise InputError("backend", f"expected one of {BACKENDS}, got {backend!r}")
         self.backend = backend
         self.threads = nonnegative_int(threads, "threads") or threads_from_environment()
-        self.compiled_second_order_inputs = False  # linearise(order=2): node derivatives from the kernel
+        self.compiled_second_order = True  # linearise(order=2) in the kernel when compiled
         self._core = None  # the compiled kernel, built on first use
         self._last_costs = None  # (Q, V, U, node costs) of the last compiled rollout
         self._description = description or {"kind": "multibody", "root": "free_flyer", "nq": m.nq, "nv": nv,
@@ -220,9 +274,30 @@ class ContactProblem:
         if self.dyn.kind(f) == "3d":
             r = d.oMf[f].translation - p
             return r, (d.oMf[f].rotation @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)[:3] if derivatives else None)
-        rMf = pin.SE3(np.eye(3), np.asarray(p, dtype=float)).actInv(d.oMf[f])
+        return self._placement_residual(f, _placement(p), q, derivatives)
+
+    def _placement_residual(self, f: int, target: pin.SE3, q: np.ndarray, derivatives: bool):
+        """Crocoddyl's ``ResidualModelFramePlacement`` of frame ``f`` toward ``target``: log6(M_ref^-1
+        oMf) (6,) (translation part m, rotation part rad) and its Jacobian Jlog6 J (6, nv) in dq (J
+        the LOCAL frame Jacobian; None unless ``derivatives``); the frame placements of dyn.data
+        current."""
+        m, d = self.model, self.dyn.data
+        rMf = target.actInv(d.oMf[f])
         r = pin.log6(rMf).vector
         return r, (pin.Jlog6(rMf) @ pin.computeFrameJacobian(m, d, q, f, pin.LOCAL) if derivatives else None)
+
+    def force_references(self, feet: tuple[int, ...]) -> list[tuple[slice, np.ndarray]]:
+        """Per foot of a contact node on ``feet``: (its rows of ``NodeEval.forces``, the reference of
+        the force regularisation there): (3,) N for a point foot, (6,) (N, N m) for a flat foot's
+        wrench; (0, 0, m |g| / len(feet)) (and zero torque) for ``costs.force_reference`` =
+        "weight_share", zeros for "zero"."""
+        share = self.robot_weight / len(feet) if feet and self.costs.force_reference == "weight_share" else 0.0
+        out = []
+        for rows, _ in self._cones(feet):
+            ref = np.zeros(rows.stop - rows.start)
+            ref[2] = share  # world z, the flat ground's normal
+            out.append((rows, ref))
+        return out
 
     def force_rows(self, feet: tuple[int, ...]) -> list[int]:
         """The first row of each foot's force in a contact node's ``NodeEval.forces``: 3 rows per
@@ -300,6 +375,8 @@ class ContactProblem:
             add(c.com, com - node.com, pin.jacobianCenterOfMass(m, d, q) if derivatives else None, Q, qi)
         for f, p in node.swing:
             add(c.foot, *self._foot_residual(f, p, q, derivatives), Q, qi)
+        if c.base_placement and node.base is not None:  # a state term: the terminal node keeps it too
+            add(c.base_placement, *self._placement_residual(self.base_frame, node.base, q, derivatives), Q, qi)
         if not terminal:
             add(c.control, u, None, U, ui)
             for rows, (A, lb, ub) in self._cones(node.feet):
@@ -309,6 +386,15 @@ class ContactProblem:
                     Jr = A @ ev.Lz[rows]
                     g[:] += c.friction_cone * (Jr.T @ ex)
                     Hs[:] += c.friction_cone * (Jr.T @ (mask[:, None] * Jr))
+            if c.force_regularisation:
+                w = c.force_regularisation
+                for rows, ref in self.force_references(node.feet):
+                    r = ev.forces[rows] - ref
+                    val += 0.5 * w * float(r @ r)
+                    if derivatives:  # the forces depend on the whole z: a dense term
+                        Jr = ev.Lz[rows]
+                        g[:] += w * (Jr.T @ r)
+                        Hs[:] += w * (Jr.T @ Jr)
             val = val * self.dt
             g *= self.dt
             Hs *= self.dt
@@ -409,10 +495,13 @@ class ContactProblem:
     @property
     def compiled(self) -> bool:
         """True when the rollouts, costs and first-order expansion run in the compiled core: with
-        backend "compiled", point feet only (the kernel has no 6D contacts) and no terms of force
+        backend "compiled", point feet only (the kernel has no 6D contacts), no terms of force
         constraints (the augmented Lagrangian's inner problems, :meth:`with_force_terms`, run in
-        Python)."""
-        return self.backend == "compiled" and not self.flat_feet and not self._force_at
+        Python) and the weights ``costs.base_placement`` and ``costs.force_regularisation`` zero
+        (the kernel has neither term: a problem with them runs the Python node models)."""
+        c = self.costs
+        return (self.backend == "compiled" and not self.flat_feet and not self._force_at
+                and not c.base_placement and not c.force_regularisation)
 
     def kernel(self):
         """The compiled twin of this problem (:func:`geoddp.models.contact_compiled.build_kernel`),
@@ -546,16 +635,17 @@ class ContactProblem:
             model.gravity = g0
         return 0.5 * (dg + dg.T)
 
-    def _placement_curvature(self, f: int, p: np.ndarray, q: np.ndarray, c: np.ndarray) -> np.ndarray:
-        """sum_a c_a d^2 r_a (nv, nv) of a flat foot's placement residual r(eta) =
-        log6(M_ref^-1 oMf(q exp(eta))), M_ref = (I, p), exactly: with the frame's displacement
+    def _placement_curvature(self, f: int, p: np.ndarray | pin.SE3, q: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """sum_a c_a d^2 r_a (nv, nv) of a frame's placement residual r(eta) =
+        log6(M_ref^-1 oMf(q exp(eta))) (a flat foot's, M_ref = (I, p) for a position p (3,); the
+        base's, M_ref its target ``pin.SE3``), exactly: with the frame's displacement
         phi(eta) = J eta + 1/2 a_f(q, eta, 0) to second order (a_f the frame's LOCAL spatial
         acceleration at zero joint acceleration, quadratic in the velocity) and
         r = r0 + K phi - 1/2 K D(K phi, K phi) (K = Jlog6, D the SE(3) chart's second-order tensor),
         the curvature is 1/2 (K^T c) . P - (KJ)^T ((K^T c) . D_sym) (KJ), P the velocity Hessian of
         a_f (column k: its velocity derivative at v = e_k). Leaves dyn.data's placements at q."""
         m, d, nv = self.model, self.dyn.data, self.model.nv
-        rMf = pin.SE3(np.eye(3), np.asarray(p, dtype=float)).actInv(d.oMf[f])
+        rMf = _placement(p).actInv(d.oMf[f])
         r0 = pin.log6(rMf).vector
         K = pin.Jlog6(rMf)
         J = pin.computeFrameJacobian(m, d, q, f, pin.LOCAL)
@@ -580,8 +670,9 @@ class ContactProblem:
         each residual's curvature times its weighted residual: the state differences' (SE(3) log's
         second order), the CoM's and the point feet's (generalised gravity derivatives of a model
         whose gravity is minus the residual: the CoM of the robot, a unit point mass at the foot),
-        the flat feet's placements' (:meth:`_placement_curvature`) and the forces' (``L2``: their
-        exact second derivatives). ``gauss_newton``: that Gauss-Newton part
+        the flat feet's and the base's placements' (:meth:`_placement_curvature`) and the forces'
+        (``L2``: their exact second derivatives: the cone barriers' and the force regularisation's
+        curvature). ``gauss_newton``: that Gauss-Newton part
         at the same point if already computed (it is added to, not copied), else None."""
         m, c, nv = self.model, self.costs, self.model.nv
         terminal = k == self.horizon
@@ -623,6 +714,9 @@ class ContactProblem:
             r = pin.centerOfMass(m, d, q) - node.com
             curv += c.com * self._gravity_curvature(m0, d0, q, r / pin.computeTotalMass(m))
         curv += feet(c.foot)
+        if c.base_placement and node.base is not None:
+            rb = self._placement_residual(self.base_frame, node.base, q, False)[0]
+            curv += self._placement_curvature(self.base_frame, node.base, q, c.base_placement * rb)
         scale = 1.0 if terminal else self.dt
         Hs[:nv, :nv] += scale * curv
         if not terminal:
@@ -631,6 +725,11 @@ class ContactProblem:
                 ex, mask = _barrier(A @ ev.forces[rows], lb, ub)
                 if mask.any():  # inside the cone the barrier is flat
                     Hs += (c.friction_cone * self.dt) * ((ex @ A) @ L2[rows].reshape(A.shape[1], -1)).reshape(nz, nz)
+            if c.force_regularisation:
+                w = c.force_regularisation * self.dt
+                for rows, ref in self.force_references(node.feet):
+                    r = ev.forces[rows] - ref
+                    Hs += w * (r @ L2[rows].reshape(len(r), -1)).reshape(nz, nz)
             if k in self._force_at:
                 Hs += self._force_terms(k, ev, True, L2)[2]
         return Hs
@@ -690,12 +789,18 @@ class ContactProblem:
                 c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)
             return Linearisation(order=1, Phi=Phi, B=B, Theta=None, Gamma=None, Xi=None, l_x=lx, l_u=lu, l_xx=lxx,
                                  l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=True)
+        if order == 2 and self.compiled and self.compiled_second_order:
+            c64 = np.ascontiguousarray
+            Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, gf, Hf, _ = self.kernel().linearise_second(
+                c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)
+            return Linearisation(order=2, Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi, l_x=lx, l_u=lu, l_xx=lxx,
+                                 l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=False)
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
         evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
         lxx, lux, luu = np.empty((H, nx, nx)), np.empty((H, nu, nx)), np.empty((H, nu, nu))
         hess = []
-        nodes = self._first_order_nodes(traj, self.compiled and self.compiled_second_order_inputs)
+        nodes = self._first_order_nodes(traj, self.compiled and order == 1)
         for k, (ev, g, Hs) in enumerate(nodes):
             if k == H:
                 gf, Hf = g, Hs

@@ -40,10 +40,20 @@ Schema of a legged scene file (``?`` = optional, with its default; paths as in e
                  step_length? (m, along x: the swing feet step and the CoM follows, as
                  Crocoddyl's footstep; with step_height? = 0), impulse? (a touch-down impulse
                  node after the phase for the swing feet that are down in the next phase, or
-                 in the terminal node; default: true when some foot touches down)
+                 in the terminal node; default: true when some foot touches down),
+                 base_placement? (a table {translation, rotation form?}: this phase's base
+                 target, in place of [costs].base_placement's)
     [costs]?     weights of geoddp.problem.legged.GaitCosts: com, friction_cone, mu, foot, state,
                  control, bounds, impulse_foot, impulse_state (Crocoddyl's by default: its
-                 quadruped's for point feet, its biped's for flat feet)
+                 quadruped's for point feet, its biped's for flat feet); and two terms Crocoddyl's
+                 gaits do not have (off by default):
+                 base_placement? = {weight (>= 0), translation (3, m), at most one of
+                 rpy_deg (roll, pitch, yaw, degrees) | quaternion (x, y, z, w) | rotation (3x3) |
+                 axis + angle_deg (default: the identity)}: the base's target placement, tracked at
+                 every contact node and a contact terminal node;
+                 force_regularisation? = {weight (>= 0), reference? = "weight_share" | "zero"}:
+                 each support foot's force (a flat foot's wrench) toward m |g| / n_support along +z
+                 (zero torque), or zero, at every contact node
     [solver]?    expansion, switch_ratio, tol, rtol, grad_tol, grad_rtol, max_iter,
                  initial_controls? = "quasi_static" ("quasi_static" | "zero")
 
@@ -64,7 +74,7 @@ import pinocchio as pin
 from .. import validate as v
 from ..models.contact import ContactDynamics
 from ..models.multibody import geometry_records
-from ..problem.legged import BipedGait, ContactProblem, GaitCosts, Node, QuadrupedGait, footstep
+from ..problem.legged import FORCE_REFERENCES, BipedGait, ContactProblem, GaitCosts, Node, QuadrupedGait, footstep
 from ..solver.options import DEFAULT_EXPANSION, DEFAULT_MAX_ITER, DEFAULT_SWITCH_RATIO, EXPANSIONS
 from ..validate import InputError
 from .common import CommonSpec, readonly
@@ -83,12 +93,16 @@ GAIT_TYPES = ("walk", "trot", "jump")
 _GAIT_KEYS = {"walk": ("step_length", "step_height", "step_knots", "support_knots"),
               "trot": ("step_length", "step_height", "step_knots", "support_knots"),
               "jump": ("jump_height", "jump_length", "ground_knots", "flying_knots")}
-COST_KEYS = ("com", "friction_cone", "mu", "foot", "state", "control", "bounds", "impulse_foot", "impulse_state")
+WEIGHT_KEYS = ("com", "friction_cone", "mu", "foot", "state", "control", "bounds", "impulse_foot", "impulse_state")
+COST_KEYS = WEIGHT_KEYS + ("base_placement", "force_regularisation")  # the last two: tables
+BASE_ROTATIONS = ("rpy_deg", "quaternion", "rotation", "axis")  # "axis" goes with "angle_deg"
+BASE_KEYS = ("translation", "rpy_deg", "quaternion", "rotation", "axis", "angle_deg")  # a base target's table
+FORCE_KEYS = ("weight", "reference")
 INITIAL_CONTROLS = ("quasi_static", "zero")
 SOLVER_KEYS = ("expansion", "switch_ratio", "tol", "rtol", "grad_tol", "grad_rtol", "max_iter", "initial_controls",
                "constraint_tol")
 CONSTRAINT_KEYS = ("type", "name", "mu", "facets", "min_normal_force", "max_normal_force", "feet")
-PHASE_KEYS = ("contacts", "knots", "step_length", "step_height", "impulse")
+PHASE_KEYS = ("contacts", "knots", "step_length", "step_height", "impulse", "base_placement")
 SCHEMA: Schema = {  # [table] -> key -> required?
     "model": {"kind": True, "robot": True, "feet": True, "posture": False},
     "contact": {"dt": True, "baumgarte": False, "kind": False},
@@ -216,18 +230,25 @@ def talos_walk(robot=None) -> ContactProblem:
 class PhaseSpec:
     """One ``[[phases]]`` table: ``contacts`` (feet on the ground, in ``[model].feet`` order),
     ``knots`` contact nodes, a step of the swing feet (``step_length`` m along x, None: no step;
-    ``step_height`` m) and the touch-down impulse's feet (``landing``: () for none)."""
+    ``step_height`` m), the touch-down impulse's feet (``landing``: () for none) and the phase's
+    own base target (``base_target``: translation m and quaternion (x, y, z, w), 7 numbers,
+    Pinocchio's XYZQUAT; None: the scene's)."""
 
     contacts: tuple[str, ...]
     knots: int
     step_length: float | None
     step_height: float
     landing: tuple[str, ...]
+    base_target: tuple[float, ...] | None = None
 
 
-def phase_nodes(model: pin.Model, feet: tuple[str, ...], q0: np.ndarray, phases: tuple[PhaseSpec, ...]
-                ) -> tuple[list[Node], Node]:
-    """The nodes of a ``[[phases]]`` schedule and its terminal node (every foot down, no targets).
+def phase_nodes(model: pin.Model, feet: tuple[str, ...], q0: np.ndarray, phases: tuple[PhaseSpec, ...],
+                base: pin.SE3 | None = None) -> tuple[list[Node], Node]:
+    """The nodes of a ``[[phases]]`` schedule and its terminal node (every foot down, no CoM or
+    foot targets).
+
+    ``base``: the scene's base target placement, or None. Each phase's contact nodes carry its own
+    ``base_target`` if it has one, else ``base``; the terminal node carries the last phase's.
 
     A phase with a step is Crocoddyl's footstep (:func:`geoddp.problem.legged.footstep`):
     per knot the swing feet track a stepping arc and the CoM the fraction of the step the swing
@@ -242,7 +263,10 @@ def phase_nodes(model: pin.Model, feet: tuple[str, ...], q0: np.ndarray, phases:
     com = sum(pos[f] for f in feet) / len(feet)
     com[2] = pin.centerOfMass(model, d, q0)[2]
     nodes: list[Node] = []
+    target = base
     for ph in phases:
+        target = base if ph.base_target is None else pin.XYZQUATToSE3(np.array(ph.base_target))
+        first = len(nodes)
         support = [ids[f] for f in ph.contacts]
         swing_names = [f for f in feet if f not in ph.contacts]
         swing = [ids[f] for f in swing_names]
@@ -254,10 +278,12 @@ def phase_nodes(model: pin.Model, feet: tuple[str, ...], q0: np.ndarray, phases:
             tasks = step[-1].swing
         else:
             nodes += [Node("contact", tuple(support)) for _ in range(ph.knots)]
+        for n in nodes[first:]:  # the phase's contact nodes (its impulse node, appended below, has no base term)
+            n.base = target
         if ph.landing:
             land = tuple(ids[f] for f in ph.landing)
             nodes.append(Node("impulse", land, swing=tuple((i, p) for i, p in tasks if i in land)))
-    return nodes, Node("contact", tuple(ids[f] for f in feet))
+    return nodes, Node("contact", tuple(ids[f] for f in feet), base=target)
 
 
 # ------------------------------------------------------------------ the spec
@@ -273,7 +299,11 @@ class LeggedSceneSpec(CommonSpec):
         foot_kind: "3d" (point feet) or "6d" (flat feet: 6D contacts, Crocoddyl's biped costs).
         gait: the ``[gait]`` table as a dict (``type`` and its four keys; ``jump_length`` a
             tuple), or None; phases: the ``[[phases]]`` as :class:`PhaseSpec`, or () with a gait.
-        costs: the ``[costs]`` weights given, as (name, value) pairs (the rest: Crocoddyl's).
+        costs: the ``[costs]`` weights given, as (name, value) pairs (the rest: Crocoddyl's);
+            ``base_placement`` and ``force_regularisation`` as their weights, and
+            ``force_reference`` (a string) when ``[costs].force_regularisation`` is given.
+        base_target: ``[costs].base_placement``'s target, translation m and quaternion (x, y, z,
+            w) (7 numbers, Pinocchio's XYZQUAT), or None.
         initial_controls: "quasi_static" (Crocoddyl's quasiStatic per contact node, zero at
             impulse nodes) or "zero".
         expansion, switch_ratio, tol, rtol, grad_tol, grad_rtol, max_iter: the ``[solver]`` table.
@@ -290,9 +320,10 @@ class LeggedSceneSpec(CommonSpec):
     baumgarte: tuple[float, float]
     gait: dict | None
     phases: tuple[PhaseSpec, ...]
-    costs: tuple[tuple[str, float], ...] = ()
+    costs: tuple[tuple[str, float | str], ...] = ()
     initial_controls: str = "quasi_static"
     foot_kind: str = "3d"
+    base_target: tuple[float, ...] | None = None
 
     kind = "legged"
 
@@ -327,8 +358,9 @@ class LeggedSceneSpec(CommonSpec):
         model = robot.model
         q0 = model.referenceConfigurations[self.posture].copy()
         g = self.gait
+        base = None if self.base_target is None else pin.XYZQUATToSE3(np.array(self.base_target))
         if g is None:
-            nodes, terminal = phase_nodes(model, self.feet, q0, self.phases)
+            nodes, terminal = phase_nodes(model, self.feet, q0, self.phases, base)
         elif len(self.feet) == 2:
             nodes, terminal = BipedGait(model, self.feet, q0).walk(
                 q0, g["step_length"], g["step_height"], g["step_knots"], g["support_knots"])
@@ -338,6 +370,10 @@ class LeggedSceneSpec(CommonSpec):
         else:
             nodes, terminal = getattr(QuadrupedGait(model, self.feet, q0), g["type"])(
                 q0, g["step_length"], g["step_height"], g["step_knots"], g["support_knots"])
+        if g is not None and base is not None:  # one target for the whole gait
+            for n in [*nodes, terminal]:
+                if n.kind == "contact":
+                    n.base = base
         try:
             costs = (GaitCosts.biped if self.foot_kind == "6d" else GaitCosts)(**dict(self.costs))
         except TypeError as exc:
@@ -424,8 +460,21 @@ def parse_legged_scene(data: Mapping[str, Any], source: str, base_dir: Path, def
 
     # ---- costs, solver
     cost_t = r.table("costs")
-    costs = tuple((k, r.check(v.positive_float if k == "mu" else v.nonnegative_float, val, f"[costs].{k}"))
-                  for k, val in cost_t.items())
+    costs: list[tuple[str, float | str]] = []
+    base_target = None
+    for k, val in cost_t.items():
+        if k == "base_placement":
+            weight, base_target = _base_placement(r, val, "[costs].base_placement", weighted=True)
+            costs.append((k, weight))
+        elif k == "force_regularisation":
+            costs += _force_regularisation(r, val, "[costs].force_regularisation")
+        else:
+            costs.append((k, r.check(v.positive_float if k == "mu" else v.nonnegative_float, val, f"[costs].{k}")))
+    if base_target is None:
+        for ph_path, ph in zip((p for p, _ in r.array("phases")), phases):
+            if ph.base_target is not None:
+                raise r.err(f"{ph_path}.base_placement", "needs [costs].base_placement (the term's weight and the "
+                            "scene's target), e.g. base_placement = { weight = 1e3, translation = [0.0, 0.0, 0.45] }")
     s = r.table("solver")
     get = s.get
     solver = dict(
@@ -444,7 +493,8 @@ def parse_legged_scene(data: Mapping[str, Any], source: str, base_dir: Path, def
         raise r.err("[solver].constraint_tol", "applies only with [[constraints]] tables (this scene has none)")
     return LeggedSceneSpec(name=name, description=description, source=source, robot=robot.name, posture=posture,
                            feet=feet, nv=int(pm.nv), dt=dt, baumgarte=(float(gains[0]), float(gains[1])), gait=gait,
-                           phases=phases, costs=costs, foot_kind=foot_kind, **solver)
+                           phases=phases, costs=tuple(costs), foot_kind=foot_kind, base_target=base_target,
+                           **solver)
 
 
 def _force_constraint(r: Reader, t: Mapping[str, Any], path: str, feet: tuple[str, ...]):
@@ -563,13 +613,53 @@ def _phases(r: Reader, feet: tuple[str, ...]) -> tuple[PhaseSpec, ...]:
             raise r.err(f"{path}.step_height", "expected together with step_length (a step's length along x, m)")
         height = r.check(v.finite_float, t.get("step_height", 0.0), f"{path}.step_height")
         impulse = r.boolean(t["impulse"], f"{path}.impulse") if "impulse" in t else None
-        read.append((path, contacts, knots, length, height, impulse))
+        base = _base_placement(r, t["base_placement"], f"{path}.base_placement", weighted=False)[1] \
+            if "base_placement" in t else None
+        read.append((path, contacts, knots, length, height, impulse, base))
     phases = []
-    for j, (path, contacts, knots, length, height, impulse) in enumerate(read):
+    for j, (path, contacts, knots, length, height, impulse, base) in enumerate(read):
         after = read[j + 1][1] if j + 1 < len(read) else feet  # the terminal node: every foot down
         landing = tuple(f for f in feet if f not in contacts and f in after)
         if impulse and not landing:
             raise r.err(f"{path}.impulse", "expected false: no swing foot of this phase is on the ground in the "
                         "next phase (nothing touches down)")
-        phases.append(PhaseSpec(contacts, knots, length, height, landing if impulse is not False else ()))
+        phases.append(PhaseSpec(contacts, knots, length, height, landing if impulse is not False else (), base))
     return tuple(phases)
+
+
+def _base_placement(r: Reader, t: Any, path: str, weighted: bool) -> tuple[float | None, tuple[float, ...]]:
+    """A base target table at ``path`` (``[costs].base_placement`` with its ``weight`` when
+    ``weighted``, a phase's ``base_placement`` without): (the weight or None, the target as
+    translation m and quaternion (x, y, z, w), Pinocchio's XYZQUAT). ``translation`` (3,) is
+    required; the rotation, at most one of rpy_deg | quaternion | rotation | axis + angle_deg,
+    defaults to the identity (the base level, heading along x)."""
+    keys = (("weight",) if weighted else ()) + BASE_KEYS
+    example = "{ weight = 1e3, translation = [0.0, 0.0, 0.45] }" if weighted else "{ translation = [0.0, 0.0, 0.45] }"
+    if not isinstance(t, Mapping):
+        raise r.err(path, f"expected a table such as {example} (keys: {', '.join(keys)}), got {t!r}")
+    r.keys(t, keys, path)
+    weight = None
+    if weighted:
+        if "weight" not in t:
+            raise r.err(f"{path}.weight", "missing required key (the term's weight, >= 0)")
+        weight = r.check(v.nonnegative_float, t["weight"], f"{path}.weight")
+    if "translation" not in t:
+        raise r.err(f"{path}.translation", "missing required key (the base's target position [x, y, z], m)")
+    p = r.check(v.finite_array, t["translation"], f"{path}.translation", (3,))
+    R = r.rotation(t, path, BASE_ROTATIONS, required=False)
+    M = pin.SE3(np.eye(3) if R is None else R, p)
+    return weight, tuple(float(x) for x in pin.SE3ToXYZQUAT(M))
+
+
+def _force_regularisation(r: Reader, t: Any, path: str) -> list[tuple[str, float | str]]:
+    """``[costs].force_regularisation`` = {weight, reference?} as GaitCosts fields:
+    [("force_regularisation", weight), ("force_reference", "weight_share" | "zero")]."""
+    if not isinstance(t, Mapping):
+        raise r.err(path, f'expected a table such as {{ weight = 1e-3, reference = "weight_share" }} '
+                    f"(keys: {', '.join(FORCE_KEYS)}), got {t!r}")
+    r.keys(t, FORCE_KEYS, path)
+    if "weight" not in t:
+        raise r.err(f"{path}.weight", "missing required key (the term's weight, >= 0, per N^2)")
+    weight = r.check(v.nonnegative_float, t["weight"], f"{path}.weight")
+    reference = r.check(v.choice, t.get("reference", "weight_share"), f"{path}.reference", FORCE_REFERENCES)
+    return [("force_regularisation", weight), ("force_reference", reference)]

@@ -261,8 +261,9 @@ class Reader:
     def rotation(self, table: Mapping[str, Any], path: str, forms: tuple[str, ...], required: bool = True
                  ) -> np.ndarray | None:
         """(3, 3) rotation from exactly one of ``forms`` in ``table`` (at ``path``): quaternion
-        (x, y, z, w), rotation (3x3), euler_intrinsic ([axis, degrees] pairs), axis + angle_deg;
-        None if none is given and not ``required``."""
+        (x, y, z, w), rotation (3x3), euler_intrinsic ([axis, degrees] pairs), rpy_deg (roll,
+        pitch, yaw in degrees: Rz(yaw) Ry(pitch) Rx(roll), Pinocchio's rpyToMatrix), axis +
+        angle_deg; None if none is given and not ``required``."""
         given = [f for f in forms if f in table]
         if "axis" in forms and "angle_deg" in table and "axis" not in table:
             raise self.err(f"{path}.angle_deg", "expected together with axis (a rotation of angle_deg about axis)")
@@ -280,6 +281,9 @@ class Reader:
             return self.check(v.rotation_matrix, val, f"{path}.rotation")
         if form == "euler_intrinsic":
             return self.euler(val, f"{path}.euler_intrinsic")
+        if form == "rpy_deg":
+            rpy = self.check(v.finite_array, val, f"{path}.rpy_deg", (3,))
+            return pin.rpy.rpyToMatrix(np.radians(rpy))
         axis = self.check(v.finite_array, val, f"{path}.axis", (3,))
         norm = float(np.linalg.norm(axis))
         if norm == 0.0:

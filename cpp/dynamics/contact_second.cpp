@@ -1,0 +1,494 @@
+// The exact second order of a contact schedule (see contact.hpp): the twin of
+// geoddp.models.contact.ContactDynamics.contact_second / impulse_second (point feet), of
+// geoddp.problem.legged.ContactProblem._cost_hessian and of its linearise(order=2), term for term.
+// Compiled inside dynamics/core_algorithms.cpp.
+//
+// A node's KKT system E(s, y) = 0 (s = (q, v), y = (a, lambda) at a contact node, (v+, Lambda) at
+// an impulse node) is differentiated twice: E_y y'' = -E_ww[X, X], X = dw/dz (E is affine in y).
+// E_ww's blocks come from Pinocchio's second-order RNEA derivatives of three models: the robot
+// (its RNEA rows), the robot without gravity (the impulse's M(q) w), and per foot a massless copy
+// carrying a unit point mass at the foot's origin (its RNEA is J_w^T p'': the foot's acceleration
+// rows, and J_w^T lambda's q-q curvature under the gravity -lambda). The semi-implicit Euler step
+// then carries a'' into Theta, Gamma, Xi (dynamics/reconstruction.hpp), and each node's cost gets
+// its residuals' curvature (the SE(3) state difference's, the CoM's, the swing feet's and the
+// friction cone's through the forces' second derivatives).
+#include <pinocchio/algorithm/center-of-mass.hpp>
+#include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/joint-configuration.hpp>
+#include <pinocchio/algorithm/kinematics.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <map>
+
+#include "dynamics/contact.hpp"
+#include "dynamics/euler.hpp"
+#include "dynamics/reconstruction.hpp"
+#include "lie/joint_blocks.hpp"
+#include "linalg/small_gemm.hpp"
+#include "runtime/parallel.hpp"
+
+namespace geoddp {
+namespace dyn {
+
+namespace contact_second_detail {
+
+// One model's second-order RNEA tensors (Pinocchio's column-major (i, j, k) at i + nv (j + nv k)).
+struct Rnea2 {
+  int nv = 0;
+  std::vector<double> qq, vv, qv, aq;
+  explicit Rnea2(int n) : nv(n), qq((size_t)n * n * n), vv(qq.size()), qv(qq.size()), aq(qq.size()) {}
+  void at(const pinocchio::Model& m, pinocchio::Data& d, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+          const Eigen::VectorXd& a) {
+    pinocchio_second_order(m, d, q, v, a, qq.data(), vv.data(), qv.data(), aq.data());
+  }
+  static double get(const std::vector<double>& T, int nv, int i, int j, int k) {
+    return T[(size_t)i + (size_t)nv * ((size_t)j + (size_t)nv * k)];
+  }
+};
+
+// A massless copy of the robot with a unit point mass at frame f's origin, no gravity.
+pinocchio::Model point_mass_model(const pinocchio::Model& model, int f) {
+  pinocchio::Model mf = model;
+  for (size_t j = 0; j < mf.inertias.size(); ++j) mf.inertias[j] = pinocchio::Inertia::Zero();
+  const pinocchio::Frame& fr = mf.frames[(size_t)f];
+  mf.inertias[fr.parentJoint] = pinocchio::Inertia(1.0, fr.placement.translation(), Eigen::Matrix3d::Zero());
+  mf.gravity.setZero();
+  return mf;
+}
+
+// Crocoddyl's quadratic barrier's excess (0 inside [lb, ub]).
+double excess(double r, double lb, double ub) { return std::min(r - lb, 0.0) + std::max(r - ub, 0.0); }
+
+Eigen::Vector3d cross_e(int i, const Eigen::Vector3d& x) { return Eigen::Vector3d::Unit(i).cross(x); }
+
+}  // namespace contact_second_detail
+using namespace contact_second_detail;
+
+// A worker's models and scratch for the second order (its own copies: the force and curvature
+// terms set a model's gravity).
+struct ContactSecondWork {
+  pinocchio::Model zero_gravity;
+  pinocchio::Data zero_data, data;
+  std::map<int, size_t> foot_index;  // frame id -> its point-mass model
+  std::vector<pinocchio::Model> foot;
+  std::vector<pinocchio::Data> foot_data;
+  Rnea2 t, tf;
+  ContactSecondWork(const ContactSetup& s)
+      : zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv) {
+    zero_gravity.gravity.setZero();
+    for (const ContactNode& n : s.nodes) {
+      for (int f : n.feet) add_foot(*s.model, f);
+      for (int f : n.swing) add_foot(*s.model, f);
+    }
+  }
+  void add_foot(const pinocchio::Model& model, int f) {
+    if (foot_index.count(f)) return;
+    foot_index[f] = foot.size();
+    foot.push_back(point_mass_model(model, f));
+    foot_data.emplace_back(foot.back());
+  }
+};
+
+namespace {
+
+// The feet's world accelerations p''(q, v, a) (3 rows per foot) and their derivatives in the right
+// chart: Jw (3 nf, nv) = P_a and P_qq (symmetric), P_qv, P_qa, P_vv, each (3 nf, nv * nv) row-major
+// [c][j][l] (P_qa[c][j][l] = d J_w[c, l] / d q_j). From the point-mass model's RNEA: tau =
+// J_w^T p'', whose free-flyer translational rows are oR_b^T p'' (ContactDynamics._point_terms).
+void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen::VectorXd& q,
+                 const Eigen::VectorXd& v, const Eigen::VectorXd& a, RowMat& Jw, RowMat& Pqq, RowMat& Pqv,
+                 RowMat& Pqa, RowMat& Pvv) {
+  const int nv = (int)v.size(), nf = (int)feet.size(), nn = nv * nv;
+  Jw.resize(3 * nf, nv);
+  for (RowMat* P : {&Pqq, &Pqv, &Pqa, &Pvv}) P->resize(3 * nf, nn);
+  const Eigen::Matrix3d R = Eigen::Quaterniond(q[6], q[3], q[4], q[5]).toRotationMatrix();
+  RowMat Lqq(3, nn), Lqv(3, nn), Lqa(3, nn), Lvv(3, nn);
+  Rnea2& T = w.tf;
+  for (int i = 0; i < nf; ++i) {
+    const size_t idx = w.foot_index.at(feet[(size_t)i]);
+    const pinocchio::Model& mf = w.foot[idx];
+    pinocchio::Data& df = w.foot_data[idx];
+    const Eigen::Vector3d W = pinocchio::rnea(mf, df, q, v, a).head<3>();
+    pinocchio::computeRNEADerivatives(mf, df, q, v, a);
+    const Eigen::MatrixXd Wq = df.dtau_dq.topRows(3), Wv = df.dtau_dv.topRows(3);
+    const Eigen::MatrixXd Wa = Eigen::MatrixXd(df.M.selfadjointView<Eigen::Upper>()).topRows(3);
+    T.at(mf, df, q, v, a);
+    for (int c = 0; c < 3; ++c)
+      for (int j = 0; j < nv; ++j)
+        for (int l = 0; l < nv; ++l) {
+          Lqq(c, j * nv + l) = 0.5 * (Rnea2::get(T.qq, nv, c, j, l) + Rnea2::get(T.qq, nv, c, l, j));
+          Lqv(c, j * nv + l) = Rnea2::get(T.qv, nv, c, j, l);
+          Lqa(c, j * nv + l) = Rnea2::get(T.aq, nv, c, l, j);
+          Lvv(c, j * nv + l) = Rnea2::get(T.vv, nv, c, j, l);
+        }
+    // the product rule's terms: oR_b(q exp(eta)) = oR_b exp(eta_rot) on the base's rotational
+    // directions 3..5 (E_i = skew(e_i))
+    for (int e = 0; e < 3; ++e)
+      for (int j = 0; j < nv; ++j) {
+        const Eigen::Vector3d gq = cross_e(e, Wq.col(j)), gv = cross_e(e, Wv.col(j)), ga = cross_e(e, Wa.col(j));
+        for (int c = 0; c < 3; ++c) {
+          Lqq(c, (3 + e) * nv + j) += gq[c];
+          Lqq(c, j * nv + 3 + e) += gq[c];
+          Lqv(c, (3 + e) * nv + j) += gv[c];
+          Lqa(c, (3 + e) * nv + j) += ga[c];
+        }
+      }
+    for (int e = 0; e < 3; ++e)
+      for (int f = 0; f < 3; ++f) {
+        const Eigen::Vector3d gg = 0.5 * (cross_e(e, cross_e(f, W)) + cross_e(f, cross_e(e, W)));
+        for (int c = 0; c < 3; ++c) Lqq(c, (3 + e) * nv + 3 + f) += gg[c];
+      }
+    Jw.middleRows(3 * i, 3) = R * Wa;
+    Pqq.middleRows(3 * i, 3) = R * Lqq;
+    Pqv.middleRows(3 * i, 3) = R * Lqv;
+    Pqa.middleRows(3 * i, 3) = R * Lqa;
+    Pvv.middleRows(3 * i, 3) = R * Lvv;
+  }
+}
+
+// Subtract from Hss's RNEA rows (q-q block) the curvature of sum_f J_w,f(q)^T lambda_f (world
+// forces held): the point-mass model's RNEA at v = a = 0 under the gravity -lambda_f.
+void force_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen::VectorXd& q,
+                 const Eigen::VectorXd& forces, RowMat& Hss) {
+  const int nv = w.zero_gravity.nv, ns = 2 * nv, nf = (int)feet.size();
+  if (nf == 0) return;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
+  std::vector<double> total((size_t)nv * nv * nv, 0.0);
+  for (int i = 0; i < nf; ++i) {
+    const size_t idx = w.foot_index.at(feet[(size_t)i]);
+    pinocchio::Model& mf = w.foot[idx];
+    mf.gravity = pinocchio::Motion(-forces.segment<3>(3 * i), Eigen::Vector3d::Zero());
+    w.tf.at(mf, w.foot_data[idx], q, zero, zero);
+    mf.gravity.setZero();
+    for (size_t x = 0; x < total.size(); ++x) total[x] += w.tf.qq[x];
+  }
+  for (int r = 0; r < nv; ++r)
+    for (int a = 0; a < nv; ++a)
+      for (int b = 0; b < nv; ++b)
+        Hss(r, a * ns + b) -= 0.5 * (Rnea2::get(total, nv, r, a, b) + Rnea2::get(total, nv, r, b, a));
+}
+
+// y'' (ny, nz * nz) from E_ww's blocks Hss (ny, ns * ns), Hsy (ny, ns * ny) and Y1 = dy/dz
+// (ny, nz): E_y y'' = -(E_ss + E_sy Y1 + its transpose), E_y = [[M, -Jw^T], [Jw, 0]]
+// (ContactDynamics._kkt_second).
+void kkt_second(const RowMat& Hss, const RowMat& Hsy, const RowMat& Y1, const Eigen::MatrixXd& M,
+                const RowMat& Jw, bool forces, RowMat& Y) {
+  const int nv = (int)M.rows(), nc = (int)Jw.rows(), ny = nv + nc, ns = 2 * nv, nz = (int)Y1.cols();
+  RowMat rhs(ny, (Eigen::Index)ns * nz);
+  for (int r = 0; r < ny; ++r) {
+    // E_sy is zero in v's rows, and the foot rows' (r >= nv) only couple with a
+    // (linalg/small_gemm.hpp: AVX2/FMA where the CPU has it; these two products are most of a node's
+    // second order)
+    Eigen::Map<RowMat> out(rhs.row(r).data(), ns, nz);
+    gemm::gemm(false, nv, nz, r < nv ? ny : nv, 1.0, Hsy.row(r).data(), ny, Y1.data(), nz, false, out.data(), nz);
+    out.bottomRows(nv).setZero();
+  }
+  for (int r = 0; r < ny; ++r) {
+    Eigen::Map<RowMat> out(rhs.row(r).data(), ns, nz);
+    const Eigen::MatrixXd C = out.leftCols(ns).transpose();
+    out.leftCols(ns) += Eigen::Map<const RowMat>(Hss.row(r).data(), ns, ns) + C;
+  }
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(ny, ny);
+  K.topLeftCorner(nv, nv) = M;
+  if (nc > 0) {
+    K.topRightCorner(nv, nc) = -Jw.transpose();
+    K.bottomLeftCorner(nc, nv) = Jw;
+  }
+  const RowMat Kinv = -K.partialPivLu().inverse();
+  // the forces' rows only when asked (the cost curvature reads them where a friction-cone barrier
+  // is active); otherwise they are left unset
+  const int rows = forces ? ny : nv;
+  RowMat Ys(rows, (Eigen::Index)ns * nz);
+  gemm::gemm(false, rows, ns * nz, ny, 1.0, Kinv.data(), ny, rhs.data(), ns * nz, false, Ys.data(), ns * nz);
+  Y.resize(ny, (Eigen::Index)nz * nz);
+  for (int r = 0; r < rows; ++r) {
+    Eigen::Map<RowMat> Yr(Y.row(r).data(), nz, nz);
+    Eigen::Map<const RowMat> Ysr(Ys.row(r).data(), ns, nz);
+    Yr.topRows(ns) = Ysr;
+    Yr.bottomLeftCorner(nz - ns, ns) = Ysr.rightCols(nz - ns).transpose();
+    Yr.bottomRightCorner(nz - ns, nz - ns).setZero();
+  }
+}
+
+}  // namespace
+
+void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+                         const Eigen::VectorXd& v, const ContactEval& ev, RowMat& Y, bool forces) {
+  const pinocchio::Model& m = *s.model;
+  const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc, ns = 2 * nv;
+  RowMat Hss = RowMat::Zero(ny, (Eigen::Index)ns * ns), Hsy = RowMat::Zero(ny, (Eigen::Index)ns * ny);
+  auto hss = [&](int r, int a, int b) -> double& { return Hss(r, a * ns + b); };
+  auto hsy = [&](int r, int a, int y) -> double& { return Hsy(r, a * ny + y); };
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
+  Rnea2& T = w.t;
+  RowMat Jw, Pqq, Pqv, Pqa, Pvv;
+  if (!node.impulse) {
+    const double Kp = s.Kp, Kd = s.Kd;
+    T.at(m, w.data, q, v, ev.acc);
+    for (int i = 0; i < nv; ++i)
+      for (int a = 0; a < nv; ++a)
+        for (int b = 0; b < nv; ++b) {
+          hss(i, a, b) = 0.5 * (Rnea2::get(T.qq, nv, i, a, b) + Rnea2::get(T.qq, nv, i, b, a));
+          hss(i, a, nv + b) = Rnea2::get(T.qv, nv, i, a, b);
+          hss(i, nv + b, a) = Rnea2::get(T.qv, nv, i, a, b);
+          hss(i, nv + a, nv + b) = Rnea2::get(T.vv, nv, i, a, b);
+          hsy(i, a, b) = Rnea2::get(T.aq, nv, i, b, a);
+        }
+    force_terms(w, node.feet, q, ev.forces, Hss);
+    point_terms(w, node.feet, q, v, ev.acc + Kd * v, Jw, Pqq, Pqv, Pqa, Pvv);
+    for (int c = 0; c < nc; ++c) {
+      const int r = nv + c;
+      for (int a = 0; a < nv; ++a)
+        for (int b = 0; b < nv; ++b) {
+          hss(r, a, b) = Pqq(c, a * nv + b) + Kp * 0.5 * (Pqa(c, a * nv + b) + Pqa(c, b * nv + a));
+          const double qv = Pqv(c, a * nv + b) + Kd * Pqa(c, a * nv + b);
+          hss(r, a, nv + b) = qv;
+          hss(r, nv + b, a) = qv;
+          hss(r, nv + a, nv + b) = Pvv(c, a * nv + b);
+          hsy(r, a, b) = Pqa(c, a * nv + b);
+          hsy(b, a, nv + c) = -Pqa(c, a * nv + b);
+        }
+    }
+  } else {
+    T.at(w.zero_gravity, w.zero_data, q, zero, ev.v_next - v);
+    for (int i = 0; i < nv; ++i)
+      for (int a = 0; a < nv; ++a)
+        for (int b = 0; b < nv; ++b) {
+          hss(i, a, b) = 0.5 * (Rnea2::get(T.qq, nv, i, a, b) + Rnea2::get(T.qq, nv, i, b, a));
+          hsy(i, a, b) = Rnea2::get(T.aq, nv, i, b, a);
+          hss(i, nv + a, b) = -Rnea2::get(T.aq, nv, i, a, b);
+          hss(i, a, nv + b) = -Rnea2::get(T.aq, nv, i, b, a);
+        }
+    force_terms(w, node.feet, q, ev.forces, Hss);
+    point_terms(w, node.feet, q, zero, ev.v_next, Jw, Pqq, Pqv, Pqa, Pvv);
+    for (int c = 0; c < nc; ++c) {
+      const int r = nv + c;
+      for (int a = 0; a < nv; ++a)
+        for (int b = 0; b < nv; ++b) {
+          hss(r, a, b) = Pqq(c, a * nv + b);
+          hsy(r, a, b) = Pqa(c, a * nv + b);
+          hsy(b, a, nv + c) = -Pqa(c, a * nv + b);
+        }
+    }
+  }
+  pinocchio::crba(m, w.data, q);
+  const Eigen::MatrixXd M = w.data.M.selfadjointView<Eigen::Upper>();
+  RowMat Y1(ny, ev.Az.cols());
+  Y1.topRows(nv) = ev.Az;
+  if (nc > 0) Y1.bottomRows(nc) = ev.Lz;
+  if (nc == 0) Jw.resize(0, nv);
+  kkt_second(Hss, Hsy, Y1, M, Jw, forces, Y);
+}
+
+namespace {
+
+// sum_p c_p d^2 r_p (nv, nv) of r(eta) = difference(q_ref, q exp(eta)), exactly: -K^T ((K^T c) .
+// Dsym) K per SO(3)/SE(3) group (K = Jr(r0)^-1, D = dJr at r0), zero on the commutative joints
+// (ContactProblem._difference_curvature).
+void difference_curvature(const std::vector<JointGroup>& groups, const Eigen::VectorXd& r0, const Eigen::VectorXd& c,
+                          double weight, Eigen::MatrixXd& out) {
+  for (const JointGroup& g : groups) {
+    const int o = g.idx_v;
+    if (g.kind == SE3) {
+      const Eigen::Matrix<double, 6, 1> x = r0.segment<6>(o);
+      const lie::Mat6 K = lie::se3_jr_inverse(lie::se3_jr(x));
+      const Eigen::Matrix<double, 6, 1> kc = K.transpose() * c.segment<6>(o);
+      lie::Mat6 D[6], Ms;
+      lie::se3_djr(x, D);
+      for (int b = 0; b < 6; ++b) Ms.col(b) = D[b].transpose() * kc;  // Ms(a, b) = sum_p kc_p dJr(p, a) / dx_b
+      const lie::Mat6 S = 0.5 * (Ms + Ms.transpose());
+      out.block<6, 6>(o, o) -= weight * (K.transpose() * S * K);
+    } else if (g.kind == SO3) {
+      const lie::Vec3 x = r0.segment<3>(o);
+      const lie::Mat3 K = lie::so3_jr(x).inverse();
+      const lie::Vec3 kc = K.transpose() * c.segment<3>(o);
+      lie::Mat3 D[3], Ms;
+      lie::so3_djr(x, D);
+      for (int b = 0; b < 3; ++b) Ms.col(b) = D[b].transpose() * kc;
+      const lie::Mat3 S = 0.5 * (Ms + Ms.transpose());
+      out.block<3, 3>(o, o) -= weight * (K.transpose() * S * K);
+    }
+  }
+}
+
+// The chart Hessian (nv, nv) of a potential whose generalised force is J^T force: the model's
+// generalised gravity under the gravity -force (ContactProblem._gravity_curvature), times weight.
+void gravity_curvature(pinocchio::Model& model, pinocchio::Data& data, const Eigen::VectorXd& q,
+                       const Eigen::Vector3d& force, double weight, Eigen::MatrixXd& out) {
+  const pinocchio::Motion g0 = model.gravity;
+  model.gravity = pinocchio::Motion(-force, Eigen::Vector3d::Zero());
+  Eigen::MatrixXd dg = Eigen::MatrixXd::Zero(model.nv, model.nv);
+  pinocchio::computeGeneralizedGravityDerivatives(model, data, q, dg);
+  model.gravity = g0;
+  out += weight * 0.5 * (dg + dg.transpose());
+}
+
+}  // namespace
+
+bool cone_active(const ContactSetup& s, const ContactNode& node, const ContactEval& ev) {
+  if (node.impulse) return false;  // an impulse node's cost has no friction cone
+  for (size_t i = 0; i < node.feet.size(); ++i) {
+    const Eigen::VectorXd fr = s.cone_A * ev.forces.segment<3>(3 * (Eigen::Index)i);
+    for (Eigen::Index j = 0; j < fr.size(); ++j)
+      if (excess(fr[j], s.cone_lb[j], s.cone_ub[j]) != 0.0) return true;
+  }
+  return false;
+}
+
+void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, const Eigen::VectorXd& q,
+                            const Eigen::VectorXd& v, const ContactEval* ev, const RowMat* L2, RowMat& Hs) {
+  const pinocchio::Model& m = *s.model;
+  pinocchio::Data& d = w.data;
+  const int nv = m.nv, nz = (int)Hs.cols();
+  const bool terminal = k == s.horizon();
+  const ContactNode& node = s.nodes[(size_t)k];
+  const GaitWeights& c = s.w;
+  const std::vector<JointGroup> groups = joint_groups(m);
+  pinocchio::forwardKinematics(m, d, q);
+  pinocchio::updateFramePlacements(m, d);
+  Eigen::MatrixXd curv = Eigen::MatrixXd::Zero(nv, nv);
+  Eigen::VectorXd rq(nv);
+  pinocchio::difference(m, s.q_ref, q, rq);
+  auto feet = [&](double weight) {
+    for (size_t i = 0; i < node.swing.size(); ++i) {
+      const size_t idx = w.foot_index.at(node.swing[i]);
+      gravity_curvature(w.foot[idx], w.foot_data[idx], q,
+                        d.oMf[(size_t)node.swing[i]].translation() - node.swing_target[i], weight, curv);
+    }
+  };
+  if (node.impulse && !terminal) {
+    difference_curvature(groups, rq, s.w_impulse.head(nv).cwiseProduct(rq), c.impulse_state, curv);
+    feet(c.impulse_foot);
+    Hs.topLeftCorner(nv, nv) += curv;
+    return;
+  }
+  difference_curvature(groups, rq, s.w_state.head(nv).cwiseProduct(rq), c.state, curv);
+  if (c.bounds != 0.0) {
+    Eigen::VectorXd rb(nv), ex(nv);
+    pinocchio::difference(m, s.q_neutral, q, rb);
+    bool any = false;
+    for (int i = 0; i < nv; ++i) {
+      ex[i] = excess(rb[i], s.lb[i], s.ub[i]);
+      any = any || ex[i] != 0.0;
+    }
+    if (any) difference_curvature(groups, rb, ex, c.bounds, curv);
+  }
+  if (node.has_com) {
+    const Eigen::Vector3d r = pinocchio::centerOfMass(m, d, q) - node.com;
+    gravity_curvature(w.zero_gravity, w.zero_data, q, r / pinocchio::computeTotalMass(m), c.com, curv);
+  }
+  feet(c.foot);
+  Hs.topLeftCorner(nv, nv) += (terminal ? 1.0 : s.dt) * curv;
+  if (terminal || node.feet.empty()) return;
+  const int r = (int)s.cone_A.rows();
+  for (size_t i = 0; i < node.feet.size(); ++i) {
+    const Eigen::VectorXd fr = s.cone_A * ev->forces.segment<3>(3 * (Eigen::Index)i);
+    Eigen::Vector3d exA = Eigen::Vector3d::Zero();
+    bool any = false;
+    for (int j = 0; j < r; ++j) {
+      const double e = excess(fr[j], s.cone_lb[j], s.cone_ub[j]);
+      if (e != 0.0) any = true;
+      exA += e * s.cone_A.row(j).transpose();
+    }
+    if (!any) continue;  // inside the cone the barrier is flat
+    Eigen::Map<RowMat> H(Hs.data(), nz, nz);
+    for (int a = 0; a < 3; ++a)
+      H += (c.friction_cone * s.dt * exA[a]) * Eigen::Map<const RowMat>(L2->row(3 * (Eigen::Index)i + a).data(), nz, nz);
+  }
+}
+
+void contact_linearise_second(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                              double* Phi, double* B, double* Theta, double* Gamma, double* Xi, double* lx, double* lu,
+                              double* lxx, double* lux, double* luu, double* lfx, double* lfxx, double* costs) {
+  const pinocchio::Model& m = *s.model;
+  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu;
+  const double dt = s.dt;
+  const std::vector<JointGroup> groups = joint_groups(m);
+  const lie::GroupStructure gs;
+  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
+  parallel_for(H + 1, threads, [&](int b, int e, int) {
+    ContactWork cw(m);
+    ContactSecondWork w(s);
+    ContactEval ev;
+    Eigen::VectorXd g, q(nq), v(nv), u(nu);
+    RowMat Hs, Y, L2, G2(n, (Eigen::Index)nz * nz), A(nv, nv), Jr(nv, nv), W1, JW, JF2, Ds, Mz, WDW;
+    std::vector<double> Dt((size_t)nv * nv * nv);
+    Eigen::VectorXd omega(nv);
+    for (int k = b; k < e; ++k) {
+      q = Qm.row(k).transpose();
+      v = Vm.row(k).transpose();
+      if (k == H) {
+        costs[k] = contact_node_cost(s, cw, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
+        contact_cost_curvature(s, w, H, q, v, nullptr, nullptr, Hs);
+        VecMap(lfx, n) = g.head(n);
+        MatMap(lfxx, n, n) = Hs.topLeftCorner(n, n);
+        continue;
+      }
+      const ContactNode& node = s.nodes[(size_t)k];
+      u = Um.row(k).transpose();
+      costs[k] = contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
+      contact_node_second(s, w, node, q, v, ev, Y, cone_active(s, node, ev));
+      L2 = Y.bottomRows(Y.rows() - nv);
+      contact_cost_curvature(s, w, k, q, v, &ev, &L2, Hs);
+      MatMap(Phi + (size_t)k * n * n, n, n) = ev.Fz.leftCols(n);
+      MatMap(B + (size_t)k * n * nu, n, nu) = ev.Fz.rightCols(nu);
+      VecMap(lx + (size_t)k * n, n) = g.head(n);
+      VecMap(lu + (size_t)k * nu, nu) = g.tail(nu);
+      MatMap(lxx + (size_t)k * n * n, n, n) = Hs.topLeftCorner(n, n);
+      MatMap(lux + (size_t)k * nu * n, nu, n) = Hs.bottomLeftCorner(nu, n);
+      MatMap(luu + (size_t)k * nu * nu, nu, nu) = Hs.bottomRightCorner(nu, nu);
+      if (node.impulse) {  // q+ = q: only v+'s rows
+        G2.topRows(nv).setZero();
+        G2.bottomRows(nv) = Y.topRows(nv);
+      } else {
+        // the semi-implicit Euler step q+ = q exp(dt v+), v+ = v + dt a (geoddp.models.integrators.expand)
+        omega = dt * ev.v_next;
+        lie::block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
+        W1 = ev.Fz.bottomRows(nv);
+        jr_times(groups, Jr, 1.0, W1, JW);
+        reconstruction_group_terms(groups, gs, dt, nv, Dt, A, W1, JW, G2, Ds, Mz, WDW);
+        G2.bottomRows(nv) = dt * Y.topRows(nv);  // v+'' = dt a''
+        jr_times(groups, Jr, dt, G2.bottomRows(nv), JF2);
+        G2.topRows(nv) += JF2;
+        symmetrise_rows(G2.data(), nv, nz);
+      }
+      double* Th = Theta + (size_t)k * n * n * n;
+      double* Ga = Gamma + (size_t)k * n * n * nu;
+      double* X = Xi + (size_t)k * n * nu * nu;
+      for (int i = 0; i < n; ++i) {
+        const double* g2 = G2.row(i).data();
+        for (int a = 0; a < n; ++a) {
+          for (int c = 0; c < n; ++c) Th[((size_t)i * n + a) * n + c] = g2[(size_t)a * nz + c];
+          for (int c = 0; c < nu; ++c) Ga[((size_t)i * n + a) * nu + c] = g2[(size_t)a * nz + n + c];
+        }
+        for (int a = 0; a < nu; ++a)
+          for (int c = 0; c < nu; ++c) X[((size_t)i * nu + a) * nu + c] = g2[(size_t)(n + a) * nz + n + c];
+      }
+    }
+  });
+}
+
+void contact_node_second_at(const ContactSetup& s, int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                            const Eigen::VectorXd& u, RowMat& Y, RowMat& Hs) {
+  ContactWork cw(*s.model);
+  ContactSecondWork w(s);
+  ContactEval ev;
+  Eigen::VectorXd g;
+  if (k == s.horizon()) {
+    contact_node_cost(s, cw, k, q, v, Eigen::VectorXd::Zero(s.nu()), nullptr, true, g, Hs);
+    contact_cost_curvature(s, w, k, q, v, nullptr, nullptr, Hs);
+    Y.resize(0, 0);
+    return;
+  }
+  contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
+  contact_node_second(s, w, s.nodes[(size_t)k], q, v, ev, Y, true);
+  const RowMat L2 = Y.bottomRows(Y.rows() - s.nv());
+  contact_cost_curvature(s, w, k, q, v, &ev, &L2, Hs);
+}
+
+}  // namespace dyn
+}  // namespace geoddp
