@@ -26,6 +26,7 @@ import pytest
 from oracle_legged import fd_second_order_node
 
 from geoddp.cli import EXIT_BAD_INPUT, main
+from geoddp.models.contact_compiled import build_kernel
 from geoddp.problem.contract import Trajectory
 from geoddp.problem.legged import GaitCosts, Node
 from geoddp.scene import parse_scene
@@ -214,6 +215,8 @@ def test_weights_zero_leave_the_problem_as_it_was(problems, anymal):
     J = python.node_costs(python.trajectory(U))
     for on, terminal in ((_with(p, base=BASE_W), True), (_with(p, force=FORCE_W), False)):
         assert not on.compiled
+        with pytest.raises(InputError, match="costs.base_placement" if terminal else "costs.force_regularisation"):
+            build_kernel(on)  # the kernel lacks the term: refused, not silently left out
         tr = on.trajectory(U)
         assert np.array_equal(tr.q, python.trajectory(U).q)
         diff = on.node_costs(tr) - J

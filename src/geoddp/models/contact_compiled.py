@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels import core as _core
+from ..validate import InputError
 
 __all__ = ["build_kernel"]
 
@@ -33,8 +34,18 @@ def _node(node) -> tuple:
 def build_kernel(problem):
     """The compiled twin (``geoddp._core.ContactKernel``) of ``problem``
     (:class:`geoddp.problem.legged.ContactProblem`): its robot, contact model, schedule and costs as
-    they are now."""
+    they are now. InputError ("problem") for a problem with terms the kernel does not have (flat
+    feet, a nonzero ``costs.base_placement`` or ``costs.force_regularisation``): those run the
+    Python node models (``ContactProblem.compiled`` is False for them)."""
     dyn, c = problem.dyn, problem.costs
+    # a kernel without terms the problem has would cost it wrongly without a word: refuse
+    missing = [name for name, present in (("flat feet (6D contacts)", bool(problem.flat_feet)),
+                                          ("costs.base_placement", bool(c.base_placement)),
+                                          ("costs.force_regularisation", bool(c.force_regularisation)))
+               if present]
+    if missing:
+        raise InputError("problem", f"the compiled kernel has point feet and Crocoddyl's gait costs only; this "
+                         f"problem has {', '.join(missing)}: run it with backend=\"python\"")
     Kp, Kd = dyn.gains
     weights = np.array([c.com, c.friction_cone, c.foot, c.state, c.control, c.bounds, c.impulse_foot,
                         c.impulse_state, c.impulse_control], dtype=np.float64)
