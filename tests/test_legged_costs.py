@@ -1,4 +1,4 @@
-"""The legged problems' base placement target and contact-force regularisation (issue 53).
+"""The legged problems' base placement target and contact-force regularisation.
 
 Two cost terms beyond Crocoddyl's gaits (geoddp.problem.legged.GaitCosts.base_placement,
 force_regularisation): on ANYmal (point feet) and Talos' legs (flat feet, 6D wrenches), at random
