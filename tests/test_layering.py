@@ -330,7 +330,7 @@ LAYERS: dict[str, int] = {
     "runtime": 0,     # arrays, the worker pool, the node split, recycled buffers
     "linalg": 1,      # the Riccati products (small_gemm) and Cholesky
     "lie": 1,         # SO(3)/SE(3) right Jacobians, joint groups, block-diagonal joint operators
-    "rigid_body": 2,  # Pinocchio-level recursions: ABA call, one-body tensors, kinetic and RNEA Hessians
+    "rigid_body": 2,  # Pinocchio-level: the wheel's algorithms, one-body tensors, kinetic and RNEA Hessians
     "costs": 2,       # cost terms over N nodes
     "tso3": 2,        # the satellite's closed forms
     "dynamics": 3,    # the integrators, rollouts, expansions, the factored second order
@@ -423,6 +423,35 @@ def test_only_the_bindings_include_python_and_the_avx2_build_includes_no_eigen()
                 ["linalg/small_gemm_impl.hpp"] if rel.endswith(".cpp") else []):
             found.append(f"{rel} includes more than the kernel")
     assert not found, found
+
+
+# Pinocchio's algorithms that the pin wheel compiles (PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION) and
+# rigid_body/pinocchio_compiled.hpp calls with the library's own template arguments. Called on
+# pinocchio:: directly, their arguments deduce to other types (VectorXd for Ref, Blocks, Maps) and
+# the algorithm is instantiated again over every joint type: what once made the core's unity file
+# take 15 minutes to compile.
+_WHEEL_ALGORITHMS = re.compile(
+    r"\bpinocchio::(forwardKinematics|computeForwardKinematicsDerivatives|computeJointJacobians|computeAllTerms|"
+    r"computeFrameJacobian|updateFramePlacements|getFrameJacobian|getFrameAccelerationDerivatives|"
+    r"getFrameVelocityDerivatives|centerOfMass|jacobianCenterOfMass|aba|crba|rnea|computeGeneralizedGravity|"
+    r"computeABADerivatives|computeRNEADerivatives|computeGeneralizedGravityDerivatives|integrate|difference|"
+    r"dIntegrate|dDifference|ComputeRNEASecondOrderDerivatives)\s*\(")
+
+
+def test_the_unity_file_calls_pinocchio_only_through_the_wheels_instantiations():
+    """In the files of dynamics/core_algorithms.cpp (dynamics/, rigid_body/, lie/), every call of a
+    Pinocchio algorithm goes through rigid_body/pinocchio_compiled.hpp (libpin::), and the
+    second-order RNEA only through rigid_body/pinocchio_second_order.cpp, its one instantiation."""
+    allowed = {"rigid_body/pinocchio_compiled.hpp", "rigid_body/pinocchio_second_order.cpp"}
+    found = []
+    for rel in cpp_sources():
+        if rel.split("/")[0] not in ("dynamics", "rigid_body", "lie") or rel in allowed:
+            continue
+        code = re.sub(r"//[^\n]*", "", (CPP / rel).read_text(encoding="utf-8"))
+        found += [f"{rel}: pinocchio::{m.group(1)}(" for m in _WHEEL_ALGORITHMS.finditer(code)]
+    assert not found, found
+    assert _WHEEL_ALGORITHMS.search("x = pinocchio::aba(m, d, q, v, tau);")  # the pattern can fail
+    assert not _WHEEL_ALGORITHMS.search("x = libpin::aba(m, d, q, v, tau);")
 
 
 def test_an_upward_or_sideways_cpp_include_and_a_circle_are_caught():

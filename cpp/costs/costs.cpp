@@ -241,10 +241,12 @@ namespace geoddp
       for (Eigen::Index k = 0; k < N; ++k)
       {
         q = Q.row(k).transpose();
+        // through Eigen::Ref: the wheel's compiled instantiations (rigid_body/pinocchio_compiled.hpp)
+        const Eigen::Ref<const Eigen::VectorXd> q_arg(q);
         if (derivatives)
-          pinocchio::computeJointJacobians(model, data, q);  // also the forward kinematics
+          pinocchio::computeJointJacobians(model, data, q_arg);  // also the forward kinematics
         else
-          pinocchio::forwardKinematics(model, data, q);
+          pinocchio::forwardKinematics(model, data, q_arg);
         const pinocchio::SE3 & oMf = pinocchio::updateFramePlacement(model, data, frame_id);
         if (derivatives)
         {
@@ -406,7 +408,7 @@ namespace geoddp
         for (int i = 0; i < g.nv; ++i)
           on_curved[g.idx_v + i] = 1;
 
-      Eigen::VectorXd q(model.nq), q0(model.nq), r(nx), w(nx), wq(nv);
+      Eigen::VectorXd q(model.nq), q0(model.nq), r(nx), w(nx), wq(nv), dq_full(nv);
       Eigen::MatrixXd JW(nv, nx), G(nv, nv), JD, Gs;  // JD, Gs: a curved block's (diagonal path)
       std::vector<Eigen::MatrixXd> Ji(curved.size());
       for (Eigen::Index k = 0; k < N; ++k)
@@ -414,7 +416,9 @@ namespace geoddp
         q = Q.row(k).transpose();
         q0 = q_ref.row(pick(q_ref.rows(), k)).transpose();
         auto dq = r.head(nv);
-        pinocchio::difference(model, q0, q, dq);
+        // into a VectorXd: the types of the wheel's compiled instantiation (rigid_body/pinocchio_compiled.hpp)
+        pinocchio::difference(model, q0, q, dq_full);
+        dq = dq_full;
         for (const auto & g : groups)
           if (g.kind == 1)
           {

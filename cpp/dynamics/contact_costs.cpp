@@ -10,6 +10,7 @@
 #include <algorithm>
 
 #include "dynamics/contact.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -66,7 +67,7 @@ double contact_node_cost(const ContactSetup& s, ContactWork& w, int k, const Eig
     if (derivatives) deriv(wt, r, nullptr, Jr, col);
   };
   auto add_state = [&](double wt, const Eigen::VectorXd& act) {
-    pinocchio::difference(m, s.q_ref, q, dq);
+    libpin::difference(m, s.q_ref, q, dq);
     Eigen::VectorXd rs(2 * nv);
     rs.head(nv) = dq;
     rs.tail(nv) = v - s.v_ref;
@@ -74,16 +75,17 @@ double contact_node_cost(const ContactSetup& s, ContactWork& w, int k, const Eig
     val += 0.5 * wt * rs.dot(ar);
     if (derivatives) {
       D.setZero();
-      pinocchio::dDifference(m, s.q_ref, q, D, pinocchio::ARG1);
+      libpin::dDifference(m, s.q_ref, q, D, pinocchio::ARG1);
       const Eigen::VectorXd aq = act.head(nv), av = act.tail(nv);
       deriv(wt, ar.head(nv), &aq, &D, 0);
       deriv(wt, ar.tail(nv), &av, nullptr, nv);
     }
   };
-  Eigen::MatrixXd Jf(6, nv), Jw(3, nv);
+  libpin::Matrix6x Jf(6, nv);
+  Eigen::MatrixXd Jw(3, nv);
   auto foot_jacobian = [&](int f) {
     Jf.setZero();
-    pinocchio::computeFrameJacobian(m, d, q, (pinocchio::FrameIndex)f, pinocchio::LOCAL, Jf);
+    libpin::computeFrameJacobian(m, d, q, (pinocchio::FrameIndex)f, pinocchio::LOCAL, Jf);
     Jw = d.oMf[(size_t)f].rotation() * Jf.topRows(3);
   };
   auto feet = [&](double wt) {
@@ -95,8 +97,8 @@ double contact_node_cost(const ContactSetup& s, ContactWork& w, int k, const Eig
     }
   };
 
-  pinocchio::forwardKinematics(m, d, q);
-  pinocchio::updateFramePlacements(m, d);
+  libpin::forwardKinematics(m, d, q);
+  libpin::updateFramePlacements(m, d);
   if (node.impulse && !terminal) {
     add_state(c.impulse_state, s.w_impulse);
     feet(c.impulse_foot);
@@ -106,23 +108,23 @@ double contact_node_cost(const ContactSetup& s, ContactWork& w, int k, const Eig
   add_state(c.state, s.w_state);
   {
     Eigen::VectorXd rb(2 * nv), ex, mask;
-    pinocchio::difference(m, s.q_neutral, q, dq);
+    libpin::difference(m, s.q_neutral, q, dq);
     rb.head(nv) = dq;
     rb.tail(nv) = v;
     barrier(rb, s.lb, s.ub, ex, mask);
     val += 0.5 * c.bounds * ex.dot(ex);
     if (derivatives) {
       D.setZero();
-      pinocchio::dDifference(m, s.q_neutral, q, D, pinocchio::ARG1);
+      libpin::dDifference(m, s.q_neutral, q, D, pinocchio::ARG1);
       const Eigen::VectorXd eq = ex.head(nv), mq = mask.head(nv), evv = ex.tail(nv), mv = mask.tail(nv);
       deriv(c.bounds, eq, &mq, &D, 0);
       deriv(c.bounds, evv, &mv, nullptr, nv);
     }
   }
   if (node.has_com) {
-    const Eigen::VectorXd r = pinocchio::centerOfMass(m, d, q) - node.com;
+    const Eigen::VectorXd r = libpin::centerOfMass(m, d, q) - node.com;
     if (derivatives) {
-      const Eigen::MatrixXd Jcom = pinocchio::jacobianCenterOfMass(m, d, q);
+      const Eigen::MatrixXd Jcom = libpin::jacobianCenterOfMass(m, d, q);
       add(c.com, r, &Jcom, 0);
     } else {
       add(c.com, r, nullptr, 0);

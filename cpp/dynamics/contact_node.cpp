@@ -13,6 +13,7 @@
 #include <Eigen/LU>
 
 #include "dynamics/contact.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -61,8 +62,8 @@ void contact_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   const int nv = m.nv, nu = nv - 6, nz = 2 * nv + nu;
   const int nf = (int)node.feet.size(), nc = 3 * nf;
   const double dt = s.dt, Kp = s.Kp, Kd = s.Kd;
-  pinocchio::computeAllTerms(m, d, q, v);
-  pinocchio::updateFramePlacements(m, d);
+  libpin::computeAllTerms(m, d, q, v);
+  libpin::updateFramePlacements(m, d);
   std::vector<Mat6x> J((size_t)nf);
   std::vector<Eigen::Matrix3d> R((size_t)nf);
   std::vector<pinocchio::Motion> vf((size_t)nf);
@@ -72,10 +73,10 @@ void contact_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   for (int i = 0; i < nf; ++i) {
     const pinocchio::FrameIndex f = (pinocchio::FrameIndex)node.feet[(size_t)i];
     J[i] = Mat6x::Zero(6, nv);
-    pinocchio::getFrameJacobian(m, d, f, pinocchio::LOCAL, J[i]);
+    libpin::getFrameJacobian(m, d, f, pinocchio::LOCAL, J[i]);
     R[i] = d.oMf[f].rotation();
-    vf[i] = pinocchio::getFrameVelocity(m, d, f, pinocchio::LOCAL);
-    Eigen::Vector3d a0 = pinocchio::getFrameClassicalAcceleration(m, d, f, pinocchio::LOCAL).linear();
+    vf[i] = libpin::getFrameVelocity(m, d, f, pinocchio::LOCAL);
+    Eigen::Vector3d a0 = libpin::getFrameClassicalAcceleration(m, d, f, pinocchio::LOCAL).linear();
     if (Kp != 0.0) {
       dp[i] = R[i].transpose() * d.oMf[f].translation();
       a0 += Kp * dp[i];
@@ -92,20 +93,20 @@ void contact_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
     a = d.ddq;
     ev.forces = d.lambda_c;
   } else {
-    a = pinocchio::aba(m, d, q, v, tau, pinocchio::Convention::LOCAL);
+    a = libpin::aba(m, d, q, v, tau);
     ev.forces.resize(0);
   }
   ev.acc = a;
   ev.v_next = v + a * dt;
   const Eigen::VectorXd step = v * dt + a * (dt * dt);
   ev.q_next.resize(m.nq);
-  pinocchio::integrate(m, q, step, ev.q_next);
+  libpin::integrate(m, q, step, ev.q_next);
   if (!derivatives) return;
 
   std::vector<Eigen::Vector3d> lam_local((size_t)nf);
   for (int i = 0; i < nf; ++i) lam_local[i] = R[i].transpose() * ev.forces.segment(3 * i, 3);
   const ForceVector fext = foot_forces(m, node.feet, lam_local);
-  pinocchio::computeRNEADerivatives(m, d, q, v, a, fext);
+  libpin::computeRNEADerivatives(m, d, q, v, a, fext);
   const Eigen::MatrixXd M = d.M;  // upper triangle
   RowMat rhs = RowMat::Zero(nv + nc, nz);
   rhs.block(0, 0, nv, nv) = d.dtau_dq;
@@ -113,14 +114,14 @@ void contact_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   rhs.block(6, 2 * nv, nu, nu) = -Eigen::MatrixXd::Identity(nu, nu);
   Eigen::MatrixXd Jl(nc, nv);
   if (nf > 0) {
-    pinocchio::computeForwardKinematicsDerivatives(m, d, q, v, a);
+    libpin::computeForwardKinematicsDerivatives(m, d, q, v, a);
     Mat6x V_dq(6, nv), A_dq(6, nv), A_dv(6, nv), A_da(6, nv);
     for (int i = 0; i < nf; ++i) {
       V_dq.setZero();
       A_dq.setZero();
       A_dv.setZero();
       A_da.setZero();
-      pinocchio::getFrameAccelerationDerivatives(m, d, (pinocchio::FrameIndex)node.feet[(size_t)i], pinocchio::LOCAL,
+      libpin::getFrameAccelerationDerivatives(m, d, (pinocchio::FrameIndex)node.feet[(size_t)i], pinocchio::LOCAL,
                                                  V_dq, A_dq, A_dv, A_da);
       const Eigen::Matrix3d Wx = skew3(vf[i].angular()), Vx = skew3(vf[i].linear());
       Eigen::MatrixXd h_q = A_dq.topRows(3) + Wx * V_dq.topRows(3) - Vx * V_dq.bottomRows(3);
@@ -144,8 +145,8 @@ void contact_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   RowMat dvn = dt * sol.topRows(nv);
   dvn.block(0, nv, nv, nv).diagonal().array() += 1.0;
   Eigen::MatrixXd Dq = Eigen::MatrixXd::Zero(nv, nv), Dw = Eigen::MatrixXd::Zero(nv, nv);
-  pinocchio::dIntegrate(m, q, step, Dq, pinocchio::ARG0);
-  pinocchio::dIntegrate(m, q, step, Dw, pinocchio::ARG1);
+  libpin::dIntegrate(m, q, step, Dq, pinocchio::ARG0);
+  libpin::dIntegrate(m, q, step, Dw, pinocchio::ARG1);
   ev.Fz.resize(2 * nv, nz);
   ev.Fz.topRows(nv) = dt * (Dw * dvn);
   ev.Fz.block(0, 0, nv, nv) += Dq;
@@ -159,15 +160,15 @@ void impulse_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   pinocchio::Data& d = w.data;
   const int nv = m.nv, nu = nv - 6, nz = 2 * nv + nu;
   const int nf = (int)node.feet.size(), nc = 3 * nf;
-  pinocchio::computeAllTerms(m, d, q, v);
-  pinocchio::updateFramePlacements(m, d);
+  libpin::computeAllTerms(m, d, q, v);
+  libpin::updateFramePlacements(m, d);
   std::vector<Mat6x> J((size_t)nf);
   std::vector<Eigen::Matrix3d> R((size_t)nf);
   Eigen::MatrixXd Jc(nc, nv);
   for (int i = 0; i < nf; ++i) {
     const pinocchio::FrameIndex f = (pinocchio::FrameIndex)node.feet[(size_t)i];
     J[i] = Mat6x::Zero(6, nv);
-    pinocchio::getFrameJacobian(m, d, f, pinocchio::LOCAL, J[i]);
+    libpin::getFrameJacobian(m, d, f, pinocchio::LOCAL, J[i]);
     R[i] = d.oMf[f].rotation();
     Jc.middleRows(3 * i, 3) = R[i] * J[i].topRows(3);
   }
@@ -183,21 +184,21 @@ void impulse_node(const ContactSetup& s, ContactWork& w, const ContactNode& node
   const ForceVector fext = foot_forces(m, node.feet, imp_local);
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
   const Eigen::VectorXd jump = ev.v_next - v;
-  pinocchio::computeRNEADerivatives(m, d, q, zero, jump, fext);
+  libpin::computeRNEADerivatives(m, d, q, zero, jump, fext);
   const Eigen::MatrixXd dtau_dq = d.dtau_dq;
   const Eigen::MatrixXd M = d.M;  // upper triangle
   Eigen::MatrixXd dg_dq = Eigen::MatrixXd::Zero(nv, nv);
-  pinocchio::computeGeneralizedGravityDerivatives(m, d, q, dg_dq);
+  libpin::computeGeneralizedGravityDerivatives(m, d, q, dg_dq);
   RowMat rhs = RowMat::Zero(nv + nc, nz);
   rhs.block(0, 0, nv, nv) = dtau_dq - dg_dq;
   rhs.block(0, nv, nv, nv) = -Eigen::MatrixXd(M.selfadjointView<Eigen::Upper>());
-  pinocchio::computeForwardKinematicsDerivatives(m, d, q, ev.v_next, zero);
+  libpin::computeForwardKinematicsDerivatives(m, d, q, ev.v_next, zero);
   Eigen::MatrixXd Jl(nc, nv);
   Mat6x v_dq(6, nv), v_dv(6, nv);
   for (int i = 0; i < nf; ++i) {
     v_dq.setZero();
     v_dv.setZero();
-    pinocchio::getFrameVelocityDerivatives(m, d, (pinocchio::FrameIndex)node.feet[(size_t)i], pinocchio::LOCAL, v_dq,
+    libpin::getFrameVelocityDerivatives(m, d, (pinocchio::FrameIndex)node.feet[(size_t)i], pinocchio::LOCAL, v_dq,
                                            v_dv);
     Jl.middleRows(3 * i, 3) = J[i].topRows(3);
     rhs.block(nv + 3 * i, 0, 3, nv) = v_dq.topRows(3);

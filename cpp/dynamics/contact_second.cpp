@@ -29,6 +29,8 @@
 #include "dynamics/reconstruction.hpp"
 #include "lie/joint_blocks.hpp"
 #include "linalg/small_gemm.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
+#include "rigid_body/pinocchio_second_order.hpp"
 #include "runtime/parallel.hpp"
 
 namespace geoddp {
@@ -43,7 +45,7 @@ struct Rnea2 {
   explicit Rnea2(int n) : nv(n), qq((size_t)n * n * n), vv(qq.size()), qv(qq.size()), aq(qq.size()) {}
   void at(const pinocchio::Model& m, pinocchio::Data& d, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
           const Eigen::VectorXd& a) {
-    pinocchio_second_order(m, d, q, v, a, qq.data(), vv.data(), qv.data(), aq.data());
+    libpin::rnea_second_order_tensors(m, d, q, v, a, qq.data(), vv.data(), qv.data(), aq.data());
   }
   static double get(const std::vector<double>& T, int nv, int i, int j, int k) {
     return T[(size_t)i + (size_t)nv * ((size_t)j + (size_t)nv * k)];
@@ -112,8 +114,8 @@ void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
     const size_t idx = w.foot_index.at(feet[(size_t)i]);
     const pinocchio::Model& mf = w.foot[idx];
     pinocchio::Data& df = w.foot_data[idx];
-    const Eigen::Vector3d W = pinocchio::rnea(mf, df, q, v, a).head<3>();
-    pinocchio::computeRNEADerivatives(mf, df, q, v, a);
+    const Eigen::Vector3d W = libpin::rnea(mf, df, q, v, a).head<3>();
+    libpin::computeRNEADerivatives(mf, df, q, v, a);
     const Eigen::MatrixXd Wq = df.dtau_dq.topRows(3), Wv = df.dtau_dv.topRows(3);
     const Eigen::MatrixXd Wa = Eigen::MatrixXd(df.M.selfadjointView<Eigen::Upper>()).topRows(3);
     T.at(mf, df, q, v, a);
@@ -275,7 +277,7 @@ void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const Cont
         }
     }
   }
-  pinocchio::crba(m, w.data, q);
+  libpin::crba(m, w.data, q);
   const Eigen::MatrixXd M = w.data.M.selfadjointView<Eigen::Upper>();
   RowMat Y1(ny, ev.Az.cols());
   Y1.topRows(nv) = ev.Az;
@@ -322,7 +324,7 @@ void gravity_curvature(pinocchio::Model& model, pinocchio::Data& data, const Eig
   const pinocchio::Motion g0 = model.gravity;
   model.gravity = pinocchio::Motion(-force, Eigen::Vector3d::Zero());
   Eigen::MatrixXd dg = Eigen::MatrixXd::Zero(model.nv, model.nv);
-  pinocchio::computeGeneralizedGravityDerivatives(model, data, q, dg);
+  libpin::computeGeneralizedGravityDerivatives(model, data, q, dg);
   model.gravity = g0;
   out += weight * 0.5 * (dg + dg.transpose());
 }
@@ -348,11 +350,11 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
   const ContactNode& node = s.nodes[(size_t)k];
   const GaitWeights& c = s.w;
   const std::vector<JointGroup> groups = joint_groups(m);
-  pinocchio::forwardKinematics(m, d, q);
-  pinocchio::updateFramePlacements(m, d);
+  libpin::forwardKinematics(m, d, q);
+  libpin::updateFramePlacements(m, d);
   Eigen::MatrixXd curv = Eigen::MatrixXd::Zero(nv, nv);
   Eigen::VectorXd rq(nv);
-  pinocchio::difference(m, s.q_ref, q, rq);
+  libpin::difference(m, s.q_ref, q, rq);
   auto feet = [&](double weight) {
     for (size_t i = 0; i < node.swing.size(); ++i) {
       const size_t idx = w.foot_index.at(node.swing[i]);
@@ -369,7 +371,7 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
   difference_curvature(groups, rq, s.w_state.head(nv).cwiseProduct(rq), c.state, curv);
   if (c.bounds != 0.0) {
     Eigen::VectorXd rb(nv), ex(nv);
-    pinocchio::difference(m, s.q_neutral, q, rb);
+    libpin::difference(m, s.q_neutral, q, rb);
     bool any = false;
     for (int i = 0; i < nv; ++i) {
       ex[i] = excess(rb[i], s.lb[i], s.ub[i]);
@@ -378,8 +380,8 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
     if (any) difference_curvature(groups, rb, ex, c.bounds, curv);
   }
   if (node.has_com) {
-    const Eigen::Vector3d r = pinocchio::centerOfMass(m, d, q) - node.com;
-    gravity_curvature(w.zero_gravity, w.zero_data, q, r / pinocchio::computeTotalMass(m), c.com, curv);
+    const Eigen::Vector3d r = libpin::centerOfMass(m, d, q) - node.com;
+    gravity_curvature(w.zero_gravity, w.zero_data, q, r / libpin::computeTotalMass(m), c.com, curv);
   }
   feet(c.foot);
   Hs.topLeftCorner(nv, nv) += (terminal ? 1.0 : s.dt) * curv;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "dynamics/contact.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 #include "runtime/parallel.hpp"
 
 namespace geoddp {
@@ -67,7 +68,7 @@ bool contact_rollout_closed_loop(const ContactSetup& s, const double* Qbar, cons
       u.setZero();
     } else {
       qb = Qb.row(k).transpose();
-      pinocchio::difference(m, qb, q, dq);
+      libpin::difference(m, qb, q, dq);
       zeta.head(nv) = dq;
       zeta.tail(nv) = v - Vb.row(k).transpose();
       CMatMap Kk(K + (size_t)k * nu * n, nu, n);

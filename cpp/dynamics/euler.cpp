@@ -5,12 +5,12 @@
 #include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
-#include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
 
 #include <algorithm>
 #include <stdexcept>
 
-#include "rigid_body/aba_compiled.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
+#include "rigid_body/pinocchio_second_order.hpp"
 #include "runtime/parallel.hpp"
 
 namespace geoddp {
@@ -19,10 +19,10 @@ namespace dyn {
 void euler_step(const Setup& s, pinocchio::Data& data, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                 const Eigen::VectorXd& tau, Eigen::VectorXd& q1, Eigen::VectorXd& v1) {
   const Model& model = *s.model;
-  geoddp::aba(model, data, q, v, tau);
+  libpin::aba(model, data, q, v, tau);
   v1 = v + s.dt * data.ddq;
   const Eigen::VectorXd w = s.dt * (s.integrator == SEMI_IMPLICIT ? v1 : v);
-  pinocchio::integrate(model, q, w, q1);
+  libpin::integrate(model, q, w, q1);
 }
 
 static PairIndex active_pairs(int nv, int nz) {
@@ -56,7 +56,7 @@ void node_derivatives(const Setup& s, NodeWork& w, double* F1, bool second) {
   const double dt = s.dt;
   CMatMap Hm(s.H, nv, m);
   pinocchio::Data& data = w.data;
-  pinocchio::computeABADerivatives(model, data, w.q, w.v, w.tau);
+  libpin::computeABADerivatives(model, data, w.q, w.v, w.tau);
   w.Minv = data.Minv;
   w.Minv.triangularView<Eigen::StrictlyLower>() = w.Minv.transpose();
   w.aq = data.ddq_dq;
@@ -74,7 +74,8 @@ void node_derivatives(const Setup& s, NodeWork& w, double* F1, bool second) {
     w.one_body->at(w.q.data(), data.d2tau_dqdq.data(), data.d2tau_dvdv.data(), data.d2tau_dqdv.data(),
                    data.d2tau_dadq.data());
   else
-    pinocchio::ComputeRNEASecondOrderDerivatives(model, data, w.q, w.v, w.a);
+    libpin::rnea_second_order_tensors(model, data, w.q, w.v, w.a, data.d2tau_dqdq.data(), data.d2tau_dvdv.data(),
+                                      data.d2tau_dqdv.data(), data.d2tau_dadq.data());
   const auto& Iqq = data.d2tau_dqdq;
   const auto& Ivv = data.d2tau_dvdv;
   const auto& Iqv = data.d2tau_dqdv;
@@ -138,21 +139,6 @@ std::unique_ptr<OneBodySecondOrder> one_body_for(const Model& model, bool second
 
 bool one_body_applies(const Model& model) { return OneBodySecondOrder::applies(model); }
 
-// Pinocchio's second-order RNEA tensors at (q, v, a), written straight into Iqq, Ivv, Iqv, dM
-// (nv^3 each, its column-major layout): Pinocchio's overload with output tensors, here maps of
-// the caller's buffers, zeroed first as its own overload zeroes data's (the recursion writes only
-// the entries the kinematic tree couples): no copy of 4 nv^3 doubles per node out of data.
-void pinocchio_second_order(const Model& model, pinocchio::Data& data, const Eigen::VectorXd& q,
-                            const Eigen::VectorXd& v, const Eigen::VectorXd& a, double* Iqq, double* Ivv,
-                            double* Iqv, double* dM) {
-  typedef Eigen::TensorMap<Eigen::Tensor<double, 3>> TensorMap;
-  const Eigen::Index nv = model.nv;
-  const size_t n3 = (size_t)nv * nv * nv;
-  for (double* X : {Iqq, Ivv, Iqv, dM}) std::fill(X, X + n3, 0.0);
-  TensorMap tqq(Iqq, nv, nv, nv), tvv(Ivv, nv, nv, nv), tqv(Iqv, nv, nv, nv), tdm(dM, nv, nv, nv);
-  pinocchio::ComputeRNEASecondOrderDerivatives(model, data, q, v, a, tqq, tvv, tqv, tdm);
-}
-
 void rnea_second_order(const Model& model, const double* q, const double* v, const double* a, bool one_body,
                        double* Iqq, double* Ivv, double* Iqv, double* dM) {
   if (one_body) {
@@ -162,8 +148,8 @@ void rnea_second_order(const Model& model, const double* q, const double* v, con
     return;
   }
   pinocchio::Data data(model);
-  pinocchio_second_order(model, data, CVecMap(q, model.nq), CVecMap(v, model.nv), CVecMap(a, model.nv), Iqq, Ivv,
-                         Iqv, dM);
+  libpin::rnea_second_order_tensors(model, data, CVecMap(q, model.nq), CVecMap(v, model.nv), CVecMap(a, model.nv), Iqq,
+                                    Ivv, Iqv, dM);
 }
 
 static void node_velocity_derivatives(const Setup& s, NodeWork& w, double* F1, double* F2) {

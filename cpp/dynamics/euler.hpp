@@ -65,12 +65,6 @@ void node_derivatives(const Setup& s, NodeWork& w, double* F1, bool second);
 // spherical root and the second order is wanted, else null.
 std::unique_ptr<OneBodySecondOrder> one_body_for(const Model& model, bool second);
 
-// Pinocchio's second-order RNEA tensors at (q, v, a) into Iqq, Ivv, Iqv, dM (nv^3 each, Pinocchio's
-// column-major layout; data is scratch).
-void pinocchio_second_order(const Model& model, pinocchio::Data& data, const Eigen::VectorXd& q,
-                            const Eigen::VectorXd& v, const Eigen::VectorXd& a, double* Iqq, double* Ivv,
-                            double* Iqv, double* dM);
-
 // Derivatives of v+ = v + dt aba(q, v, H u) w.r.t. z at N nodes: Q (N, nq), V (N, nv), U (N, m)
 // -> F1 (N, nv, nz), and for order 2 F2 (N, nv, nz, nz), the symmetric (0)-Hessian (exact: from
 // computeABADerivatives and ComputeRNEASecondOrderDerivatives, no differences). For the tests.

@@ -24,6 +24,7 @@
 #include "lie/joint_blocks.hpp"
 #include "lie/right_jacobians.hpp"
 #include "linalg/small_gemm.hpp"
+#include "rigid_body/pinocchio_second_order.hpp"
 #include "rigid_body/rnea_hessian.hpp"
 #include "runtime/parallel.hpp"
 
@@ -239,8 +240,8 @@ void expansion_contracted(const Setup& s, const double* Q, const double* V, cons
           rnea_hessian_node(model, *rw, w.q.data(), w.v.data(), w.a.data(),
                             t.rnea.data() + (size_t)k * rnea_hessian_node_size(model));
         } else {
-          pinocchio_second_order(model, w.data, w.q, w.v, w.a, t.Iqq.data() + k * n3, t.Ivv.data() + k * n3,
-                                 t.Iqv.data() + k * n3, t.dM.data() + k * n3);
+          libpin::rnea_second_order_tensors(model, w.data, w.q, w.v, w.a, t.Iqq.data() + k * n3, t.Ivv.data() + k * n3,
+                                            t.Iqv.data() + k * n3, t.dM.data() + k * n3);
         }
         MatMap(t.Minv.data() + (size_t)k * nv * nv, nv, nv) = w.Minv;
         if (!t.one_body) {

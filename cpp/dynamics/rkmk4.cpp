@@ -1,6 +1,5 @@
 // RKMK4 step and derivatives (see dynamics/rkmk4.hpp; twin of the tests' oracle tests/oracle_rkmk4.py).
 #include "dynamics/rkmk4.hpp"
-#include "rigid_body/aba_compiled.hpp"
 
 #include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
@@ -9,6 +8,7 @@
 
 #include "lie/joint_blocks.hpp"
 #include "lie/right_jacobians.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -69,13 +69,13 @@ void rk4_step(const Model& model, pinocchio::Data& data, const std::vector<Joint
     }
     block_jacobians(groups, w.theta, nullptr, w.Jr, w.Jinv);
     w.kth.noalias() = w.Jinv * w.vi;
-    pinocchio::integrate(model, q, w.theta, w.qi);
-    w.kv = geoddp::aba(model, data, w.qi, w.vi, tau);
+    libpin::integrate(model, q, w.theta, w.qi);
+    w.kv = libpin::aba(model, data, w.qi, w.vi, tau);
     w.thSum += W_STAGE[i] * w.kth;
     w.vSum += W_STAGE[i] * w.kv;
   }
   w.step = (h / 6.0) * w.thSum;
-  pinocchio::integrate(model, q, w.step, q1);
+  libpin::integrate(model, q, w.step, q1);
   v1 = v + (h / 6.0) * w.vSum;
 }
 
@@ -102,12 +102,12 @@ void rk4_jacobian(const Setup& s, const std::vector<JointGroup>& groups, Rk4Work
       w.Th = ch * w.Kth;
       w.Vi = w.Pv + ch * w.Kv;
     }
-    pinocchio::integrate(model, q, w.theta, w.qi);
+    libpin::integrate(model, q, w.theta, w.qi);
     block_jacobians(groups, w.theta, &w.A, w.Jr, w.Jinv);
     // tangent of q_i = q exp(dq) exp(theta_i) at q_i: Ad_exp(-theta_i) dq + Jr dtheta_i
     w.Qtan.noalias() = w.Jr * w.Th;
     w.Qtan.leftCols(nv) += w.A;
-    pinocchio::computeABADerivatives(model, data, w.qi, w.vi, tau);
+    libpin::computeABADerivatives(model, data, w.qi, w.vi, tau);
     w.Minv = data.Minv;
     w.Minv.triangularView<Eigen::StrictlyLower>() = w.Minv.transpose();
     w.Kv.noalias() = data.ddq_dq * w.Qtan;
@@ -156,7 +156,7 @@ void rk4_node_expansion(const Setup& s, const std::vector<JointGroup>& groups, R
       if (j < nv) {
         w.vd.setZero();
         w.vd[j] = e;
-        pinocchio::integrate(model, q, w.vd, w.qd);
+        libpin::integrate(model, q, w.vd, w.qd);
         qa = &w.qd;
       } else if (j < n) {
         w.vd = v;

@@ -12,6 +12,7 @@
 #include "dynamics/euler.hpp"
 #include "dynamics/rkmk4.hpp"
 #include "dynamics/variational.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -69,7 +70,7 @@ void rollout(const Setup& s, const double* q0, const double* v0, const double* U
 // difference(q0, q1) with exact SO(2) entries (geoddp.lie.product.difference).
 static void difference(const Model& model, const std::vector<JointGroup>& groups, const Eigen::VectorXd& q0,
                        const Eigen::VectorXd& q1, Eigen::VectorXd& d) {
-  pinocchio::difference(model, q0, q1, d);
+  libpin::difference(model, q0, q1, d);
   for (const JointGroup& g : groups) {
     if (g.kind != SO2) continue;
     const double c0 = q0[g.idx_q], s0 = q0[g.idx_q + 1], c1 = q1[g.idx_q], s1 = q1[g.idx_q + 1];

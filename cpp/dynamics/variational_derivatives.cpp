@@ -15,6 +15,7 @@
 
 #include "dynamics/variational_fixed.hpp"
 #include "dynamics/variational_residual.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 #include "runtime/parallel.hpp"
 
 namespace geoddp {
@@ -69,7 +70,7 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   const Mat M = vm.M_body;
   const Vec omega = dt * Vec(v), x1 = -dt * Vec(y);
   w.omega = omega;
-  pinocchio::integrate(*vm.model, q, w.omega, w.qn);
+  libpin::integrate(*vm.model, q, w.omega, w.qn);
   Mat Jv;
   const Mat Jdv = -phi_jacobian<N>(M, Vec(v), dt, &Jv);
   const typename L::Coef k1 = L::coefficients(x1);
@@ -80,7 +81,7 @@ void one_body_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
     w.J.leftCols(N).setZero();
   } else {
     w.T.setZero();
-    pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, w.qn, w.T);
+    libpin::computeGeneralizedGravityDerivatives(*vm.model, w.data, w.qn, w.T);
     Sq = dt * Mat(w.T);
     const Mat A = L::ad_exp_minus(omega);
     w.A = A;

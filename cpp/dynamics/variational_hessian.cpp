@@ -14,6 +14,7 @@
 
 #include "dynamics/variational_fixed.hpp"
 #include "lie/joint_blocks.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -302,7 +303,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   const int rot0 = root == 6 ? 3 : 0;  // the root's rotation directions: rot0 .. root - 1
   if (root > 0 && !vm.gravity_free) {
     VariationalNodeWork::TurnedGravity& tg = *nw.turned;
-    pinocchio::forwardKinematics(tg.model, tg.data, L.qn);
+    libpin::forwardKinematics(tg.model, tg.data, L.qn);
     const Eigen::Matrix3d W = tg.data.oMi[1].rotation();
     const Eigen::Vector3d g = vm.model->gravity.linear();
     for (int k = 0; k < root; ++k) {
@@ -311,7 +312,7 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
       if (k < rot0) continue;
       tg.model.gravity.linear() = g.cross(W.col(k - rot0));
       w.T.setZero();
-      pinocchio::computeGeneralizedGravityDerivatives(tg.model, tg.data, L.qn, w.T);
+      libpin::computeGeneralizedGravityDerivatives(tg.model, tg.data, L.qn, w.T);
       L.dSq[k] = dt * w.T;
     }
   }
@@ -344,11 +345,11 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
     L.dRy[k].noalias() -= dt * dD.transpose();
     nw.e.setZero();
     nw.e[k] = h;
-    pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
+    libpin::integrate(model, L.qn, nw.e.head(nv), nw.qp);
     lagrangian_hessian(vm, w, nw.qp, y);
     nw.Hp = w.Hk;
     nw.e[k] = -h;
-    pinocchio::integrate(model, L.qn, nw.e.head(nv), nw.qp);
+    libpin::integrate(model, L.qn, nw.e.head(nv), nw.qp);
     lagrangian_hessian(vm, w, nw.qp, y);
     block_transpose_times(vm.groups, K1, dD, L.dSq[k]);
     L.dSq[k] -= (dt / (2.0 * h)) * (nw.Hp - w.Hk);
@@ -362,11 +363,11 @@ void residual_hessians(const VariationalModel& vm, VariationalNodeWork& nw, cons
   auto difference_along = [&](int j, Keep keep) {
     nw.e.setZero();
     nw.e[j] = h;
-    pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
+    libpin::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
     residual_jacobian(vm, w, nw.qp, nw.vp, y, w.Jp, keep);
     nw.e = -nw.e;
-    pinocchio::integrate(model, q, nw.e.head(nv), nw.qp);
+    libpin::integrate(model, q, nw.e.head(nv), nw.qp);
     nw.vp = v + nw.e.tail(nv);
     residual_jacobian(vm, w, nw.qp, nw.vp, y, nw.Jm, keep);
     nw.Tj = (w.Jp - nw.Jm) / (2.0 * h);

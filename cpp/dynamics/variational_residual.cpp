@@ -11,6 +11,7 @@
 #include <pinocchio/algorithm/rnea.hpp>
 
 #include "lie/joint_blocks.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -89,7 +90,7 @@ void lagrangian_hessian(const VariationalModel& vm, VariationalWork& w, const Ei
   }
   w.T.resize(nv, nv);  // reuse as the gravity derivative's buffer
   w.T.setZero();
-  pinocchio::computeGeneralizedGravityDerivatives(*vm.model, w.data, q, w.T);
+  libpin::computeGeneralizedGravityDerivatives(*vm.model, w.data, q, w.T);
   w.Hk = w.Hkin - w.T;
 }
 
@@ -114,14 +115,14 @@ void residual_jacobian(const VariationalModel& vm, VariationalWork& w, const Eig
   // one body without gravity: Sq = 0 and R_y fixed, so q+ and Ad_exp(-dt v) are not needed
   const bool fixed = keep.lin && keep.lin->fixed, Sq_zero = fixed && keep.lin->Sq_zero;
   w.omega = dt * v;
-  if (!fixed) pinocchio::integrate(model, q, w.omega, w.qn);
+  if (!fixed) libpin::integrate(model, q, w.omega, w.qn);
   if (!keep_v) block_jacobians(vm.groups, w.omega, Sq_zero ? nullptr : &w.A, w.Jv, w.K0);  // Ad_exp(-dt v), Jr(dt v), K(dt v)
   if (keep.lin) {
     const QplusLinear& L = *keep.lin;
     w.Sq = L.Sq0;
     w.Ry = L.Ry0;
     if (!fixed) {
-      pinocchio::difference(model, L.qn, w.qn, w.xi);
+      libpin::difference(model, L.qn, w.qn, w.xi);
       for (int k = 0; k < nv; ++k) {
         if (!L.dSq_zero[k]) w.Sq += w.xi[k] * L.dSq[k];
         if (!L.dRy_zero[k]) w.Ry += w.xi[k] * L.dRy[k];

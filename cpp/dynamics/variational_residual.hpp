@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "dynamics/variational.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -17,7 +18,7 @@ namespace var {
 
 // M(q), full (both triangles).
 inline void mass(const VariationalModel& vm, VariationalWork& w, const Eigen::VectorXd& q, Eigen::MatrixXd& M) {
-  pinocchio::crba(*vm.model, w.data, q);
+  libpin::crba(*vm.model, w.data, q);
   M = w.data.M;
   M.triangularView<Eigen::StrictlyLower>() = M.transpose();
 }

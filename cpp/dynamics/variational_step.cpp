@@ -16,7 +16,7 @@
 
 #include "dynamics/variational_fixed.hpp"
 #include "dynamics/variational_residual.hpp"
-#include "rigid_body/aba_compiled.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 #include "rigid_body/one_body.hpp"
 
 namespace geoddp {
@@ -68,12 +68,12 @@ void one_body_step(const VariationalModel& vm, VariationalWork& w, const Eigen::
   const Model& model = *vm.model;
   const double dt = vm.dt;
   w.omega = dt * v;
-  pinocchio::integrate(model, q, w.omega, w.qn);
+  libpin::integrate(model, q, w.omega, w.qn);
   const Mat M = vm.M_body;  // = M(q) = M(q+)
   const Vec v0 = v;
   const Vec x0 = dt * v0;
   Vec c0 = -(L::inverse(L::jr(x0, L::coefficients(x0))).transpose() * (M * v0)) - dt * Vec(tau);
-  if (!vm.gravity_free) c0 += dt * Vec(pinocchio::computeGeneralizedGravity(model, w.data, w.qn));
+  if (!vm.gravity_free) c0 += dt * Vec(libpin::computeGeneralizedGravity(model, w.data, w.qn));
   // R(y) with K = Jr(-dt y)^-1 and Jr's coefficients at -dt y, which the Newton Jacobian reuses
   typedef typename L::Coef Coef;
   auto residual = [&](const Vec& y, Mat& K, Coef& k) -> Vec {
@@ -84,7 +84,7 @@ void one_body_step(const VariationalModel& vm, VariationalWork& w, const Eigen::
   };
   Mat K, Kt, Kv;
   Coef k, kt, kv;
-  Vec y = v0 + dt * Vec(geoddp::aba(model, w.data, w.qn, v, tau));
+  Vec y = v0 + dt * Vec(libpin::aba(model, w.data, w.qn, v, tau));
   Vec r = residual(y, K, k);
   const Vec r0 = residual(v0, Kv, kv);
   if (!r.allFinite() || r0.norm() < r.norm()) {
@@ -135,7 +135,7 @@ VariationalModel::VariationalModel(const Model& model_, const double* H_, int m_
       for (int d = 0; d < g.nv; ++d) flat_dof[g.idx_v + d] = 1;
   if (configuration_free) {  // M does not depend on q: computed once here, not once per step
     pinocchio::Data data(model_);
-    pinocchio::crba(model_, data, pinocchio::neutral(model_));
+    libpin::crba(model_, data, libpin::neutral(model_));
     M_body = data.M;
     M_body.triangularView<Eigen::StrictlyLower>() = M_body.transpose();
   }
@@ -165,7 +165,7 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   const Model& model = *vm.model;
   const double dt = vm.dt;
   w.omega = dt * v;
-  pinocchio::integrate(model, q, w.omega, w.qn);
+  libpin::integrate(model, q, w.omega, w.qn);
   // b = K(dt v)^T M(q) v + dt tau: the y-independent part of R
   Kmat(vm, w, w.omega, w.K0);
   mass(vm, w, q, w.M0);
@@ -174,11 +174,11 @@ void variational_step(const VariationalModel& vm, VariationalWork& w, const Eige
   w.b += dt * tau;
   mass(vm, w, w.qn, w.M1);
   if (vm.gravity_free) w.g1.setZero();  // no gravity: no Pinocchio call
-  else w.g1 = pinocchio::computeGeneralizedGravity(model, w.data, w.qn);
+  else w.g1 = libpin::computeGeneralizedGravity(model, w.data, w.qn);
   // Start from the better of v and the explicit (symplectic) Euler velocity; damped Newton
   // (backtracking on |R|) keeps stiff light links from throwing the iteration off.
   Eigen::VectorXd& y = w.y;
-  y = v + dt * geoddp::aba(model, w.data, w.qn, v, tau);
+  y = v + dt * libpin::aba(model, w.data, w.qn, v, tau);
   residual_at(vm, w, w.qn, y, w.r, w.K1);
   residual_at(vm, w, w.qn, v, w.r0, w.Kx);
   if (!w.r.allFinite() || w.r0.norm() < w.r.norm()) {

@@ -2,6 +2,7 @@
 // spatial-vector recursions (rigid_body/kinetic_hessian.hpp).
 // Included by dynamics/core_algorithms.cpp (the translation unit of Pinocchio's algorithm instantiations).
 #include "rigid_body/kinetic_hessian.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 #include "rigid_body/spatial.hpp"
 
 #include <pinocchio/algorithm/jacobian.hpp>
@@ -26,7 +27,7 @@ void subtree_terms(const pinocchio::Model& model, pinocchio::Data& data, Kinetic
                    const Eigen::VectorXd& q, const Eigen::VectorXd& y) {
   const int nj = model.njoints;
   if (!(w.data_kin == &data && w.q_kin.size() == q.size() && w.q_kin == q)) {
-    pinocchio::computeJointJacobians(model, data, q);
+    libpin::computeJointJacobians(model, data, q);
     // world inertias, and the subtrees' composites (backward)
     for (int j = 1; j < nj; ++j) {
       w.Iw[j] = data.oMi[j].act(model.inertias[j]);

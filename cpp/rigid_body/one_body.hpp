@@ -20,7 +20,6 @@
 #pragma once
 
 #include <pinocchio/algorithm/joint-configuration.hpp>
-#include <pinocchio/algorithm/rnea-second-order-derivatives.hpp>
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Geometry>
@@ -29,6 +28,8 @@
 #include <vector>
 
 #include "lie/joint_groups.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
+#include "rigid_body/pinocchio_second_order.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -59,12 +60,13 @@ class OneBodySecondOrder {
     pinocchio::Model unit = model;
     unit.jointPlacements[1] = pinocchio::SE3::Identity();
     pinocchio::Data data(unit);
-    const Eigen::VectorXd q0 = pinocchio::neutral(unit), zero = Eigen::VectorXd::Zero(nv_);
+    const Eigen::VectorXd q0 = libpin::neutral(unit), zero = Eigen::VectorXd::Zero(nv_);
     Ivv_.resize(n3);
     for (int c = 0; c < 3; ++c) {
       unit.gravity.setZero();
       unit.gravity.linear()[c] = 1.0;
-      pinocchio::ComputeRNEASecondOrderDerivatives(unit, data, q0, zero, zero);
+      libpin::rnea_second_order_tensors(unit, data, q0, zero, zero, data.d2tau_dqdq.data(), data.d2tau_dvdv.data(),
+                                        data.d2tau_dqdv.data(), data.d2tau_dadq.data());
       if (c == 0) std::copy(data.d2tau_dvdv.data(), data.d2tau_dvdv.data() + n3, Ivv_.data());
       if (!with_gravity_) break;
       T_[c].assign(data.d2tau_dqdq.data(), data.d2tau_dqdq.data() + n3);

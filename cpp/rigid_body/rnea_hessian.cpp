@@ -1,6 +1,7 @@
 // RNEA's second derivatives contracted with mu by a spatial-vector recursion (rigid_body/rnea_hessian.hpp).
 // Included by dynamics/core_algorithms.cpp (the translation unit of Pinocchio's algorithm instantiations).
 #include "rigid_body/rnea_hessian.hpp"
+#include "rigid_body/pinocchio_compiled.hpp"
 #include "rigid_body/spatial.hpp"
 
 #include <pinocchio/algorithm/jacobian.hpp>
@@ -70,7 +71,7 @@ void rnea_hessian_node(const pinocchio::Model& model, RneaHessianWork& w, const 
   const int nj = model.njoints, nv = model.nv;
   const Eigen::Map<const Eigen::VectorXd> q(q_, model.nq), v(v_, nv), a(a_, nv);
   pinocchio::Data& data = w.data;
-  pinocchio::computeJointJacobians(model, data, q);
+  libpin::computeJointJacobians(model, data, q);
   const pinocchio::Data::Matrix6x& X = data.J;  // world columns xi
   const NodeView n{node, nj};
   std::fill(node, node + 132, 0.0);  // the universe: V = 0, no inertia, A = -g
