@@ -394,7 +394,8 @@ def test_the_cpp_tree_is_read():
     assert {"bindings/module.cpp", "dynamics/euler.cpp", "lie/joint_blocks.hpp", "riccati/contracted.cpp"} <= set(graph)
     assert "dynamics/second_order_terms.hpp" in graph["riccati/contracted.hpp"]
     assert "lie/joint_groups.hpp" in graph["lie/joint_blocks.hpp"]
-    assert "dynamics/euler.cpp" in graph["dynamics/core_algorithms.cpp"]  # the unity file's .cpp includes
+    assert "dynamics/euler.cpp" in graph["dynamics/core_algorithms.cpp"]  # the unity files' .cpp includes
+    assert "dynamics/contact_second.cpp" in graph["dynamics/contact_algorithms.cpp"]
 
 
 def test_no_upward_include_no_circle_every_file_in_a_layer():
@@ -438,8 +439,8 @@ _WHEEL_ALGORITHMS = re.compile(
     r"dIntegrate|dDifference|ComputeRNEASecondOrderDerivatives)\s*\(")
 
 
-def test_the_unity_file_calls_pinocchio_only_through_the_wheels_instantiations():
-    """In the files of dynamics/core_algorithms.cpp (dynamics/, rigid_body/, lie/), every call of a
+def test_the_unity_files_call_pinocchio_only_through_the_wheels_instantiations():
+    """In the files of the unity files (dynamics/, rigid_body/, lie/), every call of a
     Pinocchio algorithm goes through rigid_body/pinocchio_compiled.hpp (libpin::), and the
     second-order RNEA only through rigid_body/pinocchio_second_order.cpp, its one instantiation."""
     allowed = {"rigid_body/pinocchio_compiled.hpp", "rigid_body/pinocchio_second_order.cpp"}

@@ -1,6 +1,6 @@
 // Crocoddyl's gait costs of a contact schedule's node (see contact.hpp): the twin of
 // geoddp.problem.legged.ContactProblem._cost, term for term. Compiled inside
-// dynamics/core_algorithms.cpp.
+// dynamics/contact_algorithms.cpp.
 #include <pinocchio/algorithm/center-of-mass.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>

@@ -1,6 +1,6 @@
 // Contact and impulse node dynamics with first derivatives (see contact.hpp); the twin of
 // geoddp.models.contact.ContactDynamics.contact / impulse, call for call. Compiled inside
-// dynamics/core_algorithms.cpp.
+// dynamics/contact_algorithms.cpp.
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/compute-all-terms.hpp>
 #include <pinocchio/algorithm/contact-dynamics.hpp>

@@ -1,7 +1,7 @@
 // The exact second order of a contact schedule (see contact.hpp): the twin of
 // geoddp.models.contact.ContactDynamics.contact_second / impulse_second (point feet), of
 // geoddp.problem.legged.ContactProblem._cost_hessian and of its linearise(order=2), term for term.
-// Compiled inside dynamics/core_algorithms.cpp.
+// Compiled inside dynamics/contact_algorithms.cpp.
 //
 // A node's KKT system E(s, y) = 0 (s = (q, v), y = (a, lambda) at a contact node, (v+, Lambda) at
 // an impulse node) is differentiated twice: E_y y'' = -E_ww[X, X], X = dw/dz (E is affine in y).

@@ -1,6 +1,6 @@
 // A contact schedule's rollouts, node costs and first-order expansion over the whole horizon (see
 // contact.hpp): the twin of geoddp.problem.legged.ContactProblem's trajectory, rollout_policy,
-// node_costs and linearise(order=1). Compiled inside dynamics/core_algorithms.cpp.
+// node_costs and linearise(order=1). Compiled inside dynamics/contact_algorithms.cpp.
 #include <pinocchio/algorithm/joint-configuration.hpp>
 
 #include <memory>

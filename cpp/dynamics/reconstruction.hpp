@@ -5,7 +5,7 @@
 //   eta+ = A eta + Jr rho + 1/2 dJr[rho] rho + 1/2 [A eta, Jr rho],
 // A = Ad_exp(-dt w_bar), Jr = Jr(dt w_bar) (lie/joint_blocks.hpp's block_ad_jr), so that eta+'s
 // Hessian in z is dt^2 W1^T Dsym W1 + the bracket's block + dt Jr (delta w)'s Hessian, W1 =
-// d(delta w)/dz. Header-only: both callers are compiled inside dynamics/core_algorithms.cpp.
+// d(delta w)/dz. Header-only (inline): its two callers compile in different unity files.
 #pragma once
 
 #include <Eigen/Core>

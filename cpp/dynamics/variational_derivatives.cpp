@@ -1,6 +1,6 @@
 // The variational step's derivatives at the nodes of a trajectory by implicit differentiation:
 // F1 = -R_y^-1 [R_eta, R_dv, -dt H] and F2 = -R_y^-1 P^T R_ww P, or R_ww's factors for the
-// contracted pass (see dynamics/variational.hpp). Compiled inside dynamics/core_algorithms.cpp.
+// contracted pass (see dynamics/variational.hpp). Compiled inside dynamics/variational_algorithms.cpp.
 #include "dynamics/variational.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>

@@ -1,6 +1,6 @@
 // R_ww, the variational residual's second derivatives along w = (eta, dv, y) at a node, after
 // its first order (see variational_residual.hpp's residual_hessians). Compiled inside
-// dynamics/core_algorithms.cpp.
+// dynamics/variational_algorithms.cpp.
 #include "dynamics/variational_residual.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>

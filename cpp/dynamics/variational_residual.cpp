@@ -1,6 +1,6 @@
 // The variational step's residual Jacobian and its building blocks (see variational_residual.hpp;
 // twin of the tests' oracle tests/oracle_variational.py, whose names and order of operations this
-// follows). Compiled inside dynamics/core_algorithms.cpp.
+// follows). Compiled inside dynamics/variational_algorithms.cpp.
 #include "dynamics/variational_residual.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>

@@ -1,6 +1,6 @@
 // The variational step itself: the model and its scratch, and the damped Newton iteration on
 // R(y) = 0 (see dynamics/variational.hpp; twin of tests/oracle_variational.py's step). Compiled inside
-// dynamics/core_algorithms.cpp.
+// dynamics/variational_algorithms.cpp.
 #include "dynamics/variational.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>

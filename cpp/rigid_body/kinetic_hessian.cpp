@@ -1,6 +1,6 @@
 // The kinetic energy's configuration Hessian, its gradient and the tensors dM/dq and d/dq D(q, y) by
 // spatial-vector recursions (rigid_body/kinetic_hessian.hpp).
-// Included by dynamics/core_algorithms.cpp (the translation unit of Pinocchio's algorithm instantiations).
+// Compiled inside dynamics/core_algorithms.cpp.
 #include "rigid_body/kinetic_hessian.hpp"
 #include "rigid_body/pinocchio_compiled.hpp"
 #include "rigid_body/spatial.hpp"

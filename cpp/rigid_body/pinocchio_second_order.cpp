@@ -1,5 +1,5 @@
 // The one instantiation of Pinocchio's second-order RNEA (see pinocchio_second_order.hpp). A
-// translation unit of its own (not in dynamics/core_algorithms.cpp): it is the largest single
+// translation unit of its own (not in a unity file): it is the largest single
 // instantiation of the core and compiles in parallel with the rest.
 #include "rigid_body/pinocchio_second_order.hpp"
 

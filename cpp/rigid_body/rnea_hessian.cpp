@@ -1,5 +1,5 @@
 // RNEA's second derivatives contracted with mu by a spatial-vector recursion (rigid_body/rnea_hessian.hpp).
-// Included by dynamics/core_algorithms.cpp (the translation unit of Pinocchio's algorithm instantiations).
+// Compiled inside dynamics/core_algorithms.cpp.
 #include "rigid_body/rnea_hessian.hpp"
 #include "rigid_body/pinocchio_compiled.hpp"
 #include "rigid_body/spatial.hpp"
