@@ -172,11 +172,17 @@ def test_the_sweep_files_are_examples_but_not_scenes():
 def test_readme_test_command_is_exactly_what_ci_runs():
     """The README's second set-up command, the one on the documentation's getting-started page and
     the last line of .ci/run are one command (they had drifted apart: the README left out the
-    Crocoddyl limits cross-check). It builds the documentation, whose gallery runs the examples."""
+    Crocoddyl limits cross-check). It builds the documentation, whose gallery runs the examples,
+    and runs every Crocoddyl cross-check file in the pin 4.0.0 environment."""
     root = Path(__file__).resolve().parents[1]
     ci = (root / ".ci" / "run").read_text().strip().splitlines()[-1]
+    assert ci == "bash .ci/test-all.sh"
     for page in ("README.md", "docs/getting_started.md"):
         lines = (root / page).read_text().splitlines()
-        commands = [line for line in lines if line.startswith("python3 -m venv .venv && ") and "pytest" in line]
-        assert commands == [ci], page
-    assert '".[test,docs]"' in ci and "sphinx-build -W " in ci
+        assert [line for line in lines if line.startswith("bash .ci/test-all.sh")] == [ci], page
+    script = (root / ".ci" / "test-all.sh").read_text()
+    code = "\n".join(line for line in script.splitlines() if not line.lstrip().startswith("#"))
+    assert '.venv/bin/pip install -q -e ".[test,docs]"' in code and ".venv/bin/python -m pytest -q -n 2" in code
+    assert "sphinx-build -W " in code and '"pin==4.0.0" "crocoddyl==3.2.1"' in code
+    crocoddyl_files = sorted(p.name for p in (root / "tests").glob("test_*crocoddyl*.py"))
+    assert crocoddyl_files and all(f"tests/{name}" in code for name in crocoddyl_files), crocoddyl_files
