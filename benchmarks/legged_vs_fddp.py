@@ -1,5 +1,10 @@
-"""geoddp (first, second, switch) against Crocoddyl FDDP on the ANYmal gaits and jump and a Solo12
-jump, each solve in its own process (in one process their threads compete).
+"""geoddp (first, second, switch) against Crocoddyl FDDP on the ANYmal gaits and jump, a Solo12
+jump and the Talos biped walk, each solve in its own process (in one process their threads compete).
+
+The biped ("talos_walk"): Crocoddyl's ``SimpleBipedGaitProblem`` on example-robot-data's talos_legs
+from "half_sitting", its example bipedal_gaits_fwddyn.py's walking phase (step 0.6 m, height 0.1 m,
+dt 0.03 s, 15 step knots, 4 support knots; flat feet, 6D contacts); geoddp's built-in
+``talos_walk`` is the same problem node for node.
 
 The Solo12 jump ("solo_jump"): example-robot-data's solo12 from "standing", feet FL_FOOT FR_FOOT
 HL_FOOT HR_FOOT, jumping in place with a 0.1 m CoM apex, 10 ground and 20 + 20 flying knots, dt
@@ -39,15 +44,18 @@ from pathlib import Path
 import numpy as np
 
 SOLVERS = ("fddp", "fddp1", "first", "second", "switch")
-GAITS = ("walk", "trot", "jump", "solo_jump")
+GAITS = ("walk", "trot", "jump", "solo_jump", "talos_walk")
 SOLO_FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 SOLO_JUMP = (0.1, (0.0, 0.0, 0.0), 10, 20)  # CoM apex, jump length, ground knots, flying knots
+TALOS_WALK = (0.6, 0.1, 0.03, 15, 4)  # step length, height, dt, step knots, support knots: geoddp.scene.legged.TALOS_WALK
 
 
 def load(gait):
-    """The robot of ``gait``: Solo12 for "solo_jump", else ANYmal."""
+    """The robot of ``gait``: Solo12 for "solo_jump", Talos' legs for "talos_walk", else ANYmal."""
     from geoddp.scene.legged import load_anymal, load_robot
 
+    if gait == "talos_walk":
+        return load_robot("talos_legs")
     return load_robot("solo12") if gait == "solo_jump" else load_anymal()
 
 
@@ -57,6 +65,13 @@ def crocoddyl_problem(robot, gait):
     from geoddp.scene.legged import FEET
     from geoddp.scene.legged import GAITS as PARAMS
 
+    if gait == "talos_walk":
+        from crocoddyl.utils.biped import SimpleBipedGaitProblem
+
+        q0 = robot.model.referenceConfigurations["half_sitting"].copy()
+        x0 = np.concatenate([q0, np.zeros(robot.model.nv)])
+        builder = SimpleBipedGaitProblem(robot.model, "right_sole_link", "left_sole_link")  # fresh: its half step
+        return builder.createWalkingProblem(x0, *TALOS_WALK), x0
     q0 = robot.model.referenceConfigurations["standing"].copy()
     x0 = np.concatenate([q0, np.zeros(robot.model.nv)])
     if gait == "solo_jump":
@@ -98,11 +113,13 @@ def fddp(gait: str, max_iter: int = 200, threads: int | None = None) -> dict:
 
 def geoddp(gait: str, expansion: str, max_iter: int = 200) -> dict:
     from geoddp.problem.legged import QuadrupedGait
-    from geoddp.scene.legged import anymal_gait, contact_problem
+    from geoddp.scene.legged import anymal_gait, contact_problem, talos_walk
     from geoddp.solver import SolverOptions, solve
 
     robot = load(gait)
-    if gait == "solo_jump":
+    if gait == "talos_walk":
+        problem = talos_walk(robot)
+    elif gait == "solo_jump":
         q0 = robot.model.referenceConfigurations["standing"].copy()
         nodes, terminal = QuadrupedGait(robot.model, SOLO_FEET).jump(q0, *SOLO_JUMP)
         problem = contact_problem(robot, nodes, terminal, q0, 0.01, (0.0, 50.0), feet=SOLO_FEET)
