@@ -107,6 +107,28 @@ std::unique_ptr<ContactKernel> make_kernel(py::object pm, double dt, double Kp, 
   return k;
 }
 
+// A trajectory's shapes for setup s: Q (H+1, nq), V (H+1, nv), U (H, nu).
+void check_trajectory(const dyn::ContactSetup& s, const Arr& Q, const Arr& V, const Arr& U) {
+  const int H = s.horizon();
+  check_shape(Q, {H + 1, s.model->nq}, "Q");
+  check_shape(V, {H + 1, s.nv()}, "V");
+  check_shape(U, {H, s.nu()}, "U");
+}
+
+// The expansions' outputs for setup s (n = 2 nv): Phi (H, n, n), B (H, n, nu), lx, lu, lxx, lux,
+// luu, lfx, lfxx, the node costs (H+1), and for the second order Theta (H, n, n, n),
+// Gamma (H, n, n, nu), Xi (H, n, nu, nu).
+struct ExpansionArrays {
+  Arr Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, lfx, lfxx, c;
+  ExpansionArrays(const dyn::ContactSetup& s, bool second) {
+    const py::ssize_t H = s.horizon(), nu = s.nu(), n = 2 * s.nv();
+    Phi = empty({H, n, n}), B = empty({H, n, nu}), lx = empty({H, n}), lu = empty({H, nu});
+    lxx = empty({H, n, n}), lux = empty({H, nu, n}), luu = empty({H, nu, nu});
+    lfx = empty({n}), lfxx = empty({n, n}), c = empty({H + 1});
+    if (second) Theta = empty({H, n, n, n}), Gamma = empty({H, n, n, nu}), Xi = empty({H, n, nu, nu});
+  }
+};
+
 }  // namespace
 
 void bind_contact(py::module_& m) {
@@ -161,11 +183,8 @@ void bind_contact(py::module_& m) {
           "costs",
           [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
             const auto& s = k.s;
-            const int H = s.horizon();
-            check_shape(Q, {H + 1, s.model->nq}, "Q");
-            check_shape(V, {H + 1, s.nv()}, "V");
-            check_shape(U, {H, s.nu()}, "U");
-            Arr c = empty({H + 1});
+            check_trajectory(s, Q, V, U);
+            Arr c = empty({s.horizon() + 1});
             {
               py::gil_scoped_release nogil;
               dyn::contact_costs(s, Q.data(), V.data(), U.data(), threads, c.mutable_data());
@@ -177,20 +196,16 @@ void bind_contact(py::module_& m) {
           "linearise",
           [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
             const auto& s = k.s;
-            const int H = s.horizon(), nv = s.nv(), nu = s.nu(), n = 2 * nv;
-            check_shape(Q, {H + 1, s.model->nq}, "Q");
-            check_shape(V, {H + 1, nv}, "V");
-            check_shape(U, {H, nu}, "U");
-            Arr Phi = empty({H, n, n}), B = empty({H, n, nu}), lx = empty({H, n}), lu = empty({H, nu});
-            Arr lxx = empty({H, n, n}), lux = empty({H, nu, n}), luu = empty({H, nu, nu});
-            Arr lfx = empty({n}), lfxx = empty({n, n}), c = empty({H + 1});
+            check_trajectory(s, Q, V, U);
+            ExpansionArrays o(s, false);
             {
               py::gil_scoped_release nogil;
-              dyn::contact_linearise(s, Q.data(), V.data(), U.data(), threads, Phi.mutable_data(), B.mutable_data(),
-                                     lx.mutable_data(), lu.mutable_data(), lxx.mutable_data(), lux.mutable_data(),
-                                     luu.mutable_data(), lfx.mutable_data(), lfxx.mutable_data(), c.mutable_data());
+              dyn::contact_linearise(s, Q.data(), V.data(), U.data(), threads, o.Phi.mutable_data(),
+                                     o.B.mutable_data(), o.lx.mutable_data(), o.lu.mutable_data(),
+                                     o.lxx.mutable_data(), o.lux.mutable_data(), o.luu.mutable_data(),
+                                     o.lfx.mutable_data(), o.lfxx.mutable_data(), o.c.mutable_data());
             }
-            return py::make_tuple(Phi, B, lx, lu, lxx, lux, luu, lfx, lfxx, c);
+            return py::make_tuple(o.Phi, o.B, o.lx, o.lu, o.lxx, o.lux, o.luu, o.lfx, o.lfxx, o.c);
           },
           py::arg("Q"), py::arg("V"), py::arg("U"), py::arg("threads") = 0,
           "First-order expansion: (Phi, B, lx, lu, lxx, lux, luu, lfx, lfxx, node costs).")
@@ -198,23 +213,18 @@ void bind_contact(py::module_& m) {
           "linearise_second",
           [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
             const auto& s = k.s;
-            const int H = s.horizon(), nv = s.nv(), nu = s.nu(), n = 2 * nv;
-            check_shape(Q, {H + 1, s.model->nq}, "Q");
-            check_shape(V, {H + 1, nv}, "V");
-            check_shape(U, {H, nu}, "U");
-            Arr Phi = empty({H, n, n}), B = empty({H, n, nu}), lx = empty({H, n}), lu = empty({H, nu});
-            Arr Theta = empty({H, n, n, n}), Gamma = empty({H, n, n, nu}), Xi = empty({H, n, nu, nu});
-            Arr lxx = empty({H, n, n}), lux = empty({H, nu, n}), luu = empty({H, nu, nu});
-            Arr lfx = empty({n}), lfxx = empty({n, n}), c = empty({H + 1});
+            check_trajectory(s, Q, V, U);
+            ExpansionArrays o(s, true);
             {
               py::gil_scoped_release nogil;
-              dyn::contact_linearise_second(s, Q.data(), V.data(), U.data(), threads, Phi.mutable_data(),
-                                            B.mutable_data(), Theta.mutable_data(), Gamma.mutable_data(),
-                                            Xi.mutable_data(), lx.mutable_data(), lu.mutable_data(),
-                                            lxx.mutable_data(), lux.mutable_data(), luu.mutable_data(),
-                                            lfx.mutable_data(), lfxx.mutable_data(), c.mutable_data());
+              dyn::contact_linearise_second(s, Q.data(), V.data(), U.data(), threads, o.Phi.mutable_data(),
+                                            o.B.mutable_data(), o.Theta.mutable_data(), o.Gamma.mutable_data(),
+                                            o.Xi.mutable_data(), o.lx.mutable_data(), o.lu.mutable_data(),
+                                            o.lxx.mutable_data(), o.lux.mutable_data(), o.luu.mutable_data(),
+                                            o.lfx.mutable_data(), o.lfxx.mutable_data(), o.c.mutable_data());
             }
-            return py::make_tuple(Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, lfx, lfxx, c);
+            return py::make_tuple(o.Phi, o.B, o.Theta, o.Gamma, o.Xi, o.lx, o.lu, o.lxx, o.lux, o.luu, o.lfx, o.lfxx,
+                                  o.c);
           },
           py::arg("Q"), py::arg("V"), py::arg("U"), py::arg("threads") = 0,
           "Exact second-order expansion: (Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, lfx, lfxx, node costs), "
@@ -244,9 +254,7 @@ void bind_contact(py::module_& m) {
           [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
             const auto& s = k.s;
             const int H = s.horizon(), nq = s.model->nq, nv = s.nv(), nu = s.nu();
-            check_shape(Q, {H + 1, nq}, "Q");
-            check_shape(V, {H + 1, nv}, "V");
-            check_shape(U, {H, nu}, "U");
+            check_trajectory(s, Q, V, U);
             std::vector<dyn::ContactEval> evs((size_t)H);
             std::vector<Eigen::VectorXd> gs((size_t)H + 1);
             std::vector<RowMat> Hss((size_t)H + 1);

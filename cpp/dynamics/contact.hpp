@@ -119,6 +119,14 @@ void contact_linearise(const ContactSetup& s, const double* Q, const double* V, 
                        double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
                        double* lfx, double* lfxx, double* costs);
 
+// Node k's first-order outputs, as contact_linearise and contact_linearise_second lay them out:
+// Phi (n, n) and B (n, nu) from ev.Fz; the cost's gradient g (nz) and Hessian Hs (nz, nz) into
+// lx (n), lu (nu), lxx (n, n), lux (nu, n), luu (nu, nu), each at node k's offset.
+void store_node_expansion(int k, int n, int nu, const ContactEval& ev, const Eigen::VectorXd& g, const RowMat& Hs,
+                          double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu);
+// The terminal node's: lfx (n) = g's head, lfxx (n, n) = Hs's top-left block.
+void store_terminal_expansion(int n, const Eigen::VectorXd& g, const RowMat& Hs, double* lfx, double* lfxx);
+
 // ------------------------------------------------------------------ exact second order (contact_second.cpp)
 // A worker's models for the second order: the robot without gravity and per foot frame a massless
 // copy carrying a unit point mass at the frame's origin (built for a setup's feet and swing feet).
@@ -137,10 +145,11 @@ void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const Cont
 bool cone_active(const ContactSetup& s, const ContactNode& node, const ContactEval& ev);
 
 // Add to Hs (nz, nz), node k's Gauss-Newton Hessian at (q, v) from contact_node_cost, the
-// residuals' curvature: the exact Hessian (ContactProblem._cost_hessian). ev and L2 (the forces'
-// rows of contact_node_second's Y): a running node's; null at the terminal node (k = H).
+// residuals' curvature: the exact Hessian (ContactProblem._cost_hessian). ev and Y (from
+// contact_node_second, its force rows computed wherever a friction-cone barrier is active): a
+// running node's; null at the terminal node (k = H).
 void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, const Eigen::VectorXd& q,
-                            const Eigen::VectorXd& v, const ContactEval* ev, const RowMat* L2, RowMat& Hs);
+                            const Eigen::VectorXd& v, const ContactEval* ev, const RowMat* Y, RowMat& Hs);
 
 // The exact second-order expansion along (Q, V, U), ContactProblem.linearise(order=2): Phi, B,
 // lx, lu, lfx and the costs as contact_linearise; Theta (H, n, n, n), Gamma (H, n, n, nu),

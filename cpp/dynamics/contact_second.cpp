@@ -52,6 +52,10 @@ struct Rnea2 {
   }
 };
 
+}  // namespace contact_second_detail
+
+namespace {
+
 // A massless copy of the robot with a unit point mass at frame f's origin, no gravity.
 pinocchio::Model point_mass_model(const pinocchio::Model& model, int f) {
   pinocchio::Model mf = model;
@@ -67,20 +71,22 @@ double excess(double r, double lb, double ub) { return std::min(r - lb, 0.0) + s
 
 Eigen::Vector3d cross_e(int i, const Eigen::Vector3d& x) { return Eigen::Vector3d::Unit(i).cross(x); }
 
-}  // namespace contact_second_detail
-using namespace contact_second_detail;
+}  // namespace
+using contact_second_detail::Rnea2;  // named, not anonymous: ContactSecondWork (declared in contact.hpp) holds it
 
 // A worker's models and scratch for the second order (its own copies: the force and curvature
 // terms set a model's gravity).
 struct ContactSecondWork {
+  std::vector<JointGroup> groups;  // the robot's joints as Lie groups (once per worker, not per node)
   pinocchio::Model zero_gravity;
   pinocchio::Data zero_data, data;
   std::map<int, size_t> foot_index;  // frame id -> its point-mass model
   std::vector<pinocchio::Model> foot;
   std::vector<pinocchio::Data> foot_data;
   Rnea2 t, tf;
-  ContactSecondWork(const ContactSetup& s)
-      : zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv) {
+  explicit ContactSecondWork(const ContactSetup& s)
+      : groups(joint_groups(*s.model)),
+        zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv) {
     zero_gravity.gravity.setZero();
     for (const ContactNode& n : s.nodes) {
       for (int f : n.feet) add_foot(*s.model, f);
@@ -342,14 +348,14 @@ bool cone_active(const ContactSetup& s, const ContactNode& node, const ContactEv
 }
 
 void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, const Eigen::VectorXd& q,
-                            const Eigen::VectorXd& v, const ContactEval* ev, const RowMat* L2, RowMat& Hs) {
+                            const Eigen::VectorXd& v, const ContactEval* ev, const RowMat* Y, RowMat& Hs) {
   const pinocchio::Model& m = *s.model;
   pinocchio::Data& d = w.data;
   const int nv = m.nv, nz = (int)Hs.cols();
   const bool terminal = k == s.horizon();
   const ContactNode& node = s.nodes[(size_t)k];
   const GaitWeights& c = s.w;
-  const std::vector<JointGroup> groups = joint_groups(m);
+  const std::vector<JointGroup>& groups = w.groups;
   libpin::forwardKinematics(m, d, q);
   libpin::updateFramePlacements(m, d);
   Eigen::MatrixXd curv = Eigen::MatrixXd::Zero(nv, nv);
@@ -399,7 +405,8 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
     if (!any) continue;  // inside the cone the barrier is flat
     Eigen::Map<RowMat> H(Hs.data(), nz, nz);
     for (int a = 0; a < 3; ++a)
-      H += (c.friction_cone * s.dt * exA[a]) * Eigen::Map<const RowMat>(L2->row(3 * (Eigen::Index)i + a).data(), nz, nz);
+      H += (c.friction_cone * s.dt * exA[a]) *
+           Eigen::Map<const RowMat>(Y->row(nv + 3 * (Eigen::Index)i + a).data(), nz, nz);
   }
 }
 
@@ -409,15 +416,15 @@ void contact_linearise_second(const ContactSetup& s, const double* Q, const doub
   const pinocchio::Model& m = *s.model;
   const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu;
   const double dt = s.dt;
-  const std::vector<JointGroup> groups = joint_groups(m);
   const lie::GroupStructure gs;
   CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
   parallel_for(H + 1, threads, [&](int b, int e, int) {
     ContactWork cw(m);
     ContactSecondWork w(s);
+    const std::vector<JointGroup>& groups = w.groups;
     ContactEval ev;
     Eigen::VectorXd g, q(nq), v(nv), u(nu);
-    RowMat Hs, Y, L2, G2(n, (Eigen::Index)nz * nz), A(nv, nv), Jr(nv, nv), W1, JW, JF2, Ds, Mz, WDW;
+    RowMat Hs, Y, G2(n, (Eigen::Index)nz * nz), A(nv, nv), Jr(nv, nv), W1, JW, JF2, Ds, Mz, WDW;
     std::vector<double> Dt((size_t)nv * nv * nv);
     Eigen::VectorXd omega(nv);
     for (int k = b; k < e; ++k) {
@@ -426,23 +433,15 @@ void contact_linearise_second(const ContactSetup& s, const double* Q, const doub
       if (k == H) {
         costs[k] = contact_node_cost(s, cw, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
         contact_cost_curvature(s, w, H, q, v, nullptr, nullptr, Hs);
-        VecMap(lfx, n) = g.head(n);
-        MatMap(lfxx, n, n) = Hs.topLeftCorner(n, n);
+        store_terminal_expansion(n, g, Hs, lfx, lfxx);
         continue;
       }
       const ContactNode& node = s.nodes[(size_t)k];
       u = Um.row(k).transpose();
       costs[k] = contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
       contact_node_second(s, w, node, q, v, ev, Y, cone_active(s, node, ev));
-      L2 = Y.bottomRows(Y.rows() - nv);
-      contact_cost_curvature(s, w, k, q, v, &ev, &L2, Hs);
-      MatMap(Phi + (size_t)k * n * n, n, n) = ev.Fz.leftCols(n);
-      MatMap(B + (size_t)k * n * nu, n, nu) = ev.Fz.rightCols(nu);
-      VecMap(lx + (size_t)k * n, n) = g.head(n);
-      VecMap(lu + (size_t)k * nu, nu) = g.tail(nu);
-      MatMap(lxx + (size_t)k * n * n, n, n) = Hs.topLeftCorner(n, n);
-      MatMap(lux + (size_t)k * nu * n, nu, n) = Hs.bottomLeftCorner(nu, n);
-      MatMap(luu + (size_t)k * nu * nu, nu, nu) = Hs.bottomRightCorner(nu, nu);
+      contact_cost_curvature(s, w, k, q, v, &ev, &Y, Hs);
+      store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
       if (node.impulse) {  // q+ = q: only v+'s rows
         G2.topRows(nv).setZero();
         G2.bottomRows(nv) = Y.topRows(nv);
@@ -458,18 +457,8 @@ void contact_linearise_second(const ContactSetup& s, const double* Q, const doub
         G2.topRows(nv) += JF2;
         symmetrise_rows(G2.data(), nv, nz);
       }
-      double* Th = Theta + (size_t)k * n * n * n;
-      double* Ga = Gamma + (size_t)k * n * n * nu;
-      double* X = Xi + (size_t)k * n * nu * nu;
-      for (int i = 0; i < n; ++i) {
-        const double* g2 = G2.row(i).data();
-        for (int a = 0; a < n; ++a) {
-          for (int c = 0; c < n; ++c) Th[((size_t)i * n + a) * n + c] = g2[(size_t)a * nz + c];
-          for (int c = 0; c < nu; ++c) Ga[((size_t)i * n + a) * nu + c] = g2[(size_t)a * nz + n + c];
-        }
-        for (int a = 0; a < nu; ++a)
-          for (int c = 0; c < nu; ++c) X[((size_t)i * nu + a) * nu + c] = g2[(size_t)(n + a) * nz + n + c];
-      }
+      split_second_order(G2, n, nu, Theta + (size_t)k * n * n * n, Gamma + (size_t)k * n * n * nu,
+                         Xi + (size_t)k * n * nu * nu);
     }
   });
 }
@@ -488,8 +477,7 @@ void contact_node_second_at(const ContactSetup& s, int k, const Eigen::VectorXd&
   }
   contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
   contact_node_second(s, w, s.nodes[(size_t)k], q, v, ev, Y, true);
-  const RowMat L2 = Y.bottomRows(Y.rows() - s.nv());
-  contact_cost_curvature(s, w, k, q, v, &ev, &L2, Hs);
+  contact_cost_curvature(s, w, k, q, v, &ev, &Y, Hs);
 }
 
 }  // namespace dyn

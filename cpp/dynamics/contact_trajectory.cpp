@@ -109,6 +109,22 @@ void contact_costs(const ContactSetup& s, const double* Q, const double* V, cons
   });
 }
 
+void store_node_expansion(int k, int n, int nu, const ContactEval& ev, const Eigen::VectorXd& g, const RowMat& Hs,
+                          double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu) {
+  MatMap(Phi + (size_t)k * n * n, n, n) = ev.Fz.leftCols(n);
+  MatMap(B + (size_t)k * n * nu, n, nu) = ev.Fz.rightCols(nu);
+  VecMap(lx + (size_t)k * n, n) = g.head(n);
+  VecMap(lu + (size_t)k * nu, nu) = g.tail(nu);
+  MatMap(lxx + (size_t)k * n * n, n, n) = Hs.topLeftCorner(n, n);
+  MatMap(lux + (size_t)k * nu * n, nu, n) = Hs.bottomLeftCorner(nu, n);
+  MatMap(luu + (size_t)k * nu * nu, nu, nu) = Hs.bottomRightCorner(nu, nu);
+}
+
+void store_terminal_expansion(int n, const Eigen::VectorXd& g, const RowMat& Hs, double* lfx, double* lfxx) {
+  VecMap(lfx, n) = g.head(n);
+  MatMap(lfxx, n, n) = Hs.topLeftCorner(n, n);
+}
+
 void contact_linearise(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
                        double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
                        double* lfx, double* lfxx, double* costs) {
@@ -125,19 +141,12 @@ void contact_linearise(const ContactSetup& s, const double* Q, const double* V, 
       v = Vm.row(k).transpose();
       if (k == H) {
         costs[k] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
-        VecMap(lfx, n) = g.head(n);
-        MatMap(lfxx, n, n) = Hs.topLeftCorner(n, n);
+        store_terminal_expansion(n, g, Hs, lfx, lfxx);
         continue;
       }
       u = Um.row(k).transpose();
       costs[k] = contact_step(s, w, k, q, v, u, true, ev, g, Hs);
-      MatMap(Phi + (size_t)k * n * n, n, n) = ev.Fz.leftCols(n);
-      MatMap(B + (size_t)k * n * nu, n, nu) = ev.Fz.rightCols(nu);
-      VecMap(lx + (size_t)k * n, n) = g.head(n);
-      VecMap(lu + (size_t)k * nu, nu) = g.tail(nu);
-      MatMap(lxx + (size_t)k * n * n, n, n) = Hs.topLeftCorner(n, n);
-      MatMap(lux + (size_t)k * nu * n, nu, n) = Hs.bottomLeftCorner(nu, n);
-      MatMap(luu + (size_t)k * nu * nu, nu, nu) = Hs.bottomRightCorner(nu, nu);
+      store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
     }
   });
 }

@@ -143,18 +143,8 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
         }
       }
       symmetrise_rows(G2.data(), nv, nz);  // the reconstruction's rows (the velocity rows are exactly symmetric)
-      double* Th = Theta + (size_t)k * n * n * n;
-      double* Ga = Gamma + (size_t)k * n * n * m;
-      double* X = Xi + (size_t)k * n * m * m;
-      for (int i = 0; i < n; ++i) {
-        const double* g2 = G2.row(i).data();
-        for (int a = 0; a < n; ++a) {
-          for (int c = 0; c < n; ++c) Th[((size_t)i * n + a) * n + c] = g2[(size_t)a * nz + c];
-          for (int c = 0; c < m; ++c) Ga[((size_t)i * n + a) * m + c] = g2[(size_t)a * nz + n + c];
-        }
-        for (int a = 0; a < m; ++a)
-          for (int c = 0; c < m; ++c) X[((size_t)i * m + a) * m + c] = g2[(size_t)(n + a) * nz + n + c];
-      }
+      split_second_order(G2, n, m, Theta + (size_t)k * n * n * n, Gamma + (size_t)k * n * n * m,
+                         Xi + (size_t)k * n * m * m);
     }
   });
 }

@@ -103,5 +103,21 @@ inline void reconstruction_group_terms(const std::vector<JointGroup>& groups, co
   }
 }
 
+// G2 (n, nz * nz): row i the symmetric (nz, nz) Hessian of x+_i in z = (x, u), row-major, split
+// into one node's Theta (n, n, n), Gamma (n, n, nu) and Xi (n, nu, nu) (the expansions' layout):
+// Theta[i][a][c] = G2_i(a, c), Gamma[i][a][c] = G2_i(a, n + c), Xi[i][a][c] = G2_i(n + a, n + c).
+inline void split_second_order(const RowMat& G2, int n, int nu, double* Theta, double* Gamma, double* Xi) {
+  const size_t nz = (size_t)n + nu;
+  for (int i = 0; i < n; ++i) {
+    const double* g2 = G2.row(i).data();
+    for (int a = 0; a < n; ++a) {
+      for (int c = 0; c < n; ++c) Theta[((size_t)i * n + a) * n + c] = g2[(size_t)a * nz + c];
+      for (int c = 0; c < nu; ++c) Gamma[((size_t)i * n + a) * nu + c] = g2[(size_t)a * nz + n + c];
+    }
+    for (int a = 0; a < nu; ++a)
+      for (int c = 0; c < nu; ++c) Xi[((size_t)i * nu + a) * nu + c] = g2[(size_t)(n + a) * nz + n + c];
+  }
+}
+
 }  // namespace dyn
 }  // namespace geoddp
