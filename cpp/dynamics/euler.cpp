@@ -74,8 +74,7 @@ void node_derivatives(const Setup& s, NodeWork& w, double* F1, bool second) {
     w.one_body->at(w.q.data(), data.d2tau_dqdq.data(), data.d2tau_dvdv.data(), data.d2tau_dqdv.data(),
                    data.d2tau_dadq.data());
   else
-    libpin::rnea_second_order_tensors(model, data, w.q, w.v, w.a, data.d2tau_dqdq.data(), data.d2tau_dvdv.data(),
-                                      data.d2tau_dqdv.data(), data.d2tau_dadq.data());
+    libpin::rnea_second_order_tensors(model, data, w.q, w.v, w.a);
   const auto& Iqq = data.d2tau_dqdq;
   const auto& Ivv = data.d2tau_dvdv;
   const auto& Iqv = data.d2tau_dqdv;

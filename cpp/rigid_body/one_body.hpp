@@ -65,8 +65,7 @@ class OneBodySecondOrder {
     for (int c = 0; c < 3; ++c) {
       unit.gravity.setZero();
       unit.gravity.linear()[c] = 1.0;
-      libpin::rnea_second_order_tensors(unit, data, q0, zero, zero, data.d2tau_dqdq.data(), data.d2tau_dvdv.data(),
-                                        data.d2tau_dqdv.data(), data.d2tau_dadq.data());
+      libpin::rnea_second_order_tensors(unit, data, q0, zero, zero);
       if (c == 0) std::copy(data.d2tau_dvdv.data(), data.d2tau_dvdv.data() + n3, Ivv_.data());
       if (!with_gravity_) break;
       T_[c].assign(data.d2tau_dqdq.data(), data.d2tau_dqdq.data() + n3);

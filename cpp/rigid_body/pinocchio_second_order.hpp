@@ -23,5 +23,15 @@ void rnea_second_order_tensors(const pinocchio::Model& model, pinocchio::Data& d
                                const Eigen::Ref<const Eigen::VectorXd>& a, double* Iqq, double* Ivv, double* Iqv,
                                double* dM);
 
+// The same into data's own tensors (data.d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq), as
+// Pinocchio's five-argument overload.
+inline void rnea_second_order_tensors(const pinocchio::Model& model, pinocchio::Data& data,
+                                      const Eigen::Ref<const Eigen::VectorXd>& q,
+                                      const Eigen::Ref<const Eigen::VectorXd>& v,
+                                      const Eigen::Ref<const Eigen::VectorXd>& a) {
+  rnea_second_order_tensors(model, data, q, v, a, data.d2tau_dqdq.data(), data.d2tau_dvdv.data(),
+                            data.d2tau_dqdv.data(), data.d2tau_dadq.data());
+}
+
 }  // namespace libpin
 }  // namespace geoddp
