@@ -327,8 +327,11 @@ def test_second_order_expansion_agrees(gaits, gait):
         lin_p = problem.linearise(traj, 2)
     finally:
         problem.backend = "compiled"
+    # the kernel's second order is factored (contracted in the pass): formed here for the comparison
+    assert lin_c.Theta is None and lin_c.second_order is not None and lin_p.second_order is None
+    dense = dict(zip(("Theta", "Gamma", "Xi"), lin_c.tensors()))
     for name in ("Phi", "B", "Theta", "Gamma", "Xi", "l_x", "l_u", "l_xx", "l_ux", "l_uu"):
-        a, b = getattr(lin_c, name), getattr(lin_p, name)
+        a, b = dense[name] if name in dense else getattr(lin_c, name), getattr(lin_p, name)
         for k in range(problem.horizon):
             ok, err = close(a[k], b[k], 1e-10)
             assert ok, (gait, name, k, err)
@@ -337,6 +340,62 @@ def test_second_order_expansion_agrees(gaits, gait):
         assert ok, (gait, name, err)
     assert np.max(np.abs(lin_p.Theta)) > 1e-3  # the second-order terms are there to compare
     assert lin_c.order == lin_p.order == 2 and not lin_c.gauss_newton
+
+
+@pytest.mark.parametrize("gait", ["walk", "trot"])
+def test_contracted_expansion_is_the_dense_one(gaits, gait):
+    """The kernel's factored second order (linearise_contracted) against its dense one
+    (linearise_second) along a perturbed trajectory: the same first-order arrays and exact cost
+    Hessians, and at every node contract(k, Vx) = sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]]
+    for random Vx, to 1e-12 relative; then the exact lambda = 0 backward pass on both gives the same
+    gains and decrements (1e-9)."""
+    from geoddp.solver.backward import Workspace, backward
+
+    problem = gaits[gait]
+    rng = np.random.default_rng(71 if gait == "walk" else 72)
+    traj = problem.trajectory(perturbed_controls(problem, rng, NOISE[gait]))
+    c64 = np.ascontiguousarray
+    args = (c64(traj.q), c64(traj.v), c64(traj.u), 0)
+    kernel = problem.kernel()
+    Phi, B, Theta, Gamma, Xi, *rest_d = kernel.linearise_second(*args)
+    Phi_c, B_c, *rest_c = kernel.linearise_contracted(*args)
+    terms = rest_c.pop()
+    for name, a, b in zip(("Phi", "B", "lx", "lu", "lxx", "lux", "luu", "lfx", "lfxx", "costs"),
+                          [Phi_c, B_c, *rest_c], [Phi, B, *rest_d]):
+        ok, err = close(a, b)
+        assert ok, (gait, name, err)
+    n, nu = problem.nx, problem.nu
+    assert terms.N == problem.horizon and terms.nv == n // 2 and terms.m == nu
+    worst = 0.0
+    for k in range(problem.horizon):
+        Vx = rng.standard_normal(n)
+        S = terms.contract(k, Vx)
+        G = np.zeros((n + nu, n + nu))
+        G[:n, :n] = np.einsum("i,iab->ab", Vx, Theta[k])
+        G[:n, n:] = np.einsum("i,iab->ab", Vx, Gamma[k])
+        G[n:, :n] = G[:n, n:].T
+        G[n:, n:] = np.einsum("i,iab->ab", Vx, Xi[k])
+        ok, err = close(S, G)
+        worst = max(worst, err)
+        assert ok, (gait, k, err)
+        assert np.array_equal(S, S.T)
+    assert np.max(np.abs(Theta)) > 1e-3  # not a vacuous comparison
+    lin_c = problem.linearise(traj, 2)
+    lin_d = type(lin_c)(order=2, Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi, l_x=rest_d[0], l_u=rest_d[1],
+                        l_xx=rest_d[2], l_ux=rest_d[3], l_uu=rest_d[4], lf_x=rest_d[5], lf_xx=rest_d[6],
+                        gauss_newton=False)
+    out = []
+    for lin in (lin_c, lin_d):
+        ws = Workspace(problem.horizon, nu, n)
+        failed, d1, d2 = backward(lin, ws, 1e-6, traj.u)
+        out.append((failed, d1, d2, ws.k.copy(), ws.K.copy()))
+    (f_c, d1_c, d2_c, k_c, K_c), (f_d, d1_d, d2_d, k_d, K_d) = out
+    assert f_c == f_d
+    if f_c < 0:
+        assert abs(d1_c - d1_d) <= 1e-9 * abs(d1_d) and abs(d2_c - d2_d) <= 1e-9 * abs(d2_d)
+        for a, b in ((k_c, k_d), (K_c, K_d)):
+            ok, err = close(a, b, 1e-9)
+            assert ok, (gait, err)
 
 
 def test_switch_solve_is_the_same(gaits):

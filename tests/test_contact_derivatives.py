@@ -217,6 +217,7 @@ def test_second_order_model_predicts_the_trajectory_cost():
     U = problem.quasi_static_controls()
     traj = problem.trajectory(U)
     lin = problem.linearise(traj, 2)
+    Theta, Gamma, Xi = lin.tensors()  # factored in the compiled kernel: formed here
     nx, nu = problem.nx, problem.nu
     dU = np.random.default_rng(0).standard_normal((problem.horizon, nu))
     dU[problem.impulse_rows] = 0.0
@@ -228,8 +229,8 @@ def test_second_order_model_predicts_the_trajectory_cost():
         J1 += g @ z1
         J2 += g @ z2 + z1 @ Hl @ z1
         T = np.zeros((nx, nx + nu, nx + nu))
-        T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, :nx] = lin.Theta[k], lin.Gamma[k], lin.Gamma[k].transpose(0, 2, 1)
-        T[:, nx:, nx:] = lin.Xi[k]
+        T[:, :nx, :nx], T[:, :nx, nx:], T[:, nx:, :nx] = Theta[k], Gamma[k], Gamma[k].transpose(0, 2, 1)
+        T[:, nx:, nx:] = Xi[k]
         d1, d2 = lin.Phi[k] @ d1 + lin.B[k] @ dU[k], lin.Phi[k] @ d2 + np.einsum("ijk,j,k->i", T, z1, z1)
     J1 += lin.lf_x @ d1
     J2 += lin.lf_x @ d2 + d1 @ lin.lf_xx @ d1

@@ -230,6 +230,30 @@ void bind_contact(py::module_& m) {
           "Exact second-order expansion: (Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, lfx, lfxx, node costs), "
           "the cost Hessians exact.")
       .def(
+          "linearise_contracted",
+          [](py::object self, const Arr& Q, const Arr& V, const Arr& U, int threads) {
+            const ContactKernel& k = py::cast<const ContactKernel&>(self);
+            const auto& s = k.s;
+            check_trajectory(s, Q, V, U);
+            ExpansionArrays o(s, false);
+            auto terms = std::make_shared<dyn::SecondOrderTerms>();
+            {
+              py::gil_scoped_release nogil;
+              dyn::contact_linearise_contracted(s, Q.data(), V.data(), U.data(), threads, o.Phi.mutable_data(),
+                                                o.B.mutable_data(), o.lx.mutable_data(), o.lu.mutable_data(),
+                                                o.lxx.mutable_data(), o.lux.mutable_data(), o.luu.mutable_data(),
+                                                o.lfx.mutable_data(), o.lfxx.mutable_data(), o.c.mutable_data(),
+                                                *terms);
+            }
+            py::object t = py::cast(terms);
+            t.attr("_model") = k.model_ref;  // the terms point into the model (as expansion_contracted's)
+            return py::make_tuple(o.Phi, o.B, o.lx, o.lu, o.lxx, o.lux, o.luu, o.lfx, o.lfxx, o.c, t);
+          },
+          py::arg("Q"), py::arg("V"), py::arg("U"), py::arg("threads") = 0,
+          "Exact second-order expansion with the dynamics' second order factored: (Phi, B, lx, lu, lxx, lux, luu, "
+          "lfx, lfxx, node costs, SecondOrderTerms), every array as linearise_second's; the terms give "
+          "sum_i Vx_i [[Theta_i, Gamma_i], [Gamma_i^T, Xi_i]] by contract(k, Vx) and feed the contracted passes.")
+      .def(
           "node_second",
           [](const ContactKernel& k, int j, const Arr& q, const Arr& v, const Arr& u) {
             const auto& s = k.s;

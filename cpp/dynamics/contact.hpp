@@ -28,6 +28,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "dynamics/second_order_terms.hpp"
 #include "runtime/arrays.hpp"
 
 namespace geoddp {
@@ -158,6 +159,14 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
 void contact_linearise_second(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
                               double* Phi, double* B, double* Theta, double* Gamma, double* Xi, double* lx, double* lu,
                               double* lxx, double* lux, double* luu, double* lfx, double* lfxx, double* costs);
+
+// contact_linearise_second with the dynamics' second order left factored in t (SecondOrderTerms,
+// contact = true: per node the KKT system's rhs and Kinv's first nv rows, and the reconstruction's
+// group blocks), contracted with V_x' in the backward pass (riccati/contracted.hpp) instead of
+// forming Theta, Gamma, Xi; every other output as contact_linearise_second's. Node-parallel.
+void contact_linearise_contracted(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                                  double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
+                                  double* lfx, double* lfxx, double* costs, SecondOrderTerms& t);
 
 // Node k (< H: its dynamics' Y as contact_node_second, and the exact cost Hessian; k = H: Y empty
 // and the terminal's exact Hessian) at (q, v, u). For the tests.

@@ -180,23 +180,21 @@ void force_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
         Hss(r, a * ns + b) -= 0.5 * (Rnea2::get(total, nv, r, a, b) + Rnea2::get(total, nv, r, b, a));
 }
 
-// y'' (ny, nz * nz) from E_ww's blocks Hss (ny, ns * ns), Hsy (ny, ns * ny) and Y1 = dy/dz
-// (ny, nz): E_y y'' = -(E_ss + E_sy Y1 + its transpose), E_y = [[M, -Jw^T], [Jw, 0]]
-// (ContactDynamics._kkt_second).
-void kkt_second(const RowMat& Hss, const RowMat& Hsy, const RowMat& Y1, const Eigen::MatrixXd& M,
-                const RowMat& Jw, bool forces, RowMat& Y) {
+// The right-hand side of E_y y'' = -(E_ss + E_sy Y1 + its transpose) from E_ww's blocks Hss
+// (ny, ns * ns), Hsy (ny, ns * ny) and Y1 = dy/dz (ny, nz), and Kinv = -E_y^-1 (ny, ny), E_y =
+// [[M, -Jw^T], [Jw, 0]] (ContactDynamics._kkt_second), so that y'' = Kinv rhs row by row. Each row r of
+// rhs (ny, ns * nz) is the (s, z) block (ns, nz) of that row's symmetric (nz, nz) matrix, whose
+// (u, u) block is zero (E is affine in u).
+void kkt_rhs(const RowMat& Hss, const RowMat& Hsy, const RowMat& Y1, const Eigen::MatrixXd& M, const RowMat& Jw,
+             double* rhs, RowMat& Kinv) {
   const int nv = (int)M.rows(), nc = (int)Jw.rows(), ny = nv + nc, ns = 2 * nv, nz = (int)Y1.cols();
-  RowMat rhs(ny, (Eigen::Index)ns * nz);
   for (int r = 0; r < ny; ++r) {
     // E_sy is zero in v's rows, and the foot rows' (r >= nv) only couple with a
     // (linalg/small_gemm.hpp: AVX2/FMA where the CPU has it; these two products are most of a node's
     // second order)
-    Eigen::Map<RowMat> out(rhs.row(r).data(), ns, nz);
+    Eigen::Map<RowMat> out(rhs + (size_t)r * ns * nz, ns, nz);
     gemm::gemm(false, nv, nz, r < nv ? ny : nv, 1.0, Hsy.row(r).data(), ny, Y1.data(), nz, false, out.data(), nz);
     out.bottomRows(nv).setZero();
-  }
-  for (int r = 0; r < ny; ++r) {
-    Eigen::Map<RowMat> out(rhs.row(r).data(), ns, nz);
     const Eigen::MatrixXd C = out.leftCols(ns).transpose();
     out.leftCols(ns) += Eigen::Map<const RowMat>(Hss.row(r).data(), ns, ns) + C;
   }
@@ -206,15 +204,18 @@ void kkt_second(const RowMat& Hss, const RowMat& Hsy, const RowMat& Y1, const Ei
     K.topRightCorner(nv, nc) = -Jw.transpose();
     K.bottomLeftCorner(nc, nv) = Jw;
   }
-  const RowMat Kinv = -K.partialPivLu().inverse();
-  // the forces' rows only when asked (the cost curvature reads them where a friction-cone barrier
-  // is active); otherwise they are left unset
-  const int rows = forces ? ny : nv;
+  Kinv = -K.partialPivLu().inverse();
+}
+
+// Rows [r0, r1) of y'' (Y (ny, nz * nz), each row a symmetric (nz, nz) matrix, row-major) from
+// kkt_rhs's rhs and Kinv; Y's other rows are left as they are.
+void y_rows(const double* rhs, const RowMat& Kinv, int nv, int nz, int r0, int r1, RowMat& Y) {
+  const int ny = (int)Kinv.rows(), ns = 2 * nv, rows = r1 - r0;
+  if (rows <= 0) return;
   RowMat Ys(rows, (Eigen::Index)ns * nz);
-  gemm::gemm(false, rows, ns * nz, ny, 1.0, Kinv.data(), ny, rhs.data(), ns * nz, false, Ys.data(), ns * nz);
-  Y.resize(ny, (Eigen::Index)nz * nz);
+  gemm::gemm(false, rows, ns * nz, ny, 1.0, Kinv.row(r0).data(), ny, rhs, ns * nz, false, Ys.data(), ns * nz);
   for (int r = 0; r < rows; ++r) {
-    Eigen::Map<RowMat> Yr(Y.row(r).data(), nz, nz);
+    Eigen::Map<RowMat> Yr(Y.row(r0 + r).data(), nz, nz);
     Eigen::Map<const RowMat> Ysr(Ys.row(r).data(), ns, nz);
     Yr.topRows(ns) = Ysr;
     Yr.bottomLeftCorner(nz - ns, ns) = Ysr.rightCols(nz - ns).transpose();
@@ -224,16 +225,29 @@ void kkt_second(const RowMat& Hss, const RowMat& Hsy, const RowMat& Y1, const Ei
 
 }  // namespace
 
-void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
-                         const Eigen::VectorXd& v, const ContactEval& ev, RowMat& Y, bool forces) {
+namespace {
+
+// A node's KKT system's second-order blocks (see kkt_rhs): Hss, Hsy, Y1 = dy/dz, M and the feet's
+// acceleration Jacobian Jw (3 nf, nv).
+struct NodeKkt {
+  RowMat Hss, Hsy, Y1, Jw;
+  Eigen::MatrixXd M;
+};
+
+void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+              const Eigen::VectorXd& v, const ContactEval& ev, NodeKkt& out) {
   const pinocchio::Model& m = *s.model;
   const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc, ns = 2 * nv;
-  RowMat Hss = RowMat::Zero(ny, (Eigen::Index)ns * ns), Hsy = RowMat::Zero(ny, (Eigen::Index)ns * ny);
+  RowMat& Hss = out.Hss;
+  RowMat& Hsy = out.Hsy;
+  Hss.setZero(ny, (Eigen::Index)ns * ns);
+  Hsy.setZero(ny, (Eigen::Index)ns * ny);
   auto hss = [&](int r, int a, int b) -> double& { return Hss(r, a * ns + b); };
   auto hsy = [&](int r, int a, int y) -> double& { return Hsy(r, a * ny + y); };
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
   Rnea2& T = w.t;
-  RowMat Jw, Pqq, Pqv, Pqa, Pvv;
+  RowMat& Jw = out.Jw;
+  RowMat Pqq, Pqv, Pqa, Pvv;
   if (!node.impulse) {
     const double Kp = s.Kp, Kd = s.Kd;
     T.at(m, w.data, q, v, ev.acc);
@@ -284,12 +298,27 @@ void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const Cont
     }
   }
   libpin::crba(m, w.data, q);
-  const Eigen::MatrixXd M = w.data.M.selfadjointView<Eigen::Upper>();
-  RowMat Y1(ny, ev.Az.cols());
+  out.M = w.data.M.selfadjointView<Eigen::Upper>();
+  RowMat& Y1 = out.Y1;
+  Y1.resize(ny, ev.Az.cols());
   Y1.topRows(nv) = ev.Az;
   if (nc > 0) Y1.bottomRows(nc) = ev.Lz;
   if (nc == 0) Jw.resize(0, nv);
-  kkt_second(Hss, Hsy, Y1, M, Jw, forces, Y);
+}
+
+}  // namespace
+
+void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+                         const Eigen::VectorXd& v, const ContactEval& ev, RowMat& Y, bool forces) {
+  NodeKkt e;
+  node_kkt(s, w, node, q, v, ev, e);
+  const int nv = (int)e.M.rows(), ny = (int)e.Hss.rows(), nz = (int)e.Y1.cols();
+  RowMat rhs(ny, (Eigen::Index)2 * nv * nz), Kinv;
+  kkt_rhs(e.Hss, e.Hsy, e.Y1, e.M, e.Jw, rhs.data(), Kinv);
+  // the forces' rows only when asked (the cost curvature reads them where a friction-cone barrier
+  // is active); otherwise they are left unset
+  Y.resize(ny, (Eigen::Index)nz * nz);
+  y_rows(rhs.data(), Kinv, nv, nz, 0, forces ? ny : nv, Y);
 }
 
 namespace {
@@ -459,6 +488,66 @@ void contact_linearise_second(const ContactSetup& s, const double* Q, const doub
       }
       split_second_order(G2, n, nu, Theta + (size_t)k * n * n * n, Gamma + (size_t)k * n * n * nu,
                          Xi + (size_t)k * n * nu * nu);
+    }
+  });
+}
+
+void contact_linearise_contracted(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                                  double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
+                                  double* lfx, double* lfxx, double* costs, SecondOrderTerms& t) {
+  const pinocchio::Model& m = *s.model;
+  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu, ns = n;
+  const double dt = s.dt;
+  int ny_max = nv;
+  for (const ContactNode& node : s.nodes) ny_max = std::max(ny_max, nv + 3 * (int)node.feet.size());
+  t.resize_contact(m, nu, H, dt, ny_max);
+  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
+  parallel_for(H + 1, threads, [&](int b, int e, int) {
+    ContactWork cw(m);
+    ContactSecondWork w(s);
+    const std::vector<JointGroup>& groups = w.groups;
+    ContactEval ev;
+    NodeKkt kkt;
+    Eigen::VectorXd g, q(nq), v(nv), u(nu);
+    RowMat Hs, Y, Kinv, A(nv, nv), Jr(nv, nv), W1, JW;
+    std::vector<double> Dt((size_t)nv * nv * nv);
+    Eigen::VectorXd omega(nv);
+    for (int k = b; k < e; ++k) {
+      q = Qm.row(k).transpose();
+      v = Vm.row(k).transpose();
+      if (k == H) {
+        costs[k] = contact_node_cost(s, cw, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
+        contact_cost_curvature(s, w, H, q, v, nullptr, nullptr, Hs);
+        store_terminal_expansion(n, g, Hs, lfx, lfxx);
+        continue;
+      }
+      const ContactNode& node = s.nodes[(size_t)k];
+      u = Um.row(k).transpose();
+      costs[k] = contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
+      node_kkt(s, w, node, q, v, ev, kkt);
+      const int ny = (int)kkt.Hss.rows();
+      double* rhs = t.Rhs.data() + (size_t)k * ny_max * ns * nz;
+      kkt_rhs(kkt.Hss, kkt.Hsy, kkt.Y1, kkt.M, kkt.Jw, rhs, Kinv);
+      const bool cone = cone_active(s, node, ev);
+      if (cone) {  // the cost's force curvature reads the force rows of y'': only those are formed
+        Y.resize(ny, (Eigen::Index)nz * nz);
+        y_rows(rhs, Kinv, nv, nz, nv, ny, Y);
+      }
+      contact_cost_curvature(s, w, k, q, v, &ev, cone ? &Y : nullptr, Hs);
+      store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
+      t.ny[(size_t)k] = ny;
+      t.impulse[(size_t)k] = node.impulse ? 1 : 0;
+      Eigen::Map<RowMat>(t.Kt.data() + (size_t)k * nv * ny_max, nv, ny_max).leftCols(ny) = Kinv.topRows(nv);
+      if (!node.impulse) {
+        // the semi-implicit Euler step q+ = q exp(dt v+): the reconstruction's group blocks, as the
+        // multibody expansion_contracted stores them (dynamics/expansion.cpp)
+        omega = dt * ev.v_next;
+        lie::block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
+        W1 = ev.Fz.bottomRows(nv);
+        jr_times(groups, Jr, 1.0, W1, JW);
+        MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = W1;
+        store_group_blocks(groups, t, k, Jr, A, JW, Dt, nv, nz);
+      }
     }
   });
 }

@@ -149,30 +149,6 @@ void expansion(const Setup& s, const double* Q, const double* V, const double* U
   });
 }
 
-// Node k's reconstruction group blocks (Jr, As, JWs, Dsym) into t, from block_ad_jr's A, Jr, D
-// and first_order_blocks' JW.
-static void store_group_blocks(const std::vector<JointGroup>& groups, SecondOrderTerms& t, int k, const RowMat& Jr,
-                               const RowMat& A, const RowMat& JW, const std::vector<double>& Dt, int nv, int nz) {
-  double* jr = t.Jr.data() + (size_t)k * t.gJ;
-  double* as = t.As.data() + (size_t)k * t.gJ;
-  double* dsym = t.Dsym.data() + (size_t)k * t.gD;
-  double* jw = t.JWs.data() + (size_t)k * t.gW;
-  for (const JointGroup& g : groups) {
-    if (g.kind != SO3 && g.kind != SE3) continue;
-    const int o = g.idx_v, d = g.nv;
-    MatMap(jr, d, d) = Jr.block(o, o, d, d);
-    MatMap(as, d, d) = A.block(o, o, d, d);
-    MatMap(jw, d, nz) = JW.middleRows(o, d);
-    jr += d * d;
-    as += d * d;
-    jw += d * nz;
-    for (int p = 0; p < d; ++p)
-      for (int a = 0; a < d; ++a)
-        for (int c = 0; c < d; ++c) dsym[(size_t)(p * d + a) * d + c] = dsym_entry(Dt, nv, o, p, a, c);
-    dsym += d * d * d;
-  }
-}
-
 // Per node: the first-order part exactly as expansion() computes it (same expressions, so Phi and
 // B are bitwise those of order 1), then RNEA's second-order tensors and the reconstruction's group
 // blocks copied into `t` instead of being assembled into Theta, Gamma, Xi.

@@ -15,6 +15,7 @@
 #include "lie/right_jacobians.hpp"
 #include "linalg/small_gemm.hpp"
 #include "runtime/arrays.hpp"
+#include "dynamics/second_order_terms.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -116,6 +117,31 @@ inline void split_second_order(const RowMat& G2, int n, int nu, double* Theta, d
     }
     for (int a = 0; a < nu; ++a)
       for (int c = 0; c < nu; ++c) Xi[((size_t)i * nu + a) * nu + c] = g2[(size_t)(n + a) * nz + n + c];
+  }
+}
+
+// Node k's reconstruction group blocks (Jr, As, JWs, Dsym) into t, from block_ad_jr's A, Jr, D
+// and JW = Jr W1 (the multibody expansion's first_order_blocks, the contact schedule's
+// contact_linearise_contracted).
+inline void store_group_blocks(const std::vector<JointGroup>& groups, SecondOrderTerms& t, int k, const RowMat& Jr,
+                               const RowMat& A, const RowMat& JW, const std::vector<double>& Dt, int nv, int nz) {
+  double* jr = t.Jr.data() + (size_t)k * t.gJ;
+  double* as = t.As.data() + (size_t)k * t.gJ;
+  double* dsym = t.Dsym.data() + (size_t)k * t.gD;
+  double* jw = t.JWs.data() + (size_t)k * t.gW;
+  for (const JointGroup& g : groups) {
+    if (g.kind != SO3 && g.kind != SE3) continue;
+    const int o = g.idx_v, d = g.nv;
+    MatMap(jr, d, d) = Jr.block(o, o, d, d);
+    MatMap(as, d, d) = A.block(o, o, d, d);
+    MatMap(jw, d, nz) = JW.middleRows(o, d);
+    jr += d * d;
+    as += d * d;
+    jw += d * nz;
+    for (int p = 0; p < d; ++p)
+      for (int a = 0; a < d; ++a)
+        for (int c = 0; c < d; ++c) dsym[(size_t)(p * d + a) * d + c] = dsym_entry(Dt, nv, o, p, a, c);
+    dsym += d * d * d;
   }
 }
 

@@ -24,6 +24,12 @@ void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, b
   const Model& model = model_;
   this->model = &model_;
   id = ++TERMS_ID;
+  contact = false;
+  ny_max = 0;
+  ny.clear();
+  impulse.clear();
+  Kt.resize(0);
+  Rhs.resize(0);
   recursion = recursion_ && !variational_;
   one_body = one_body_ && !variational_ && !recursion;
   one_body_gravity = one_body && one_body_gravity_;
@@ -61,6 +67,22 @@ void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, b
   Dsym.resize((size_t)N * gD);
   As.resize((size_t)N * gJ);
   JWs.resize((size_t)N * gW);
+}
+
+void SecondOrderTerms::resize_contact(const Model& model_, int m_, int N_, double dt_, int ny_max_) {
+  // the semi-implicit layout without RNEA's terms (sized for the recursion, which stores no tensors,
+  // then its own buffers dropped), then the contact schedule's own
+  resize(model_, m_, N_, dt_, true, false, true);
+  recursion = false;
+  rnea.resize(0);
+  Minv.resize(0);
+  az.resize(0);
+  contact = true;
+  ny_max = ny_max_;
+  ny.assign((size_t)N, 0);
+  impulse.assign((size_t)N, 0);
+  Kt.resize((size_t)N * nv * ny_max);
+  Rhs.resize((size_t)N * ny_max * 2 * nv * nz());
 }
 
 // What a Data and RneaHessianWork depend on: the tree's shape and its joints' kinds.

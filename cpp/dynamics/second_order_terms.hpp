@@ -87,12 +87,26 @@ struct SecondOrderTerms {
   // The variational step of one body (VariationalModel::configuration_free): R_y depends on y alone,
   // so the residual Hessians' (eta, dv)-y blocks are exactly zero and the contraction skips them.
   bool variational_separable = false;
+  // A contact schedule's nodes (dynamics/contact_second.cpp, contact_linearise_contracted) instead of
+  // free multibody steps: node k's velocity update v+ has the second order y'' = Kinv rhs of its KKT
+  // system (ny[k] = nv + 3 feet rows y = (a, lambda) or (v+, Lambda)), kept as Kt (nv, ny_max), Kinv's
+  // first nv rows, and Rhs (ny_max, 2 nv, nz), rhs's rows as (2 nv, nz) blocks (the (z, s) block of
+  // each row's symmetric (nz, nz) matrix), ny[k] of each used. A contact node's step is semi-implicit
+  // Euler (F1, Jr, Dsym, As, JWs as for `semi`, v+'' = dt a''); an impulse node's (impulse[k]) is
+  // x+ = (q, v+): no reconstruction, v+'' read directly.
+  bool contact = false;
+  int ny_max = 0;
+  std::vector<int> ny;
+  std::vector<char> impulse;
+  Buffer Kt, Rhs;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
   Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts, rnea;
   int nz() const { return 2 * nv + m; }
   void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false,
               bool recursion_ = false, bool one_body_ = false, bool one_body_gravity_ = false);
+  // For a contact schedule (contact = true): F1 and the group blocks, Kt and Rhs for ny_max rows.
+  void resize_contact(const Model& model, int m_, int N_, double dt_, int ny_max_);
 };
 
 // Whether expansion_contracted leaves RNEA's second order to the recursion of rigid_body/rnea_hessian.hpp

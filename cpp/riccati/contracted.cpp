@@ -111,6 +111,57 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
   dyn::variational_projection_upper(T, F1, G, CF, [&](int a, int b, double s) { S(a, b) += s; }, sep);
 }
 
+// A contact schedule's node (t.contact; dynamics/contact_second.cpp, contact_linearise_contracted),
+// upper triangle of S: v+'' is the velocity rows of y'' = Kinv rhs (times dt at a contact node, whose
+// semi-implicit reconstruction also adds dt Jr v+'' to the q rows; an impulse node keeps q), so
+// both contract with w = dt c (c as for `semi` in contract_upper) or w = lv (impulse), and
+// sum_i w_i y''_i = sum_r mu_r rhs_r with mu = Kt^T w (Kt: Kinv's first nv rows): ny (ns, nz)
+// blocks summed instead of the dense expansion's Kinv rhs product over every row.
+static void contact_upper(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
+  const int nv = t.nv, nz = t.nz(), ns = 2 * nv, ny = t.ny[(size_t)k], nyx = t.ny_max;
+  const bool impulse = t.impulse[(size_t)k] != 0;
+  const double dt = t.dt;
+  thread_local Eigen::VectorXd c, mu;
+  thread_local std::vector<double> Ys;
+  CVecMap lq(Vx, nv), lv(Vx + nv, nv);
+  c = lv;
+  if (!impulse) {
+    c.noalias() += dt * lq;
+    const double* jr = t.Jr.data() + (size_t)k * t.gJ;
+    for (const JointGroup& g : t.groups) {
+      const int o = g.idx_v, d = g.nv;
+      c.segment(o, d) = lv.segment(o, d);
+      c.segment(o, d).noalias() += dt * (CMatMap(jr, d, d).transpose() * lq.segment(o, d));
+      jr += d * d;
+    }
+    c *= dt;
+  }
+  const double* kt = t.Kt.data() + (size_t)k * nv * nyx;
+  mu.setZero(ny);
+  for (int i = 0; i < nv; ++i) {
+    const double ci = c[i];
+    const double* row = kt + (size_t)i * nyx;
+    for (int r = 0; r < ny; ++r) mu[r] += ci * row[r];
+  }
+  const size_t block = (size_t)ns * nz;
+  const double* rhs = t.Rhs.data() + (size_t)k * nyx * block;
+  Ys.assign(block, 0.0);
+  for (int r = 0; r < ny; ++r) {
+    const double m = mu[r];
+    const double* x = rhs + (size_t)r * block;
+    for (size_t e = 0; e < block; ++e) Ys[e] += m * x[e];
+  }
+  // the (s, s) block symmetrised (its two triangles round differently), the (s, u) block as it is;
+  // the (u, u) block of y'' is zero
+  for (int a = 0; a < ns; ++a) {
+    double* Sa = S.data() + (size_t)a * nz;
+    const double* ya = Ys.data() + (size_t)a * nz;
+    for (int b = a; b < ns; ++b) Sa[b] += 0.5 * (ya[b] + Ys[(size_t)b * nz + a]);
+    for (int b = ns; b < nz; ++b) Sa[b] += ya[b];
+  }
+  if (!impulse) reconstruction_upper(t, k, lq, S);
+}
+
 // S's upper triangle (the top-right n x m block is S_ux^T); the lower triangle is left as junk.
 // With lq = Vx[:nv], lv = Vx[nv:]:
 // * velocity rows (v+ = v + dt a): G2 = dt a_zz with a_zz = -Minv T, T_i = ID_zz,i + P_i + P_i^T,
@@ -136,6 +187,10 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
   thread_local std::vector<double> r4, R;
   CVecMap lq(Vx, nv), lv(Vx + nv, nv);
   S.setZero(nz, nz);
+  if (t.contact) {
+    contact_upper(t, k, Vx, S);
+    return;
+  }
   if (t.variational) {
     variational_upper(t, k, Vx + nv, S);
     reconstruction_upper(t, k, lq, S);
@@ -343,7 +398,7 @@ class WorkersChoice {
     if (c == nullptr || c->pid_ != getpid()) c = new WorkersChoice;  // the parent's is abandoned
     return *c;
   }
-  typedef std::array<int, 5> Shape;  // n, m, H, group block size, variational (its contraction differs)
+  typedef std::array<int, 5> Shape;  // n, m, H, group block size, kind (1 variational, 2 contact: contractions differ)
   int choose(const Shape& shape) {
     std::lock_guard<std::mutex> lk(mutex_);
     Entry& e = entries_[shape];
@@ -375,7 +430,7 @@ class WorkersChoice {
 template <typename Run>
 int with_workers(int workers, int H, int n, int m, const dyn::SecondOrderTerms& t, Run&& run) {
   if (workers == 1 || workers == 2 || H <= 0) return run(workers == 2 && H > 0 ? 2 : 1);
-  const WorkersChoice::Shape shape{n, m, H, t.gD, t.variational ? 1 : 0};
+  const WorkersChoice::Shape shape{n, m, H, t.gD, t.variational ? 1 : t.contact ? 2 : 0};
   WorkersChoice& choice = WorkersChoice::get();
   const int w = choice.choose(shape);
   const auto t0 = std::chrono::steady_clock::now();

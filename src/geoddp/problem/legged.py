@@ -480,9 +480,12 @@ class ContactProblem:
         """Crocoddyl's ``quasiStatic`` at q0 per contact node (zeros at impulse nodes): the
         example's start."""
         U = np.zeros((self.horizon, self.nu))
+        held: dict[tuple[int, ...], np.ndarray] = {}  # per set of feet: a gait has a few, over many nodes
         for k, n in enumerate(self.nodes):
             if n.kind == "contact":
-                U[k] = self.dyn.quasi_static(self.q0, n.feet)
+                if n.feet not in held:
+                    held[n.feet] = self.dyn.quasi_static(self.q0, n.feet)
+                U[k] = held[n.feet]
         return U
 
     # ------------------------------------------------------------ the compiled backend
@@ -790,11 +793,14 @@ class ContactProblem:
             return Linearisation(order=1, Phi=Phi, B=B, Theta=None, Gamma=None, Xi=None, l_x=lx, l_u=lu, l_xx=lxx,
                                  l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=True)
         if order == 2 and self.compiled and self.compiled_second_order:
+            # the dynamics' second order factored (per node the KKT system's right-hand side and
+            # inverse rows): the backward pass contracts it with V_x' node by node instead of reading
+            # Theta, Gamma, Xi (Linearisation.tensors() forms them when asked)
             c64 = np.ascontiguousarray
-            Phi, B, Theta, Gamma, Xi, lx, lu, lxx, lux, luu, gf, Hf, _ = self.kernel().linearise_second(
+            Phi, B, lx, lu, lxx, lux, luu, gf, Hf, _, terms = self.kernel().linearise_contracted(
                 c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)
-            return Linearisation(order=2, Phi=Phi, B=B, Theta=Theta, Gamma=Gamma, Xi=Xi, l_x=lx, l_u=lu, l_xx=lxx,
-                                 l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=False)
+            return Linearisation(order=2, Phi=Phi, B=B, Theta=None, Gamma=None, Xi=None, l_x=lx, l_u=lu, l_xx=lxx,
+                                 l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=False, second_order=terms)
         Phi, B = np.empty((H, nx, nx)), np.empty((H, nx, nu))
         evs = []
         lx, lu = np.empty((H, nx)), np.empty((H, nu))
