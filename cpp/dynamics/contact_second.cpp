@@ -31,6 +31,7 @@
 #include "linalg/small_gemm.hpp"
 #include "rigid_body/pinocchio_compiled.hpp"
 #include "rigid_body/pinocchio_second_order.hpp"
+#include "rigid_body/rnea_hessian.hpp"
 #include "runtime/parallel.hpp"
 
 namespace geoddp {
@@ -84,9 +85,16 @@ struct ContactSecondWork {
   std::vector<pinocchio::Model> foot;
   std::vector<pinocchio::Data> foot_data;
   Rnea2 t, tf;
+  // the feet's rows of the point-mass models' RNEA second order, by the contracted recursion
+  // (rigid_body/rnea_hessian.hpp: the point-mass models share the robot's tree), and its outputs
+  RneaHessianWork rh;
+  std::vector<double> rh_node, r4, unit;
+  std::vector<double> total;  // force_terms' sum over the feet
   explicit ContactSecondWork(const ContactSetup& s)
       : groups(joint_groups(*s.model)),
-        zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv) {
+        zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv),
+        rh(*s.model), rh_node(rnea_hessian_node_size(*s.model)), r4(4 * (size_t)s.model->nv * s.model->nv),
+        unit((size_t)s.model->nv, 0.0) {
     zero_gravity.gravity.setZero();
     for (const ContactNode& n : s.nodes) {
       for (int f : n.feet) add_foot(*s.model, f);
@@ -115,7 +123,6 @@ void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
   for (RowMat* P : {&Pqq, &Pqv, &Pqa, &Pvv}) P->resize(3 * nf, nn);
   const Eigen::Matrix3d R = Eigen::Quaterniond(q[6], q[3], q[4], q[5]).toRotationMatrix();
   RowMat Lqq(3, nn), Lqv(3, nn), Lqa(3, nn), Lvv(3, nn);
-  Rnea2& T = w.tf;
   for (int i = 0; i < nf; ++i) {
     const size_t idx = w.foot_index.at(feet[(size_t)i]);
     const pinocchio::Model& mf = w.foot[idx];
@@ -124,15 +131,23 @@ void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
     libpin::computeRNEADerivatives(mf, df, q, v, a);
     const Eigen::MatrixXd Wq = df.dtau_dq.topRows(3), Wv = df.dtau_dv.topRows(3);
     const Eigen::MatrixXd Wa = Eigen::MatrixXd(df.M.selfadjointView<Eigen::Upper>()).topRows(3);
-    T.at(mf, df, q, v, a);
-    for (int c = 0; c < 3; ++c)
+    // only the three translational rows c of the base are needed: sum_i e_c,i X(i, j, l) for the four
+    // tensors X, by the recursion (a few nv^2 products) instead of Pinocchio's whole tensors (4 nv^3)
+    rnea_hessian_node(mf, w.rh, q.data(), v.data(), a.data(), w.rh_node.data());
+    const double *Hqq = w.r4.data(), *Hvv = Hqq + nn, *Hqv = Hvv + nn, *Dm = Hqv + nn;
+    for (int c = 0; c < 3; ++c) {
+      w.unit.assign((size_t)nv, 0.0);
+      w.unit[(size_t)c] = 1.0;
+      rnea_hessian_contract(mf, w.rh, w.rh_node.data(), w.unit.data(), w.r4.data(), w.r4.data() + nn,
+                            w.r4.data() + 2 * nn, w.r4.data() + 3 * nn);
       for (int j = 0; j < nv; ++j)
         for (int l = 0; l < nv; ++l) {
-          Lqq(c, j * nv + l) = 0.5 * (Rnea2::get(T.qq, nv, c, j, l) + Rnea2::get(T.qq, nv, c, l, j));
-          Lqv(c, j * nv + l) = Rnea2::get(T.qv, nv, c, j, l);
-          Lqa(c, j * nv + l) = Rnea2::get(T.aq, nv, c, l, j);
-          Lvv(c, j * nv + l) = Rnea2::get(T.vv, nv, c, j, l);
+          Lqq(c, j * nv + l) = 0.5 * (Hqq[j + nv * l] + Hqq[l + nv * j]);
+          Lqv(c, j * nv + l) = Hqv[j + nv * l];
+          Lqa(c, j * nv + l) = Dm[l + nv * j];
+          Lvv(c, j * nv + l) = Hvv[j + nv * l];
         }
+    }
     // the product rule's terms: oR_b(q exp(eta)) = oR_b exp(eta_rot) on the base's rotational
     // directions 3..5 (E_i = skew(e_i))
     for (int e = 0; e < 3; ++e)
@@ -161,11 +176,12 @@ void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
 // Subtract from Hss's RNEA rows (q-q block) the curvature of sum_f J_w,f(q)^T lambda_f (world
 // forces held): the point-mass model's RNEA at v = a = 0 under the gravity -lambda_f.
 void force_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen::VectorXd& q,
-                 const Eigen::VectorXd& forces, RowMat& Hss) {
+                 const Eigen::VectorXd& forces, Eigen::Map<RowMat>& Hss) {
   const int nv = w.zero_gravity.nv, ns = 2 * nv, nf = (int)feet.size();
   if (nf == 0) return;
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
-  std::vector<double> total((size_t)nv * nv * nv, 0.0);
+  std::vector<double>& total = w.total;
+  total.assign((size_t)nv * nv * nv, 0.0);
   for (int i = 0; i < nf; ++i) {
     const size_t idx = w.foot_index.at(feet[(size_t)i]);
     pinocchio::Model& mf = w.foot[idx];
@@ -180,31 +196,44 @@ void force_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
         Hss(r, a * ns + b) -= 0.5 * (Rnea2::get(total, nv, r, a, b) + Rnea2::get(total, nv, r, b, a));
 }
 
-// The right-hand side of E_y y'' = -(E_ss + E_sy Y1 + its transpose) from E_ww's blocks Hss
-// (ny, ns * ns), Hsy (ny, ns * ny) and Y1 = dy/dz (ny, nz), and Kinv = -E_y^-1 (ny, ny), E_y =
-// [[M, -Jw^T], [Jw, 0]] (ContactDynamics._kkt_second), so that y'' = Kinv rhs row by row. Each row r of
-// rhs (ny, ns * nz) is the (s, z) block (ns, nz) of that row's symmetric (nz, nz) matrix, whose
-// (u, u) block is zero (E is affine in u).
-void kkt_rhs(const RowMat& Hss, const RowMat& Hsy, const RowMat& Y1, const Eigen::MatrixXd& M, const RowMat& Jw,
-             double* rhs, RowMat& Kinv) {
-  const int nv = (int)M.rows(), nc = (int)Jw.rows(), ny = nv + nc, ns = 2 * nv, nz = (int)Y1.cols();
-  for (int r = 0; r < ny; ++r) {
-    // E_sy is zero in v's rows, and the foot rows' (r >= nv) only couple with a
-    // (linalg/small_gemm.hpp: AVX2/FMA where the CPU has it; these two products are most of a node's
-    // second order)
-    Eigen::Map<RowMat> out(rhs + (size_t)r * ns * nz, ns, nz);
-    gemm::gemm(false, nv, nz, r < nv ? ny : nv, 1.0, Hsy.row(r).data(), ny, Y1.data(), nz, false, out.data(), nz);
-    out.bottomRows(nv).setZero();
-    const Eigen::MatrixXd C = out.leftCols(ns).transpose();
-    out.leftCols(ns) += Eigen::Map<const RowMat>(Hss.row(r).data(), ns, ns) + C;
-  }
+// E_y = [[M, -Jw^T], [Jw, 0]] (ny, ny).
+Eigen::MatrixXd kkt_matrix(const Eigen::MatrixXd& M, const RowMat& Jw) {
+  const int nv = (int)M.rows(), nc = (int)Jw.rows(), ny = nv + nc;
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(ny, ny);
   K.topLeftCorner(nv, nv) = M;
   if (nc > 0) {
     K.topRightCorner(nv, nc) = -Jw.transpose();
     K.bottomLeftCorner(nc, nv) = Jw;
   }
-  Kinv = -K.partialPivLu().inverse();
+  return K;
+}
+
+// The right-hand side of E_y y'' = -(E_ss + E_sy Y1 + its transpose) from E_ww's blocks Hss
+// (ny, ns * ns), Hsy (ny, ns * ny) and Y1 = dy/dz (ny, nz), and Kinv = -E_y^-1 (ny, ny), E_y =
+// [[M, -Jw^T], [Jw, 0]] (ContactDynamics._kkt_second), so that y'' = Kinv rhs row by row. Each row r of
+// rhs (ny, ns * nz) is the (s, z) block (ns, nz) of that row's symmetric (nz, nz) matrix, whose
+// (u, u) block is zero (E is affine in u).
+void kkt_rhs(const double* Hss, const double* Hsy, const RowMat& Y1, const Eigen::MatrixXd& M, const RowMat& Jw,
+             double* rhs, RowMat& Kinv) {
+  const int nv = (int)M.rows(), ny = nv + (int)Jw.rows(), ns = 2 * nv, nz = (int)Y1.cols();
+  for (int r = 0; r < ny; ++r) {
+    // E_sy is zero in v's rows, and the foot rows' (r >= nv) only couple with a
+    // (linalg/small_gemm.hpp: AVX2/FMA where the CPU has it; these two products are most of a node's
+    // second order)
+    Eigen::Map<RowMat> out(rhs + (size_t)r * ns * nz, ns, nz);
+    gemm::gemm(false, nv, nz, r < nv ? ny : nv, 1.0, Hsy + (size_t)r * ns * ny, ny, Y1.data(), nz, false, out.data(),
+               nz);
+    out.bottomRows(nv).setZero();
+    // out's (s, s) block += Hss_r + its transpose, pair by pair (no copy of the block)
+    Eigen::Map<const RowMat> Hr(Hss + (size_t)r * ns * ns, ns, ns);
+    for (int a = 0; a < ns; ++a)
+      for (int b = a; b < ns; ++b) {
+        const double p = out(a, b) + out(b, a);
+        out(a, b) = Hr(a, b) + p;
+        if (b != a) out(b, a) = Hr(b, a) + p;
+      }
+  }
+  Kinv = -kkt_matrix(M, Jw).partialPivLu().inverse();
 }
 
 // Rows [r0, r1) of y'' (Y (ny, nz * nz), each row a symmetric (nz, nz) matrix, row-major) from
@@ -227,21 +256,24 @@ void y_rows(const double* rhs, const RowMat& Kinv, int nv, int nz, int r0, int r
 
 namespace {
 
-// A node's KKT system's second-order blocks (see kkt_rhs): Hss, Hsy, Y1 = dy/dz, M and the feet's
-// acceleration Jacobian Jw (3 nf, nv).
+// A node's KKT system's second-order blocks (see kkt_rhs): Y1 = dy/dz, M and the feet's
+// acceleration Jacobian Jw (3 nf, nv); Hss (ny, ns * ns) and Hsy (ny, ns * ny) are written where
+// node_kkt's caller points (its own arrays, or the factored terms' buffers).
 struct NodeKkt {
-  RowMat Hss, Hsy, Y1, Jw;
+  RowMat Y1, Jw;
   Eigen::MatrixXd M;
 };
 
+// The rows y of a node's KKT system: nv + 3 per foot.
+int kkt_rows(const ContactSetup& s, const ContactNode& node) { return s.model->nv + 3 * (int)node.feet.size(); }
+
 void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
-              const Eigen::VectorXd& v, const ContactEval& ev, NodeKkt& out) {
+              const Eigen::VectorXd& v, const ContactEval& ev, double* hss_out, double* hsy_out, NodeKkt& out) {
   const pinocchio::Model& m = *s.model;
   const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc, ns = 2 * nv;
-  RowMat& Hss = out.Hss;
-  RowMat& Hsy = out.Hsy;
-  Hss.setZero(ny, (Eigen::Index)ns * ns);
-  Hsy.setZero(ny, (Eigen::Index)ns * ny);
+  Eigen::Map<RowMat> Hss(hss_out, ny, (Eigen::Index)ns * ns), Hsy(hsy_out, ny, (Eigen::Index)ns * ny);
+  Hss.setZero();
+  Hsy.setZero();
   auto hss = [&](int r, int a, int b) -> double& { return Hss(r, a * ns + b); };
   auto hsy = [&](int r, int a, int y) -> double& { return Hsy(r, a * ny + y); };
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
@@ -311,10 +343,12 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
 void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
                          const Eigen::VectorXd& v, const ContactEval& ev, RowMat& Y, bool forces) {
   NodeKkt e;
-  node_kkt(s, w, node, q, v, ev, e);
-  const int nv = (int)e.M.rows(), ny = (int)e.Hss.rows(), nz = (int)e.Y1.cols();
-  RowMat rhs(ny, (Eigen::Index)2 * nv * nz), Kinv;
-  kkt_rhs(e.Hss, e.Hsy, e.Y1, e.M, e.Jw, rhs.data(), Kinv);
+  const int nv = s.model->nv, ns = 2 * nv, ny = kkt_rows(s, node);
+  std::vector<double> Hss((size_t)ny * ns * ns), Hsy((size_t)ny * ns * ny);
+  node_kkt(s, w, node, q, v, ev, Hss.data(), Hsy.data(), e);
+  const int nz = (int)e.Y1.cols();
+  RowMat rhs(ny, (Eigen::Index)ns * nz), Kinv;
+  kkt_rhs(Hss.data(), Hsy.data(), e.Y1, e.M, e.Jw, rhs.data(), Kinv);
   // the forces' rows only when asked (the cost curvature reads them where a friction-cone barrier
   // is active); otherwise they are left unset
   Y.resize(ny, (Eigen::Index)nz * nz);
@@ -509,7 +543,7 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
     ContactEval ev;
     NodeKkt kkt;
     Eigen::VectorXd g, q(nq), v(nv), u(nu);
-    RowMat Hs, Y, Kinv, A(nv, nv), Jr(nv, nv), W1, JW;
+    RowMat Hs, Y, Kinv, rhs, A(nv, nv), Jr(nv, nv), W1, JW;
     std::vector<double> Dt((size_t)nv * nv * nv);
     Eigen::VectorXd omega(nv);
     for (int k = b; k < e; ++k) {
@@ -524,14 +558,18 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
       const ContactNode& node = s.nodes[(size_t)k];
       u = Um.row(k).transpose();
       costs[k] = contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
-      node_kkt(s, w, node, q, v, ev, kkt);
-      const int ny = (int)kkt.Hss.rows();
-      double* rhs = t.Rhs.data() + (size_t)k * ny_max * ns * nz;
-      kkt_rhs(kkt.Hss, kkt.Hsy, kkt.Y1, kkt.M, kkt.Jw, rhs, Kinv);
+      const int ny = kkt_rows(s, node);
+      double* hss = t.Ess.data() + (size_t)k * ny_max * ns * ns;
+      double* hsy = t.Esy.data() + (size_t)k * ny_max * ns * ny_max;
+      node_kkt(s, w, node, q, v, ev, hss, hsy, kkt);
+      Kinv = -kkt_matrix(kkt.M, kkt.Jw).partialPivLu().inverse();
+      Eigen::Map<RowMat>(t.Yz.data() + (size_t)k * ny_max * nz, ny, nz) = kkt.Y1;
       const bool cone = cone_active(s, node, ev);
       if (cone) {  // the cost's force curvature reads the force rows of y'': only those are formed
+        rhs.resize(ny, (Eigen::Index)ns * nz);
+        kkt_rhs(hss, hsy, kkt.Y1, kkt.M, kkt.Jw, rhs.data(), Kinv);
         Y.resize(ny, (Eigen::Index)nz * nz);
-        y_rows(rhs, Kinv, nv, nz, nv, ny, Y);
+        y_rows(rhs.data(), Kinv, nv, nz, nv, ny, Y);
       }
       contact_cost_curvature(s, w, k, q, v, &ev, cone ? &Y : nullptr, Hs);
       store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);

@@ -28,8 +28,7 @@ void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, b
   ny_max = 0;
   ny.clear();
   impulse.clear();
-  Kt.resize(0);
-  Rhs.resize(0);
+  for (Buffer* x : {&Kt, &Ess, &Esy, &Yz}) x->resize(0);
   recursion = recursion_ && !variational_;
   one_body = one_body_ && !variational_ && !recursion;
   one_body_gravity = one_body && one_body_gravity_;
@@ -81,8 +80,11 @@ void SecondOrderTerms::resize_contact(const Model& model_, int m_, int N_, doubl
   ny_max = ny_max_;
   ny.assign((size_t)N, 0);
   impulse.assign((size_t)N, 0);
+  const size_t ns = 2 * (size_t)nv;
   Kt.resize((size_t)N * nv * ny_max);
-  Rhs.resize((size_t)N * ny_max * 2 * nv * nz());
+  Ess.resize((size_t)N * ny_max * ns * ns);
+  Esy.resize((size_t)N * ny_max * ns * ny_max);
+  Yz.resize((size_t)N * ny_max * nz());
 }
 
 // What a Data and RneaHessianWork depend on: the tree's shape and its joints' kinds.

@@ -88,24 +88,26 @@ struct SecondOrderTerms {
   // so the residual Hessians' (eta, dv)-y blocks are exactly zero and the contraction skips them.
   bool variational_separable = false;
   // A contact schedule's nodes (dynamics/contact_second.cpp, contact_linearise_contracted) instead of
-  // free multibody steps: node k's velocity update v+ has the second order y'' = Kinv rhs of its KKT
-  // system (ny[k] = nv + 3 feet rows y = (a, lambda) or (v+, Lambda)), kept as Kt (nv, ny_max), Kinv's
-  // first nv rows, and Rhs (ny_max, 2 nv, nz), rhs's rows as (2 nv, nz) blocks (the (z, s) block of
-  // each row's symmetric (nz, nz) matrix), ny[k] of each used. A contact node's step is semi-implicit
-  // Euler (F1, Jr, Dsym, As, JWs as for `semi`, v+'' = dt a''); an impulse node's (impulse[k]) is
-  // x+ = (q, v+): no reconstruction, v+'' read directly.
+  // free multibody steps. Node k's KKT system E(s, y) = 0 (ny[k] = nv + 3 per foot rows, y = (a, lambda)
+  // or (v+, Lambda)) has y'' = Kinv rhs, rhs_r = E_ss,r + P_r + P_r^T on the (s, s) block and P_r on the
+  // (s, u) block, P_r = E_sy,r Y1; kept as its factors, each node's block sized for ny_max rows:
+  //   Kt (nv, ny_max): Kinv's first nv rows (the velocity update's), Ess (ny, ns, ns) and Esy (ny, ns,
+  //   ny): E_ww's blocks row by row (kkt_rhs's layout, with the node's own ny), Yz (ny, nz) = dy/dz;
+  // the pass contracts them: sum_r mu_r rhs_r = E_ss[mu] + (E_sy[mu] Y1) + its transpose. A contact
+  // node's step is semi-implicit Euler (F1, Jr, Dsym, As, JWs as for `semi`, v+'' = dt a''); an impulse
+  // node's (impulse[k]) is x+ = (q, v+): no reconstruction, v+'' read directly.
   bool contact = false;
   int ny_max = 0;
   std::vector<int> ny;
   std::vector<char> impulse;
-  Buffer Kt, Rhs;
+  Buffer Kt, Ess, Esy, Yz;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
   Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts, rnea;
   int nz() const { return 2 * nv + m; }
   void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false,
               bool recursion_ = false, bool one_body_ = false, bool one_body_gravity_ = false);
-  // For a contact schedule (contact = true): F1 and the group blocks, Kt and Rhs for ny_max rows.
+  // For a contact schedule (contact = true): F1 and the group blocks, Kt, Ess, Esy, Yz for ny_max rows.
   void resize_contact(const Model& model, int m_, int N_, double dt_, int ny_max_);
 };
 

@@ -115,14 +115,17 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
 // upper triangle of S: v+'' is the velocity rows of y'' = Kinv rhs (times dt at a contact node, whose
 // semi-implicit reconstruction also adds dt Jr v+'' to the q rows; an impulse node keeps q), so
 // both contract with w = dt c (c as for `semi` in contract_upper) or w = lv (impulse), and
-// sum_i w_i y''_i = sum_r mu_r rhs_r with mu = Kt^T w (Kt: Kinv's first nv rows): ny (ns, nz)
-// blocks summed instead of the dense expansion's Kinv rhs product over every row.
+// sum_i w_i y''_i = sum_r mu_r rhs_r with mu = Kt^T w (Kt: Kinv's first nv rows). From the factors
+// (second_order_terms.hpp): A = sum_r mu_r E_ss,r (ns, ns), Bq = sum_r mu_r E_sy,r's q rows (nv, ny)
+// and P = Bq Y1 (nv, nz) give sum_r mu_r rhs_r = A + P~ + P~^T on the (s, s) block and P~ on the
+// (s, u) block (P~ = [P; 0]): about ny (ns^2 + nv ny) + nv ny nz products instead of the dense
+// expansion's ny nv ns nz per node (E_sy Y1 for every row) and Kinv rhs over every row.
 static void contact_upper(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
   const int nv = t.nv, nz = t.nz(), ns = 2 * nv, ny = t.ny[(size_t)k], nyx = t.ny_max;
   const bool impulse = t.impulse[(size_t)k] != 0;
   const double dt = t.dt;
   thread_local Eigen::VectorXd c, mu;
-  thread_local std::vector<double> Ys;
+  thread_local std::vector<double> A, Bq, P;
   CVecMap lq(Vx, nv), lv(Vx + nv, nv);
   c = lv;
   if (!impulse) {
@@ -143,21 +146,35 @@ static void contact_upper(const dyn::SecondOrderTerms& t, int k, const double* V
     const double* row = kt + (size_t)i * nyx;
     for (int r = 0; r < ny; ++r) mu[r] += ci * row[r];
   }
-  const size_t block = (size_t)ns * nz;
-  const double* rhs = t.Rhs.data() + (size_t)k * nyx * block;
-  Ys.assign(block, 0.0);
+  // A and Bq: E_sy's rows are zero below the q rows (E_sy couples y with q only)
+  const size_t ss = (size_t)ns * ns, sq = (size_t)nv * ny;
+  const double* ess = t.Ess.data() + (size_t)k * nyx * ss;
+  const double* esy = t.Esy.data() + (size_t)k * nyx * ns * nyx;
+  A.assign(ss, 0.0);
+  Bq.assign(sq, 0.0);
   for (int r = 0; r < ny; ++r) {
     const double m = mu[r];
-    const double* x = rhs + (size_t)r * block;
-    for (size_t e = 0; e < block; ++e) Ys[e] += m * x[e];
+    const double* x = ess + (size_t)r * ss;
+    for (size_t e = 0; e < ss; ++e) A[e] += m * x[e];
+    const double* y = esy + (size_t)r * ns * ny;  // row r's (ns, ny) block; its q rows first
+    for (size_t e = 0; e < sq; ++e) Bq[e] += m * y[e];
   }
-  // the (s, s) block symmetrised (its two triangles round differently), the (s, u) block as it is;
-  // the (u, u) block of y'' is zero
+  P.resize((size_t)nv * nz);
+  gemm::gemm(false, nv, nz, ny, 1.0, Bq.data(), ny, t.Yz.data() + (size_t)k * nyx * nz, nz, false, P.data(), nz);
+  // the (s, s) block: A symmetrised (its two triangles round differently) plus P~ + P~^T; the (s, u)
+  // block P~; the (u, u) block of y'' is zero
   for (int a = 0; a < ns; ++a) {
     double* Sa = S.data() + (size_t)a * nz;
-    const double* ya = Ys.data() + (size_t)a * nz;
-    for (int b = a; b < ns; ++b) Sa[b] += 0.5 * (ya[b] + Ys[(size_t)b * nz + a]);
-    for (int b = ns; b < nz; ++b) Sa[b] += ya[b];
+    const double* Aa = A.data() + (size_t)a * ns;
+    const double* Pa = a < nv ? P.data() + (size_t)a * nz : nullptr;
+    for (int b = a; b < ns; ++b) {
+      double x = 0.5 * (Aa[b] + A[(size_t)b * ns + a]);
+      if (Pa) x += Pa[b];
+      if (b < nv) x += P[(size_t)b * nz + a];
+      Sa[b] += x;
+    }
+    if (Pa)
+      for (int b = ns; b < nz; ++b) Sa[b] += Pa[b];
   }
   if (!impulse) reconstruction_upper(t, k, lq, S);
 }
