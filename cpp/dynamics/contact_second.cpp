@@ -221,7 +221,7 @@ void kkt_rhs(const double* Hss, const double* Hsy, const RowMat& Y1, const Eigen
     // (linalg/small_gemm.hpp: AVX2/FMA where the CPU has it; these two products are most of a node's
     // second order)
     Eigen::Map<RowMat> out(rhs + (size_t)r * ns * nz, ns, nz);
-    gemm::gemm(false, nv, nz, r < nv ? ny : nv, 1.0, Hsy + (size_t)r * ns * ny, ny, Y1.data(), nz, false, out.data(),
+    gemm::gemm(false, nv, nz, r < nv ? ny : nv, 1.0, Hsy + (size_t)r * nv * ny, ny, Y1.data(), nz, false, out.data(),
                nz);
     out.bottomRows(nv).setZero();
     // out's (s, s) block += Hss_r + its transpose, pair by pair (no copy of the block)
@@ -271,7 +271,7 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
               const Eigen::VectorXd& v, const ContactEval& ev, double* hss_out, double* hsy_out, NodeKkt& out) {
   const pinocchio::Model& m = *s.model;
   const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc, ns = 2 * nv;
-  Eigen::Map<RowMat> Hss(hss_out, ny, (Eigen::Index)ns * ns), Hsy(hsy_out, ny, (Eigen::Index)ns * ny);
+  Eigen::Map<RowMat> Hss(hss_out, ny, (Eigen::Index)ns * ns), Hsy(hsy_out, ny, (Eigen::Index)nv * ny);
   Hss.setZero();
   Hsy.setZero();
   auto hss = [&](int r, int a, int b) -> double& { return Hss(r, a * ns + b); };
@@ -344,7 +344,7 @@ void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const Cont
                          const Eigen::VectorXd& v, const ContactEval& ev, RowMat& Y, bool forces) {
   NodeKkt e;
   const int nv = s.model->nv, ns = 2 * nv, ny = kkt_rows(s, node);
-  std::vector<double> Hss((size_t)ny * ns * ns), Hsy((size_t)ny * ns * ny);
+  std::vector<double> Hss((size_t)ny * ns * ns), Hsy((size_t)ny * nv * ny);
   node_kkt(s, w, node, q, v, ev, Hss.data(), Hsy.data(), e);
   const int nz = (int)e.Y1.cols();
   RowMat rhs(ny, (Eigen::Index)ns * nz), Kinv;
@@ -535,6 +535,7 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
   int ny_max = nv;
   for (const ContactNode& node : s.nodes) ny_max = std::max(ny_max, nv + 3 * (int)node.feet.size());
   t.resize_contact(m, nu, H, dt, ny_max);
+  const size_t ns_upper = (size_t)ns * (ns + 1) / 2;
   CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
   parallel_for(H + 1, threads, [&](int b, int e, int) {
     ContactWork cw(m);
@@ -544,6 +545,7 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
     NodeKkt kkt;
     Eigen::VectorXd g, q(nq), v(nv), u(nu);
     RowMat Hs, Y, Kinv, rhs, A(nv, nv), Jr(nv, nv), W1, JW;
+    std::vector<double> hss_full;
     std::vector<double> Dt((size_t)nv * nv * nv);
     Eigen::VectorXd omega(nv);
     for (int k = b; k < e; ++k) {
@@ -559,9 +561,18 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
       u = Um.row(k).transpose();
       costs[k] = contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
       const int ny = kkt_rows(s, node);
-      double* hss = t.Ess.data() + (size_t)k * ny_max * ns * ns;
-      double* hsy = t.Esy.data() + (size_t)k * ny_max * ns * ny_max;
+      // E_ss into this worker's scratch, stored below as its symmetric part's upper triangle; E_sy's
+      // q rows (the only nonzero ones) straight into the terms
+      hss_full.resize((size_t)ny * ns * ns);
+      double* hss = hss_full.data();
+      double* hsy = t.Esy.data() + (size_t)k * ny_max * nv * ny_max;
       node_kkt(s, w, node, q, v, ev, hss, hsy, kkt);
+      double* packed = t.Ess.data() + (size_t)k * ny_max * ns_upper;
+      for (int r = 0; r < ny; ++r) {
+        const double* h = hss + (size_t)r * ns * ns;
+        for (int a = 0; a < ns; ++a)
+          for (int b2 = a; b2 < ns; ++b2) *packed++ = 0.5 * (h[(size_t)a * ns + b2] + h[(size_t)b2 * ns + a]);
+      }
       Kinv = -kkt_matrix(kkt.M, kkt.Jw).partialPivLu().inverse();
       Eigen::Map<RowMat>(t.Yz.data() + (size_t)k * ny_max * nz, ny, nz) = kkt.Y1;
       const bool cone = cone_active(s, node, ev);

@@ -82,8 +82,8 @@ void SecondOrderTerms::resize_contact(const Model& model_, int m_, int N_, doubl
   impulse.assign((size_t)N, 0);
   const size_t ns = 2 * (size_t)nv;
   Kt.resize((size_t)N * nv * ny_max);
-  Ess.resize((size_t)N * ny_max * ns * ns);
-  Esy.resize((size_t)N * ny_max * ns * ny_max);
+  Ess.resize((size_t)N * ny_max * (ns * (ns + 1) / 2));
+  Esy.resize((size_t)N * ny_max * nv * ny_max);
   Yz.resize((size_t)N * ny_max * nz());
 }
 

@@ -91,8 +91,9 @@ struct SecondOrderTerms {
   // free multibody steps. Node k's KKT system E(s, y) = 0 (ny[k] = nv + 3 per foot rows, y = (a, lambda)
   // or (v+, Lambda)) has y'' = Kinv rhs, rhs_r = E_ss,r + P_r + P_r^T on the (s, s) block and P_r on the
   // (s, u) block, P_r = E_sy,r Y1; kept as its factors, each node's block sized for ny_max rows:
-  //   Kt (nv, ny_max): Kinv's first nv rows (the velocity update's), Ess (ny, ns, ns) and Esy (ny, ns,
-  //   ny): E_ww's blocks row by row (kkt_rhs's layout, with the node's own ny), Yz (ny, nz) = dy/dz;
+  //   Kt (nv, ny_max): Kinv's first nv rows (the velocity update's); Ess (ny, ns (ns + 1) / 2): each row's
+  //   E_ss symmetrised, its upper triangle row by row; Esy (ny, nv, ny): each row's E_sy on the q rows
+  //   (its only nonzero ones; kkt_rhs's layout, the node's own ny); Yz (ny, nz) = dy/dz;
   // the pass contracts them: sum_r mu_r rhs_r = E_ss[mu] + (E_sy[mu] Y1) + its transpose. A contact
   // node's step is semi-implicit Euler (F1, Jr, Dsym, As, JWs as for `semi`, v+'' = dt a''); an impulse
   // node's (impulse[k]) is x+ = (q, v+): no reconstruction, v+'' read directly.

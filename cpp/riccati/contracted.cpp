@@ -146,29 +146,29 @@ static void contact_upper(const dyn::SecondOrderTerms& t, int k, const double* V
     const double* row = kt + (size_t)i * nyx;
     for (int r = 0; r < ny; ++r) mu[r] += ci * row[r];
   }
-  // A and Bq: E_sy's rows are zero below the q rows (E_sy couples y with q only)
-  const size_t ss = (size_t)ns * ns, sq = (size_t)nv * ny;
-  const double* ess = t.Ess.data() + (size_t)k * nyx * ss;
-  const double* esy = t.Esy.data() + (size_t)k * nyx * ns * nyx;
-  A.assign(ss, 0.0);
+  // A (its upper triangle, packed row by row as stored) and Bq
+  const size_t su = (size_t)ns * (ns + 1) / 2, sq = (size_t)nv * ny;
+  const double* ess = t.Ess.data() + (size_t)k * nyx * su;
+  const double* esy = t.Esy.data() + (size_t)k * nyx * nv * nyx;
+  A.assign(su, 0.0);
   Bq.assign(sq, 0.0);
   for (int r = 0; r < ny; ++r) {
     const double m = mu[r];
-    const double* x = ess + (size_t)r * ss;
-    for (size_t e = 0; e < ss; ++e) A[e] += m * x[e];
-    const double* y = esy + (size_t)r * ns * ny;  // row r's (ns, ny) block; its q rows first
+    const double* x = ess + (size_t)r * su;
+    for (size_t e = 0; e < su; ++e) A[e] += m * x[e];
+    const double* y = esy + (size_t)r * sq;
     for (size_t e = 0; e < sq; ++e) Bq[e] += m * y[e];
   }
   P.resize((size_t)nv * nz);
   gemm::gemm(false, nv, nz, ny, 1.0, Bq.data(), ny, t.Yz.data() + (size_t)k * nyx * nz, nz, false, P.data(), nz);
-  // the (s, s) block: A symmetrised (its two triangles round differently) plus P~ + P~^T; the (s, u)
+  // the (s, s) block: A (symmetric: its rows were stored symmetrised) plus P~ + P~^T; the (s, u)
   // block P~; the (u, u) block of y'' is zero
+  const double* Aa = A.data();  // row a's entries b = a .. ns - 1
   for (int a = 0; a < ns; ++a) {
     double* Sa = S.data() + (size_t)a * nz;
-    const double* Aa = A.data() + (size_t)a * ns;
     const double* Pa = a < nv ? P.data() + (size_t)a * nz : nullptr;
     for (int b = a; b < ns; ++b) {
-      double x = 0.5 * (Aa[b] + A[(size_t)b * ns + a]);
+      double x = *Aa++;
       if (Pa) x += Pa[b];
       if (b < nv) x += P[(size_t)b * nz + a];
       Sa[b] += x;
