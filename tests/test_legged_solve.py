@@ -74,3 +74,29 @@ def test_switch_expansion_reaches_the_same_minimum(solved):
     assert res.converged, res.message
     assert "second" in res.expansion_history
     assert res.cost == pytest.approx(first.cost, rel=1e-12)
+
+
+def test_a_full_step_within_tolerance_ends_the_search():
+    """The trot's first-order solve ends where the model's full-step decrease (1.6e-12) is below the
+    cost tolerance (rtol |J| = 2.3e-9) and that step does not decrease J: one rollout (gamma = 1),
+    not a search down through eight shorter steps each worth less than tol. The point is then
+    certified by the exact check (Newton decrement below the threshold); tests/test_contact_crocoddyl.py
+    compares its J* with FDDP's."""
+    problem = anymal_trot(load_anymal())
+    trials = []  # (gamma, J of the trial) of every closed-loop rollout
+    rollout = problem.rollout_policy
+
+    def recorded(nominal, k, K, gamma):
+        traj = rollout(nominal, k, K, gamma)
+        trials.append((gamma, problem.trajectory_cost(traj) if traj is not None else np.inf))
+        return traj
+
+    problem.rollout_policy = recorded
+    res = solve(problem, SolverOptions(expansion="first"))
+    assert res.converged and "predicted decrease of the full step" in res.message, res.message
+    gamma, J_last = trials[-1]
+    assert gamma == 1.0 and J_last > res.cost  # the last trial: the full step, rejected, and no other
+    assert len(trials) == res.iterations + 1 + sum(
+        round(np.log(g) / np.log(SolverOptions().step_factor)) for g in res.step_history)
+    opt = res.extra["optimality"]
+    assert opt["hessian_positive_definite"] and opt["newton_decrease"] <= opt["newton_threshold"]

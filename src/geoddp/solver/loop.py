@@ -157,7 +157,18 @@ class _Solve:
         stationary = self.decrease_test(lin, d1, d2, lam_used, quu_min)  # round-off, early certificate
         if stationary is not None:
             return self.converge(STATUS_CONVERGED_COST, *stationary)
-        found = self.try_step()  # forward passes, gamma = 1, h, h^2, ... until J <= J_bar
+        # The model's full-step decrease below the cost tolerance, from an undamped pass: no step along
+        # this direction can decrease J by more than tol, so a full step that does not decrease J
+        # ends the search (the cost test's stop, without a step) instead of shrinking gamma through
+        # a dozen rollouts that could each gain less than tol (ANYmal's trot: 8 rollouts for 1e-12).
+        full_step_decrease = d1 - 0.5 * d2
+        tol = self.policy.cost_tol(self.J)
+        within_tol = abs(full_step_decrease) <= tol and lam_used <= 1e-3 * quu_min
+        found = self.try_step(within_tol)  # forward passes, gamma = 1, h, h^2, ... until J <= J_bar
+        if found is None and within_tol:
+            return self.cost_test(0.0, 1.0, lam_used, quu_min, full_step_decrease, message=(
+                f"predicted decrease of the full step {abs(full_step_decrease):.1e} <= {tol:.1e} and that step "
+                "does not decrease J"))
         if found is None:
             return self.increase_regularisation()  # no descent: redo with a larger lambda
         traj, J_new, gamma = found
@@ -226,11 +237,12 @@ class _Solve:
                     f"{CERTIFY_EARLY:g} x {self.policy.newton_threshold(self.J):.1e}", lin, (d1, d2))
         return None
 
-    def try_step(self) -> tuple[Trajectory, float, float] | None:
+    def try_step(self, full_step_only: bool = False) -> tuple[Trajectory, float, float] | None:
         """The forward pass with line search (eq. (17), Algorithm 1's inner repeat): (trajectory,
-        J, gamma) of the first gamma that does not increase J, or None."""
+        J, gamma) of the first gamma that does not increase J, or None (``full_step_only``: gamma =
+        1 alone)."""
         t0 = time.perf_counter()
-        found = line_search(self.problem, self.traj, self.J, self.ws.k, self.ws.K, self.opt)
+        found = line_search(self.problem, self.traj, self.J, self.ws.k, self.ws.K, self.opt, full_step_only)
         self.timings["forward"] += time.perf_counter() - t0
         return found
 
@@ -269,8 +281,10 @@ class _Solve:
             # (Quadrotor with thrust limits: first order 73 -> 38 iterations.)
             self.lam = min(max(self.lam * 10.0, quu_min), opt.reg_max)
 
-    def cost_test(self, dJ: float, gamma: float, lam_used: float, quu_min: float, full_step_decrease: float) -> bool:
-        """The stopping test on |dJ| after an accepted step. Returns False when the solve stops."""
+    def cost_test(self, dJ: float, gamma: float, lam_used: float, quu_min: float, full_step_decrease: float,
+                  message: str | None = None) -> bool:
+        """The stopping test on |dJ| after an accepted step (or, with dJ = 0 and its own ``message``,
+        where no step can change J by more than tol). Returns False when the solve stops."""
         opt = self.opt
         # A small |dJ| after a damped step says nothing about optimality. The cost test counts
         # only after an undamped Newton-like step: gamma = 1 (or a model decrease below tol) and
@@ -282,7 +296,7 @@ class _Solve:
         at_roundoff = abs(dJ) <= 4.0 * _EPS * abs(self.J)
         if not (abs(dJ) <= tol and (undamped or at_roundoff)):
             return True
-        message = self.policy.cost_test_message(dJ, self.J)
+        message = message or self.policy.cost_test_message(dJ, self.J)
         if self.policy.switching() and self.certify:
             # first order has done what it can: second order finishes (quadratically) and
             # the exact check decides, instead of stopping at a linearly converging point ...
