@@ -231,8 +231,7 @@ void bind_contact(py::module_& m) {
           "the cost Hessians exact.")
       .def(
           "linearise_contracted",
-          [](py::object self, const Arr& Q, const Arr& V, const Arr& U, int threads) {
-            const ContactKernel& k = py::cast<const ContactKernel&>(self);
+          [](const ContactKernel& k, const Arr& Q, const Arr& V, const Arr& U, int threads) {
             const auto& s = k.s;
             check_trajectory(s, Q, V, U);
             ExpansionArrays o(s, false);

@@ -209,7 +209,7 @@ Eigen::MatrixXd kkt_matrix(const Eigen::MatrixXd& M, const RowMat& Jw) {
 }
 
 // The right-hand side of E_y y'' = -(E_ss + E_sy Y1 + its transpose) from E_ww's blocks Hss
-// (ny, ns * ns), Hsy (ny, ns * ny) and Y1 = dy/dz (ny, nz), and Kinv = -E_y^-1 (ny, ny), E_y =
+// (ny, ns * ns), Hsy (ny, nv * ny: E_sy's q rows, its others are zero) and Y1 = dy/dz (ny, nz), and Kinv = -E_y^-1 (ny, ny), E_y =
 // [[M, -Jw^T], [Jw, 0]] (ContactDynamics._kkt_second), so that y'' = Kinv rhs row by row. Each row r of
 // rhs (ny, ns * nz) is the (s, z) block (ns, nz) of that row's symmetric (nz, nz) matrix, whose
 // (u, u) block is zero (E is affine in u).
@@ -218,8 +218,7 @@ void kkt_rhs(const double* Hss, const double* Hsy, const RowMat& Y1, const Eigen
   const int nv = (int)M.rows(), ny = nv + (int)Jw.rows(), ns = 2 * nv, nz = (int)Y1.cols();
   for (int r = 0; r < ny; ++r) {
     // E_sy is zero in v's rows, and the foot rows' (r >= nv) only couple with a
-    // (linalg/small_gemm.hpp: AVX2/FMA where the CPU has it; these two products are most of a node's
-    // second order)
+    // (linalg/small_gemm.hpp: AVX2/FMA where the CPU has it)
     Eigen::Map<RowMat> out(rhs + (size_t)r * ns * nz, ns, nz);
     gemm::gemm(false, nv, nz, r < nv ? ny : nv, 1.0, Hsy + (size_t)r * nv * ny, ny, Y1.data(), nz, false, out.data(),
                nz);
@@ -257,8 +256,8 @@ void y_rows(const double* rhs, const RowMat& Kinv, int nv, int nz, int r0, int r
 namespace {
 
 // A node's KKT system's second-order blocks (see kkt_rhs): Y1 = dy/dz, M and the feet's
-// acceleration Jacobian Jw (3 nf, nv); Hss (ny, ns * ns) and Hsy (ny, ns * ny) are written where
-// node_kkt's caller points (its own arrays, or the factored terms' buffers).
+// acceleration Jacobian Jw (3 nf, nv); Hss (ny, ns * ns) and Hsy (ny, nv * ny, E_sy's q rows) are
+// written where node_kkt's caller points (its own arrays, or the factored terms' buffer for Hsy).
 struct NodeKkt {
   RowMat Y1, Jw;
   Eigen::MatrixXd M;
