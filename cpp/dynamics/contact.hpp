@@ -30,6 +30,7 @@
 
 #include "dynamics/second_order_terms.hpp"
 #include "runtime/arrays.hpp"
+#include "runtime/parallel.hpp"
 
 namespace geoddp {
 namespace dyn {
@@ -97,6 +98,38 @@ double contact_node_cost(const ContactSetup& s, ContactWork& w, int k, const Eig
 // Node k (< H) evaluated: its dynamics, then its cost (contact_trajectory.cpp).
 double contact_step(const ContactSetup& s, ContactWork& w, int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                     const Eigen::VectorXd& u, bool derivatives, ContactEval& ev, Eigen::VectorXd& g, RowMat& Hs);
+
+// The node loop of the whole-trajectory kernels (node-parallel): per worker a ContactWork and an
+// Extra(s) (the kernel's own work and scratch); every node k = 0 .. H at (Q[k], V[k]) (and U[k],
+// k < H) evaluated, with derivatives if `derivatives`: the terminal's cost into costs[H], then
+// terminal(q, v, g, Hs, extra); a running node (contact_step) into costs[k], then
+// running(k, q, v, ev, g, Hs, extra).
+template <class Extra, class Running, class Terminal>
+inline void for_each_node(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                          bool derivatives, double* costs, Running&& running, Terminal&& terminal) {
+  const pinocchio::Model& m = *s.model;
+  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu();
+  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
+  parallel_for(H + 1, threads, [&](int b, int e, int) {
+    ContactWork w(m);
+    Extra extra(s);
+    ContactEval ev;
+    Eigen::VectorXd g, q(nq), v(nv), u(nu);
+    RowMat Hs;
+    for (int k = b; k < e; ++k) {
+      q = Qm.row(k).transpose();
+      v = Vm.row(k).transpose();
+      if (k == H) {
+        costs[k] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, derivatives, g, Hs);
+        terminal(q, v, g, Hs, extra);
+        continue;
+      }
+      u = Um.row(k).transpose();
+      costs[k] = contact_step(s, w, k, q, v, u, derivatives, ev, g, Hs);
+      running(k, q, v, ev, g, Hs, extra);
+    }
+  });
+}
 
 // Open-loop rollout from (q0, v0): U (H, nu) (the impulse rows act on nothing) -> Q (H+1, nq),
 // V (H+1, nv), costs (H+1) (each node's cost, the terminal's last).

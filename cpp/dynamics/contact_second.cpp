@@ -472,56 +472,95 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
   }
 }
 
+namespace {
+
+// The second-order expansions' node loop: for_each_node (contact.hpp) with, per worker, a
+// ContactSecondWork and a Scratch(nv, nz); the terminal node's exact cost expansion into lfx, lfxx;
+// each running node, evaluated with derivatives, handed to node(k, q, v, ev, g, Hs, w, scratch),
+// which adds its second order.
+template <class Scratch>
+struct SecondOrderExtra {
+  ContactSecondWork w;
+  Scratch scratch;
+  explicit SecondOrderExtra(const ContactSetup& s) : w(s), scratch(s.model->nv, 2 * s.model->nv + s.nu()) {}
+};
+
+template <class Scratch, class NodeFn>
+void second_order_nodes(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
+                        double* lfx, double* lfxx, double* costs, NodeFn&& node) {
+  const int n = 2 * s.model->nv;
+  typedef SecondOrderExtra<Scratch> Extra;
+  for_each_node<Extra>(
+      s, Q, V, U, threads, true, costs,
+      [&](int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v, const ContactEval& ev, const Eigen::VectorXd& g,
+          RowMat& Hs, Extra& x) { node(k, q, v, ev, g, Hs, x.w, x.scratch); },
+      [&](const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& g, RowMat& Hs, Extra& x) {
+        contact_cost_curvature(s, x.w, s.horizon(), q, v, nullptr, nullptr, Hs);
+        store_terminal_expansion(n, g, Hs, lfx, lfxx);
+      });
+}
+
+// The semi-implicit Euler step's chart blocks at a contact node (q+ = q exp(dt v+)): A, Jr and
+// block_ad_jr's D at dt v+, W1 = dv+/dz (ev.Fz's velocity rows) and JW = Jr W1.
+struct StepBlocks {
+  RowMat A, Jr, W1, JW;
+  std::vector<double> Dt;
+  Eigen::VectorXd omega;
+  explicit StepBlocks(int nv) : A(nv, nv), Jr(nv, nv), Dt((size_t)nv * nv * nv), omega(nv) {}
+  void at(const std::vector<JointGroup>& groups, double dt, const ContactEval& ev) {
+    const int nv = (int)omega.size();
+    omega = dt * ev.v_next;
+    lie::block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
+    W1 = ev.Fz.bottomRows(nv);
+    jr_times(groups, Jr, 1.0, W1, JW);
+  }
+};
+
+struct DenseScratch {
+  StepBlocks step;
+  RowMat Y, G2, JF2, Ds, Mz, WDW;
+  DenseScratch(int nv, int nz) : step(nv), G2(2 * nv, (Eigen::Index)nz * nz) {}
+};
+
+struct FactoredScratch {
+  StepBlocks step;
+  NodeKkt kkt;
+  RowMat Y, Kinv, rhs;
+  std::vector<double> hss_full;
+  FactoredScratch(int nv, int) : step(nv) {}
+};
+
+}  // namespace
+
 void contact_linearise_second(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
                               double* Phi, double* B, double* Theta, double* Gamma, double* Xi, double* lx, double* lu,
                               double* lxx, double* lux, double* luu, double* lfx, double* lfxx, double* costs) {
-  const pinocchio::Model& m = *s.model;
-  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu;
+  const int nv = s.model->nv, nu = s.nu(), n = 2 * nv, nz = n + nu;
   const double dt = s.dt;
   const lie::GroupStructure gs;
-  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
-  parallel_for(H + 1, threads, [&](int b, int e, int) {
-    ContactWork cw(m);
-    ContactSecondWork w(s);
-    const std::vector<JointGroup>& groups = w.groups;
-    ContactEval ev;
-    Eigen::VectorXd g, q(nq), v(nv), u(nu);
-    RowMat Hs, Y, G2(n, (Eigen::Index)nz * nz), A(nv, nv), Jr(nv, nv), W1, JW, JF2, Ds, Mz, WDW;
-    std::vector<double> Dt((size_t)nv * nv * nv);
-    Eigen::VectorXd omega(nv);
-    for (int k = b; k < e; ++k) {
-      q = Qm.row(k).transpose();
-      v = Vm.row(k).transpose();
-      if (k == H) {
-        costs[k] = contact_node_cost(s, cw, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
-        contact_cost_curvature(s, w, H, q, v, nullptr, nullptr, Hs);
-        store_terminal_expansion(n, g, Hs, lfx, lfxx);
-        continue;
-      }
-      const ContactNode& node = s.nodes[(size_t)k];
-      u = Um.row(k).transpose();
-      costs[k] = contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
-      contact_node_second(s, w, node, q, v, ev, Y, cone_active(s, node, ev));
-      contact_cost_curvature(s, w, k, q, v, &ev, &Y, Hs);
-      store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
-      if (node.impulse) {  // q+ = q: only v+'s rows
-        G2.topRows(nv).setZero();
-        G2.bottomRows(nv) = Y.topRows(nv);
-      } else {
-        // the semi-implicit Euler step q+ = q exp(dt v+), v+ = v + dt a (geoddp.models.integrators.expand)
-        omega = dt * ev.v_next;
-        lie::block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
-        W1 = ev.Fz.bottomRows(nv);
-        jr_times(groups, Jr, 1.0, W1, JW);
-        reconstruction_group_terms(groups, gs, dt, nv, Dt, A, W1, JW, G2, Ds, Mz, WDW);
-        G2.bottomRows(nv) = dt * Y.topRows(nv);  // v+'' = dt a''
-        jr_times(groups, Jr, dt, G2.bottomRows(nv), JF2);
-        G2.topRows(nv) += JF2;
-        symmetrise_rows(G2.data(), nv, nz);
-      }
-      split_second_order(G2, n, nu, Theta + (size_t)k * n * n * n, Gamma + (size_t)k * n * n * nu,
-                         Xi + (size_t)k * n * nu * nu);
+  second_order_nodes<DenseScratch>(s, Q, V, U, threads, lfx, lfxx, costs, [&](int k, const Eigen::VectorXd& q,
+                                   const Eigen::VectorXd& v, const ContactEval& ev, const Eigen::VectorXd& g,
+                                   RowMat& Hs, ContactSecondWork& w, DenseScratch& x) {
+    const ContactNode& node = s.nodes[(size_t)k];
+    RowMat& G2 = x.G2;
+    contact_node_second(s, w, node, q, v, ev, x.Y, cone_active(s, node, ev));
+    contact_cost_curvature(s, w, k, q, v, &ev, &x.Y, Hs);
+    store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
+    if (node.impulse) {  // q+ = q: only v+'s rows
+      G2.topRows(nv).setZero();
+      G2.bottomRows(nv) = x.Y.topRows(nv);
+    } else {
+      // the semi-implicit Euler step q+ = q exp(dt v+), v+ = v + dt a (geoddp.models.integrators.expand)
+      StepBlocks& st = x.step;
+      st.at(w.groups, dt, ev);
+      reconstruction_group_terms(w.groups, gs, dt, nv, st.Dt, st.A, st.W1, st.JW, G2, x.Ds, x.Mz, x.WDW);
+      G2.bottomRows(nv) = dt * x.Y.topRows(nv);  // v+'' = dt a''
+      jr_times(w.groups, st.Jr, dt, G2.bottomRows(nv), x.JF2);
+      G2.topRows(nv) += x.JF2;
+      symmetrise_rows(G2.data(), nv, nz);
     }
+    split_second_order(G2, n, nu, Theta + (size_t)k * n * n * n, Gamma + (size_t)k * n * n * nu,
+                       Xi + (size_t)k * n * nu * nu);
   });
 }
 
@@ -529,73 +568,50 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
                                   double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
                                   double* lfx, double* lfxx, double* costs, SecondOrderTerms& t) {
   const pinocchio::Model& m = *s.model;
-  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu, ns = n;
+  const int H = s.horizon(), nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu, ns = n;
   const double dt = s.dt;
   int ny_max = nv;
-  for (const ContactNode& node : s.nodes) ny_max = std::max(ny_max, nv + 3 * (int)node.feet.size());
+  for (const ContactNode& node : s.nodes) ny_max = std::max(ny_max, kkt_rows(s, node));
   t.resize_contact(m, nu, H, dt, ny_max);
   const size_t ns_upper = (size_t)ns * (ns + 1) / 2;
-  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
-  parallel_for(H + 1, threads, [&](int b, int e, int) {
-    ContactWork cw(m);
-    ContactSecondWork w(s);
-    const std::vector<JointGroup>& groups = w.groups;
-    ContactEval ev;
-    NodeKkt kkt;
-    Eigen::VectorXd g, q(nq), v(nv), u(nu);
-    RowMat Hs, Y, Kinv, rhs, A(nv, nv), Jr(nv, nv), W1, JW;
-    std::vector<double> hss_full;
-    std::vector<double> Dt((size_t)nv * nv * nv);
-    Eigen::VectorXd omega(nv);
-    for (int k = b; k < e; ++k) {
-      q = Qm.row(k).transpose();
-      v = Vm.row(k).transpose();
-      if (k == H) {
-        costs[k] = contact_node_cost(s, cw, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
-        contact_cost_curvature(s, w, H, q, v, nullptr, nullptr, Hs);
-        store_terminal_expansion(n, g, Hs, lfx, lfxx);
-        continue;
-      }
-      const ContactNode& node = s.nodes[(size_t)k];
-      u = Um.row(k).transpose();
-      costs[k] = contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
-      const int ny = kkt_rows(s, node);
-      // E_ss into this worker's scratch, stored below as its symmetric part's upper triangle; E_sy's
-      // q rows (the only nonzero ones) straight into the terms
-      hss_full.resize((size_t)ny * ns * ns);
-      double* hss = hss_full.data();
-      double* hsy = t.Esy.data() + (size_t)k * ny_max * nv * ny_max;
-      node_kkt(s, w, node, q, v, ev, hss, hsy, kkt);
-      double* packed = t.Ess.data() + (size_t)k * ny_max * ns_upper;
-      for (int r = 0; r < ny; ++r) {
-        const double* h = hss + (size_t)r * ns * ns;
-        for (int a = 0; a < ns; ++a)
-          for (int b2 = a; b2 < ns; ++b2) *packed++ = 0.5 * (h[(size_t)a * ns + b2] + h[(size_t)b2 * ns + a]);
-      }
-      Kinv = -kkt_matrix(kkt.M, kkt.Jw).partialPivLu().inverse();
-      Eigen::Map<RowMat>(t.Yz.data() + (size_t)k * ny_max * nz, ny, nz) = kkt.Y1;
-      const bool cone = cone_active(s, node, ev);
-      if (cone) {  // the cost's force curvature reads the force rows of y'': only those are formed
-        rhs.resize(ny, (Eigen::Index)ns * nz);
-        kkt_rhs(hss, hsy, kkt.Y1, kkt.M, kkt.Jw, rhs.data(), Kinv);
-        Y.resize(ny, (Eigen::Index)nz * nz);
-        y_rows(rhs.data(), Kinv, nv, nz, nv, ny, Y);
-      }
-      contact_cost_curvature(s, w, k, q, v, &ev, cone ? &Y : nullptr, Hs);
-      store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
-      t.ny[(size_t)k] = ny;
-      t.impulse[(size_t)k] = node.impulse ? 1 : 0;
-      Eigen::Map<RowMat>(t.Kt.data() + (size_t)k * nv * ny_max, nv, ny_max).leftCols(ny) = Kinv.topRows(nv);
-      if (!node.impulse) {
-        // the semi-implicit Euler step q+ = q exp(dt v+): the reconstruction's group blocks, as the
-        // multibody expansion_contracted stores them (dynamics/expansion.cpp)
-        omega = dt * ev.v_next;
-        lie::block_ad_jr(groups, nv, omega.data(), A.data(), Jr.data(), Dt.data());
-        W1 = ev.Fz.bottomRows(nv);
-        jr_times(groups, Jr, 1.0, W1, JW);
-        MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = W1;
-        store_group_blocks(groups, t, k, Jr, A, JW, Dt, nv, nz);
-      }
+  second_order_nodes<FactoredScratch>(s, Q, V, U, threads, lfx, lfxx, costs, [&](int k, const Eigen::VectorXd& q,
+                                      const Eigen::VectorXd& v, const ContactEval& ev, const Eigen::VectorXd& g,
+                                      RowMat& Hs, ContactSecondWork& w, FactoredScratch& x) {
+    const ContactNode& node = s.nodes[(size_t)k];
+    const int ny = kkt_rows(s, node);
+    // E_ss into this worker's scratch, stored below as its symmetric part's upper triangle; E_sy's
+    // q rows (the only nonzero ones) straight into the terms
+    x.hss_full.resize((size_t)ny * ns * ns);
+    double* hss = x.hss_full.data();
+    double* hsy = t.Esy.data() + (size_t)k * ny_max * nv * ny_max;
+    node_kkt(s, w, node, q, v, ev, hss, hsy, x.kkt);
+    double* packed = t.Ess.data() + (size_t)k * ny_max * ns_upper;
+    for (int r = 0; r < ny; ++r) {
+      const double* h = hss + (size_t)r * ns * ns;
+      for (int a = 0; a < ns; ++a)
+        for (int b = a; b < ns; ++b) *packed++ = 0.5 * (h[(size_t)a * ns + b] + h[(size_t)b * ns + a]);
+    }
+    x.Kinv = -kkt_matrix(x.kkt.M, x.kkt.Jw).partialPivLu().inverse();
+    Eigen::Map<RowMat>(t.Yz.data() + (size_t)k * ny_max * nz, ny, nz) = x.kkt.Y1;
+    const bool cone = cone_active(s, node, ev);
+    if (cone) {  // the cost's force curvature reads the force rows of y'': only those are formed
+      x.rhs.resize(ny, (Eigen::Index)ns * nz);
+      kkt_rhs(hss, hsy, x.kkt.Y1, x.kkt.M, x.kkt.Jw, x.rhs.data(), x.Kinv);
+      x.Y.resize(ny, (Eigen::Index)nz * nz);
+      y_rows(x.rhs.data(), x.Kinv, nv, nz, nv, ny, x.Y);
+    }
+    contact_cost_curvature(s, w, k, q, v, &ev, cone ? &x.Y : nullptr, Hs);
+    store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
+    t.ny[(size_t)k] = ny;
+    t.impulse[(size_t)k] = node.impulse ? 1 : 0;
+    Eigen::Map<RowMat>(t.Kt.data() + (size_t)k * nv * ny_max, nv, ny_max).leftCols(ny) = x.Kinv.topRows(nv);
+    if (!node.impulse) {
+      // the semi-implicit Euler step's chart factors, as the multibody expansion_contracted stores
+      // them (dynamics/expansion.cpp)
+      StepBlocks& st = x.step;
+      st.at(w.groups, dt, ev);
+      MatMap(t.F1.data() + (size_t)k * nv * nz, nv, nz) = st.W1;
+      store_group_blocks(w.groups, t, k, st.Jr, st.A, st.JW, st.Dt, nv, nz);
     }
   });
 }

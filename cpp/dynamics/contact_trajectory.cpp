@@ -86,27 +86,18 @@ bool contact_rollout_closed_loop(const ContactSetup& s, const double* Qbar, cons
   return true;
 }
 
+namespace {
+struct NoExtra {
+  explicit NoExtra(const ContactSetup&) {}
+};
+}  // namespace
+
 void contact_costs(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
                    double* costs) {
-  const pinocchio::Model& m = *s.model;
-  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu();
-  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
-  parallel_for(H + 1, threads, [&](int b, int e, int) {
-    ContactWork w(m);
-    ContactEval ev;
-    Eigen::VectorXd g, q(nq), v(nv), u(nu);
-    RowMat Hs;
-    for (int k = b; k < e; ++k) {
-      q = Qm.row(k).transpose();
-      v = Vm.row(k).transpose();
-      if (k == H) {
-        costs[k] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, false, g, Hs);
-        continue;
-      }
-      u = Um.row(k).transpose();
-      costs[k] = contact_step(s, w, k, q, v, u, false, ev, g, Hs);
-    }
-  });
+  for_each_node<NoExtra>(
+      s, Q, V, U, threads, false, costs, [](int, const Eigen::VectorXd&, const Eigen::VectorXd&, const ContactEval&,
+                                           const Eigen::VectorXd&, RowMat&, NoExtra&) {},
+      [](const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd&, RowMat&, NoExtra&) {});
 }
 
 void store_node_expansion(int k, int n, int nu, const ContactEval& ev, const Eigen::VectorXd& g, const RowMat& Hs,
@@ -128,27 +119,14 @@ void store_terminal_expansion(int n, const Eigen::VectorXd& g, const RowMat& Hs,
 void contact_linearise(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,
                        double* Phi, double* B, double* lx, double* lu, double* lxx, double* lux, double* luu,
                        double* lfx, double* lfxx, double* costs) {
-  const pinocchio::Model& m = *s.model;
-  const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu(), n = 2 * nv;
-  CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
-  parallel_for(H + 1, threads, [&](int b, int e, int) {
-    ContactWork w(m);
-    ContactEval ev;
-    Eigen::VectorXd g, q(nq), v(nv), u(nu);
-    RowMat Hs;
-    for (int k = b; k < e; ++k) {
-      q = Qm.row(k).transpose();
-      v = Vm.row(k).transpose();
-      if (k == H) {
-        costs[k] = contact_node_cost(s, w, H, q, v, Eigen::VectorXd::Zero(nu), nullptr, true, g, Hs);
+  const int n = 2 * s.model->nv, nu = s.nu();
+  for_each_node<NoExtra>(
+      s, Q, V, U, threads, true, costs,
+      [&](int k, const Eigen::VectorXd&, const Eigen::VectorXd&, const ContactEval& ev, const Eigen::VectorXd& g,
+          RowMat& Hs, NoExtra&) { store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu); },
+      [&](const Eigen::VectorXd&, const Eigen::VectorXd&, const Eigen::VectorXd& g, RowMat& Hs, NoExtra&) {
         store_terminal_expansion(n, g, Hs, lfx, lfxx);
-        continue;
-      }
-      u = Um.row(k).transpose();
-      costs[k] = contact_step(s, w, k, q, v, u, true, ev, g, Hs);
-      store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
-    }
-  });
+      });
 }
 
 }  // namespace dyn
