@@ -19,27 +19,23 @@ std::atomic<unsigned long long> TERMS_ID{0};
 void set_rnea_hessian_recursion(bool on) { RECURSION = on; }
 bool rnea_hessian_recursion() { return RECURSION; }
 
-void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, bool semi_, bool variational_,
-                              bool recursion_, bool one_body_, bool one_body_gravity_) {
-  const Model& model = model_;
-  this->model = &model_;
+// What every kind of terms shares: the sizes, the SO(3)/SE(3) groups and the reconstruction's blocks
+// (F1, Jr, Dsym, As, JWs), a new id; the contact schedule's buffers emptied (resize_contact sets them).
+void SecondOrderTerms::resize_layout(const Model& model_, int m_, int N_, double dt_, bool semi_) {
+  model = &model_;
   id = ++TERMS_ID;
+  N = N_;
+  nv = model_.nv;
+  m = m_;
+  dt = dt_;
+  semi = semi_;
   contact = false;
   ny_max = 0;
   ny.clear();
   impulse.clear();
   for (Buffer* x : {&Kt, &Ess, &Esy, &Yz}) x->resize(0);
-  recursion = recursion_ && !variational_;
-  one_body = one_body_ && !variational_ && !recursion;
-  one_body_gravity = one_body && one_body_gravity_;
-  N = N_;
-  nv = model.nv;
-  m = m_;
-  dt = dt_;
-  semi = semi_;
-  variational = variational_;
   groups.clear();
-  for (const JointGroup& g : joint_groups(model))
+  for (const JointGroup& g : joint_groups(model_))
     if (g.kind == SO3 || g.kind == SE3) groups.push_back(g);
   const int nz = 2 * nv + m;
   gJ = gD = gW = 0;
@@ -48,6 +44,21 @@ void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, b
     gD += g.nv * g.nv * g.nv;
     gW += g.nv * nz;
   }
+  F1.resize((size_t)N * nv * nz);
+  Jr.resize((size_t)N * gJ);
+  Dsym.resize((size_t)N * gD);
+  As.resize((size_t)N * gJ);
+  JWs.resize((size_t)N * gW);
+}
+
+void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_,
+                              bool recursion_, bool one_body_, bool one_body_gravity_) {
+  resize_layout(model, m_, N_, dt_, semi_);
+  variational = variational_;
+  recursion = recursion_ && !variational_;
+  one_body = one_body_ && !variational_ && !recursion;
+  one_body_gravity = one_body && one_body_gravity_;
+  const int nz = 2 * nv + m;
   const size_t n3 = variational || recursion ? 0 : (size_t)N * nv * nv * nv;
   rnea.resize(recursion ? (size_t)N * rnea_hessian_node_size(model) : 0);
   if (one_body) {
@@ -61,21 +72,12 @@ void SecondOrderTerms::resize(const Model& model_, int m_, int N_, double dt_, b
   Minv.resize((size_t)N * nv * nv);
   az.resize(variational || one_body ? 0 : (size_t)N * nv * nz);  // one body: read only with dM = 0
   Ts.resize(variational ? (size_t)N * variational_upper_size(nv) * nv : 0);
-  F1.resize((size_t)N * nv * nz);
-  Jr.resize((size_t)N * gJ);
-  Dsym.resize((size_t)N * gD);
-  As.resize((size_t)N * gJ);
-  JWs.resize((size_t)N * gW);
 }
 
-void SecondOrderTerms::resize_contact(const Model& model_, int m_, int N_, double dt_, int ny_max_) {
-  // the semi-implicit layout without RNEA's terms (sized for the recursion, which stores no tensors,
-  // then its own buffers dropped), then the contact schedule's own
-  resize(model_, m_, N_, dt_, true, false, true);
-  recursion = false;
-  rnea.resize(0);
-  Minv.resize(0);
-  az.resize(0);
+void SecondOrderTerms::resize_contact(const Model& model, int m_, int N_, double dt_, int ny_max_) {
+  resize_layout(model, m_, N_, dt_, true);  // a contact node's step is semi-implicit Euler
+  variational = recursion = one_body = one_body_gravity = false;
+  for (Buffer* x : {&rnea, &Iqq, &Ivv, &Iqv, &dM, &Minv, &az, &Ts}) x->resize(0);  // no RNEA terms of their own
   contact = true;
   ny_max = ny_max_;
   ny.assign((size_t)N, 0);

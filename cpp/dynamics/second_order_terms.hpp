@@ -110,6 +110,9 @@ struct SecondOrderTerms {
               bool recursion_ = false, bool one_body_ = false, bool one_body_gravity_ = false);
   // For a contact schedule (contact = true): F1 and the group blocks, Kt, Ess, Esy, Yz for ny_max rows.
   void resize_contact(const Model& model, int m_, int N_, double dt_, int ny_max_);
+
+ private:
+  void resize_layout(const Model& model, int m_, int N_, double dt_, bool semi_);
 };
 
 // Whether expansion_contracted leaves RNEA's second order to the recursion of rigid_body/rnea_hessian.hpp

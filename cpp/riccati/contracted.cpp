@@ -111,6 +111,23 @@ static void variational_upper(const dyn::SecondOrderTerms& t, int k, const doubl
   dyn::variational_projection_upper(T, F1, G, CF, [&](int a, int b, double s) { S(a, b) += s; }, sep);
 }
 
+// c = lv + dt Jr^T lq at node k (Jr the reconstruction's right Jacobian: the identity outside the
+// SO(3)/SE(3) groups, their stored blocks on them): the weight with which the velocity update's second
+// order enters S under the semi-implicit step (v+'' in the v rows, dt Jr v+'' in the q rows).
+static void semi_implicit_weight(const dyn::SecondOrderTerms& t, int k, const CVecMap& lq, const CVecMap& lv,
+                                 Eigen::VectorXd& c) {
+  const double dt = t.dt;
+  c = lv;
+  c.noalias() += dt * lq;
+  const double* jr = t.Jr.data() + (size_t)k * t.gJ;
+  for (const JointGroup& g : t.groups) {
+    const int o = g.idx_v, d = g.nv;
+    c.segment(o, d) = lv.segment(o, d);
+    c.segment(o, d).noalias() += dt * (CMatMap(jr, d, d).transpose() * lq.segment(o, d));
+    jr += d * d;
+  }
+}
+
 // A contact schedule's node (t.contact; dynamics/contact_second.cpp, contact_linearise_contracted),
 // upper triangle of S: v+'' is the velocity rows of y'' = Kinv rhs (times dt at a contact node, whose
 // semi-implicit reconstruction also adds dt Jr v+'' to the q rows; an impulse node keeps q), so
@@ -127,16 +144,10 @@ static void contact_upper(const dyn::SecondOrderTerms& t, int k, const double* V
   thread_local Eigen::VectorXd c, mu;
   thread_local std::vector<double> A, Bq, P;
   CVecMap lq(Vx, nv), lv(Vx + nv, nv);
-  c = lv;
-  if (!impulse) {
-    c.noalias() += dt * lq;
-    const double* jr = t.Jr.data() + (size_t)k * t.gJ;
-    for (const JointGroup& g : t.groups) {
-      const int o = g.idx_v, d = g.nv;
-      c.segment(o, d) = lv.segment(o, d);
-      c.segment(o, d).noalias() += dt * (CMatMap(jr, d, d).transpose() * lq.segment(o, d));
-      jr += d * d;
-    }
+  if (impulse) {
+    c = lv;
+  } else {
+    semi_implicit_weight(t, k, lq, lv, c);
     c *= dt;
   }
   const double* kt = t.Kt.data() + (size_t)k * nv * nyx;
@@ -213,17 +224,8 @@ static void contract_upper(const dyn::SecondOrderTerms& t, int k, const double* 
     reconstruction_upper(t, k, lq, S);
     return;
   }
-  c = lv;
-  if (t.semi) {
-    c.noalias() += dt * lq;
-    const double* jr = t.Jr.data() + (size_t)k * t.gJ;
-    for (const JointGroup& g : t.groups) {
-      const int o = g.idx_v, d = g.nv;
-      c.segment(o, d) = lv.segment(o, d);
-      c.segment(o, d).noalias() += dt * (CMatMap(jr, d, d).transpose() * lq.segment(o, d));
-      jr += d * d;
-    }
-  }
+  if (t.semi) semi_implicit_weight(t, k, lq, lv, c);
+  else c = lv;
   mu.noalias() = (-dt) * (CMatMap(t.Minv.data() + (size_t)k * nn, nv, nv) * c);
   // rX[j + nv l] = sum_i mu_i X(i, j, l) for the four column-major tensors X (nv, nv, nv), in one
   // sweep (four independent sums per column; Eigen's four gemv calls cost more than their flops)
