@@ -356,6 +356,68 @@ void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const Cont
 
 namespace {
 
+// The point terms' outputs (point_terms), kept per worker.
+struct PointTerms {
+  RowMat Pqq, Pqv, Pqa, Pvv;
+};
+
+// Node k's second order in factored form (SecondOrderTerms, contact = true; see second_order_terms.hpp)
+// and its KKT blocks M, Jw, Y1 (into out): the RNEA rows as the recursion's mu-free terms of the robot
+// (or, at an impulse node, of the robot without gravity at (q, 0, v+ - v)), each foot's point and
+// force (J_w,i^T lambda_i's curvature, subtracted in the pass); the feet's rows of E_ss (packed,
+// symmetrised) and their Pqa, as node_kkt forms them densely.
+void node_factored(const ContactSetup& s, ContactSecondWork& w, int k, const ContactNode& node,
+                   const Eigen::VectorXd& q, const Eigen::VectorXd& v, const ContactEval& ev, PointTerms& pt,
+                   NodeKkt& out, SecondOrderTerms& t) {
+  const pinocchio::Model& m = *s.model;
+  const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc, ns = 2 * nv, nn = nv * nv;
+  const size_t size = rnea_hessian_node_size(m), su = (size_t)ns * (ns + 1) / 2;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
+  double* rnea = t.rnea.data() + (size_t)k * size;
+  if (!node.impulse) {
+    rnea_hessian_node(m, w.rh, q.data(), v.data(), ev.acc.data(), rnea);
+  } else {
+    const Eigen::VectorXd dv = ev.v_next - v;
+    rnea_hessian_node(w.zero_gravity, w.rh, q.data(), zero.data(), dv.data(), rnea);
+  }
+  // each foot's point and force, for the point-force recursion (w.rh's kinematics are at q)
+  for (int i = 0; i < nf; ++i) {
+    const pinocchio::Frame& fr = m.frames[(size_t)node.feet[(size_t)i]];
+    const size_t f = (size_t)k * t.nf_max + i;
+    t.foot_joint[f] = (int)fr.parentJoint;
+    Eigen::Map<Eigen::Vector3d>(t.force.data() + 6 * f) = w.rh.data.oMi[fr.parentJoint].act(fr.placement).translation();
+    Eigen::Map<Eigen::Vector3d>(t.force.data() + 6 * f + 3) = ev.forces.segment<3>(3 * i);
+  }
+  if (!node.impulse) point_terms(w, node.feet, q, v, ev.acc + s.Kd * v, out.Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
+  else point_terms(w, node.feet, q, zero, ev.v_next, out.Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
+  // the feet's rows of E_ss, symmetrised, upper triangle row by row (node_kkt's entries)
+  const double Kp = node.impulse ? 0.0 : s.Kp, Kd = node.impulse ? 0.0 : s.Kd;
+  double* packed = t.Ess.data() + (size_t)k * 3 * t.nf_max * su;
+  for (int c = 0; c < nc; ++c) {
+    const double *Pqq = pt.Pqq.row(c).data(), *Pqv = pt.Pqv.row(c).data(), *Pqa = pt.Pqa.row(c).data(),
+                 *Pvv = pt.Pvv.row(c).data();
+    for (int a = 0; a < nv; ++a) {
+      for (int b = a; b < nv; ++b)
+        *packed++ = 0.5 * (Pqq[a * nv + b] + Pqq[b * nv + a]) + Kp * 0.5 * (Pqa[a * nv + b] + Pqa[b * nv + a]);
+      for (int b = 0; b < nv; ++b) *packed++ = node.impulse ? 0.0 : Pqv[a * nv + b] + Kd * Pqa[a * nv + b];
+    }
+    for (int a = 0; a < nv; ++a)
+      for (int b = a; b < nv; ++b) *packed++ = node.impulse ? 0.0 : 0.5 * (Pvv[a * nv + b] + Pvv[b * nv + a]);
+  }
+  if (nc > 0)
+    Eigen::Map<RowMat>(t.Pqa.data() + (size_t)k * 3 * t.nf_max * nn, nc, nn) = pt.Pqa;
+  libpin::crba(m, w.data, q);
+  out.M = w.data.M.selfadjointView<Eigen::Upper>();
+  out.Y1.resize(ny, ev.Az.cols());
+  out.Y1.topRows(nv) = ev.Az;
+  if (nc > 0) out.Y1.bottomRows(nc) = ev.Lz;
+  if (nc == 0) out.Jw.resize(0, nv);
+}
+
+}  // namespace
+
+namespace {
+
 // sum_p c_p d^2 r_p (nv, nv) of r(eta) = difference(q_ref, q exp(eta)), exactly: -K^T ((K^T c) .
 // Dsym) K per SO(3)/SE(3) group (K = Jr(r0)^-1, D = dJr at r0), zero on the commutative joints
 // (ContactProblem._difference_curvature).
@@ -524,9 +586,10 @@ struct DenseScratch {
 
 struct FactoredScratch {
   StepBlocks step;
-  NodeKkt kkt;
+  NodeKkt kkt, dense;
+  PointTerms points;
   RowMat Y, Kinv, rhs;
-  std::vector<double> hss_full;
+  std::vector<double> hss, hsy;
   FactoredScratch(int nv, int) : step(nv) {}
 };
 
@@ -570,33 +633,27 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
   const pinocchio::Model& m = *s.model;
   const int H = s.horizon(), nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu, ns = n;
   const double dt = s.dt;
-  int ny_max = nv;
-  for (const ContactNode& node : s.nodes) ny_max = std::max(ny_max, kkt_rows(s, node));
-  t.resize_contact(m, nu, H, dt, ny_max);
-  const size_t ns_upper = (size_t)ns * (ns + 1) / 2;
+  int nf_max = 0;
+  for (const ContactNode& node : s.nodes) nf_max = std::max(nf_max, (int)node.feet.size());
+  t.resize_contact(m, nu, H, dt, nf_max);
+  const int ny_max = t.ny_max;
   second_order_nodes<FactoredScratch>(s, Q, V, U, threads, lfx, lfxx, costs, [&](int k, const Eigen::VectorXd& q,
                                       const Eigen::VectorXd& v, const ContactEval& ev, const Eigen::VectorXd& g,
                                       RowMat& Hs, ContactSecondWork& w, FactoredScratch& x) {
     const ContactNode& node = s.nodes[(size_t)k];
     const int ny = kkt_rows(s, node);
-    // E_ss into this worker's scratch, stored below as its symmetric part's upper triangle; E_sy's
-    // q rows (the only nonzero ones) straight into the terms
-    x.hss_full.resize((size_t)ny * ns * ns);
-    double* hss = x.hss_full.data();
-    double* hsy = t.Esy.data() + (size_t)k * ny_max * nv * ny_max;
-    node_kkt(s, w, node, q, v, ev, hss, hsy, x.kkt);
-    double* packed = t.Ess.data() + (size_t)k * ny_max * ns_upper;
-    for (int r = 0; r < ny; ++r) {
-      const double* h = hss + (size_t)r * ns * ns;
-      for (int a = 0; a < ns; ++a)
-        for (int b = a; b < ns; ++b) *packed++ = 0.5 * (h[(size_t)a * ns + b] + h[(size_t)b * ns + a]);
-    }
+    node_factored(s, w, k, node, q, v, ev, x.points, x.kkt, t);
     x.Kinv = -kkt_matrix(x.kkt.M, x.kkt.Jw).partialPivLu().inverse();
     Eigen::Map<RowMat>(t.Yz.data() + (size_t)k * ny_max * nz, ny, nz) = x.kkt.Y1;
     const bool cone = cone_active(s, node, ev);
-    if (cone) {  // the cost's force curvature reads the force rows of y'': only those are formed
+    if (cone) {
+      // the cost's force curvature reads the force rows of y'': only those are formed, from the
+      // dense KKT blocks (node_kkt)
+      x.hss.resize((size_t)ny * ns * ns);
+      x.hsy.resize((size_t)ny * nv * ny);
+      node_kkt(s, w, node, q, v, ev, x.hss.data(), x.hsy.data(), x.dense);
       x.rhs.resize(ny, (Eigen::Index)ns * nz);
-      kkt_rhs(hss, hsy, x.kkt.Y1, x.kkt.M, x.kkt.Jw, x.rhs.data(), x.Kinv);
+      kkt_rhs(x.hss.data(), x.hsy.data(), x.dense.Y1, x.dense.M, x.dense.Jw, x.rhs.data(), x.Kinv);
       x.Y.resize(ny, (Eigen::Index)nz * nz);
       y_rows(x.rhs.data(), x.Kinv, nv, nz, nv, ny, x.Y);
     }

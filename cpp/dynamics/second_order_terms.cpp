@@ -30,10 +30,11 @@ void SecondOrderTerms::resize_layout(const Model& model_, int m_, int N_, double
   dt = dt_;
   semi = semi_;
   contact = false;
-  ny_max = 0;
+  ny_max = nf_max = 0;
   ny.clear();
   impulse.clear();
-  for (Buffer* x : {&Kt, &Ess, &Esy, &Yz}) x->resize(0);
+  foot_joint.clear();
+  for (Buffer* x : {&Kt, &Ess, &Pqa, &Yz, &force}) x->resize(0);
   groups.clear();
   for (const JointGroup& g : joint_groups(model_))
     if (g.kind == SO3 || g.kind == SE3) groups.push_back(g);
@@ -74,18 +75,22 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
   Ts.resize(variational ? (size_t)N * variational_upper_size(nv) * nv : 0);
 }
 
-void SecondOrderTerms::resize_contact(const Model& model, int m_, int N_, double dt_, int ny_max_) {
+void SecondOrderTerms::resize_contact(const Model& model, int m_, int N_, double dt_, int nf_max_) {
   resize_layout(model, m_, N_, dt_, true);  // a contact node's step is semi-implicit Euler
   variational = recursion = one_body = one_body_gravity = false;
-  for (Buffer* x : {&rnea, &Iqq, &Ivv, &Iqv, &dM, &Minv, &az, &Ts}) x->resize(0);  // no RNEA terms of their own
+  for (Buffer* x : {&Iqq, &Ivv, &Iqv, &dM, &Minv, &az, &Ts}) x->resize(0);  // the RNEA rows: by the recursion
   contact = true;
-  ny_max = ny_max_;
+  nf_max = nf_max_;
+  ny_max = nv + 3 * nf_max;
   ny.assign((size_t)N, 0);
   impulse.assign((size_t)N, 0);
-  const size_t ns = 2 * (size_t)nv;
+  const size_t ns = 2 * (size_t)nv, node = rnea_hessian_node_size(model);
+  rnea.resize((size_t)N * node);
+  force.resize((size_t)N * nf_max * 6);
+  foot_joint.assign((size_t)N * nf_max, 0);
   Kt.resize((size_t)N * nv * ny_max);
-  Ess.resize((size_t)N * ny_max * (ns * (ns + 1) / 2));
-  Esy.resize((size_t)N * ny_max * nv * ny_max);
+  Ess.resize((size_t)N * 3 * nf_max * (ns * (ns + 1) / 2));
+  Pqa.resize((size_t)N * 3 * nf_max * nv * nv);
   Yz.resize((size_t)N * ny_max * nz());
 }
 
@@ -101,10 +106,11 @@ static std::vector<int> model_structure(const Model& model) {
   return x;
 }
 
-void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4) {
-  // One work (and Data) per thread: the pass may contract on the pool's second worker, and two
-  // passes may run side by side (riccati/ladder.hpp's speculation). Every linearisation makes new terms
-  // (a new id); a work is rebuilt only if their model is another (a Data costs more than a node).
+// The pass's work for t's model: one (and its Data) per thread, as the pass may contract on the pool's
+// second worker and two passes may run side by side (riccati/ladder.hpp's speculation). Every
+// linearisation makes new terms (a new id); a work is rebuilt only if their model is another (a Data
+// costs more than a node).
+static RneaHessianWork& pass_work(const SecondOrderTerms& t) {
   struct Cache {
     std::unique_ptr<RneaHessianWork> work;
     const Model* model = nullptr;
@@ -122,9 +128,26 @@ void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, do
     }
     c.served = t.id;
   }
-  const size_t nn = (size_t)model.nv * model.nv;
-  rnea_hessian_contract(model, *c.work, t.rnea.data() + (size_t)k * rnea_hessian_node_size(model), mu, r4, r4 + nn,
-                        r4 + 2 * nn, r4 + 3 * nn);
+  return *c.work;
+}
+
+void rnea_hessian_from_terms(const SecondOrderTerms& t, const double* node, const double* mu, double* r4) {
+  const size_t nn = (size_t)t.model->nv * t.model->nv;
+  rnea_hessian_contract(*t.model, pass_work(t), node, mu, r4, r4 + nn, r4 + 2 * nn, r4 + 3 * nn);
+}
+
+void point_forces_at_node(const SecondOrderTerms& t, int k, int nf, const double* mu, double* Hqq) {
+  const RneaHessianWork& w = pass_work(t);
+  const double* node = t.rnea.data() + (size_t)k * rnea_hessian_node_size(*t.model);
+  for (int i = 0; i < nf; ++i) {
+    const size_t f = (size_t)k * t.nf_max + i;
+    rnea_hessian_point_force(*t.model, w, node, t.foot_joint[f], t.force.data() + 6 * f, t.force.data() + 6 * f + 3,
+                             mu, Hqq);
+  }
+}
+
+void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4) {
+  rnea_hessian_from_terms(t, t.rnea.data() + (size_t)k * rnea_hessian_node_size(*t.model), mu, r4);
 }
 
 }  // namespace dyn

@@ -88,28 +88,41 @@ struct SecondOrderTerms {
   // so the residual Hessians' (eta, dv)-y blocks are exactly zero and the contraction skips them.
   bool variational_separable = false;
   // A contact schedule's nodes (dynamics/contact_second.cpp, contact_linearise_contracted) instead of
-  // free multibody steps. Node k's KKT system E(s, y) = 0 (ny[k] = nv + 3 per foot rows, y = (a, lambda)
-  // or (v+, Lambda)) has y'' = Kinv rhs, rhs_r = E_ss,r + P_r + P_r^T on the (s, s) block and P_r on the
-  // (s, u) block, P_r = E_sy,r Y1; kept as its factors, each node's block sized for ny_max rows:
-  //   Kt (nv, ny_max): Kinv's first nv rows (the velocity update's); Ess (ny, ns (ns + 1) / 2): each row's
-  //   E_ss symmetrised, its upper triangle row by row; Esy (ny, nv, ny): each row's E_sy on the q rows
-  //   (its only nonzero ones; kkt_rhs's layout, the node's own ny); Yz (ny, nz) = dy/dz;
-  // the pass contracts them: sum_r mu_r rhs_r = E_ss[mu] + (E_sy[mu] Y1) + its transpose. A contact
-  // node's step is semi-implicit Euler (F1, Jr, Dsym, As, JWs as for `semi`, v+'' = dt a''); an impulse
-  // node's (impulse[k]) is x+ = (q, v+): no reconstruction, v+'' read directly.
+  // free multibody steps. Node k's KKT system E(s, y) = 0 (ny[k] = nv + 3 nf rows for its nf feet,
+  // y = (a, lambda) or (v+, Lambda)) has y'' = Kinv rhs, rhs_r = E_ss,r + P_r + P_r^T on the (s, s)
+  // block and P_r on the (s, u) block, P_r = E_sy,r Y1. The pass needs them only as sum_r mu_r rhs_r
+  // with mu = Kt^T w, so they are kept as factors, each node's block sized for nf_max feet
+  // (ny_max = nv + 3 nf_max rows):
+  //   Kt (nv, ny_max): Kinv's first nv rows (the velocity update's); Yz (ny, nz) = dy/dz;
+  //   the RNEA rows (the first nv) as the recursion's mu-free terms of rigid_body/rnea_hessian.hpp
+  //   (`rnea`, N x rnea_hessian_node_size): the robot's at (q, v, a), or at an impulse node the
+  //   robot's without gravity at (q, 0, v+ - v) (its M(q) (v+ - v)); per foot i, its force's
+  //   curvature J_w,i^T lambda_i on the RNEA rows as the point-force recursion reads it
+  //   (rnea_hessian_point_force): the foot's world point p and lambda (`force`, N x nf_max x 6) and
+  //   its joint (foot_joint, N x nf_max);
+  //   the feet's rows (3 nf) of E_ss, symmetrised, their upper triangle row by row (Ess, (3 nf,
+  //   ns (ns + 1) / 2)), and of their acceleration's q-a derivative Pqa (3 nf, nv, nv):
+  //   Pqa[c][j][l] = d J_w[c, l] / d q_j, which is also E_sy's entry between the q rows and
+  //   lambda's columns of the RNEA rows (with a minus sign);
+  // the pass contracts the RNEA rows by the recursion (nv^2 work per model instead of the ny ns^2
+  // entries of stored rows) and the feet's rows from Ess and Pqa (contracted.cpp, contact_upper).
+  // A contact node's step is semi-implicit Euler (F1, Jr, Dsym, As, JWs as for `semi`, v+'' =
+  // dt a''); an impulse node's (impulse[k]) is x+ = (q, v+): no reconstruction, v+'' read directly.
   bool contact = false;
-  int ny_max = 0;
+  int ny_max = 0, nf_max = 0;
   std::vector<int> ny;
   std::vector<char> impulse;
-  Buffer Kt, Ess, Esy, Yz;
+  std::vector<int> foot_joint;
+  Buffer Kt, Ess, Pqa, Yz, force;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
   Buffer Iqq, Ivv, Iqv, dM, Minv, az, F1, Jr, Dsym, As, JWs, Ts, rnea;
   int nz() const { return 2 * nv + m; }
   void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false,
               bool recursion_ = false, bool one_body_ = false, bool one_body_gravity_ = false);
-  // For a contact schedule (contact = true): F1 and the group blocks, Kt, Ess, Esy, Yz for ny_max rows.
-  void resize_contact(const Model& model, int m_, int N_, double dt_, int ny_max_);
+  // For a contact schedule (contact = true): F1 and the group blocks, rnea, force, Kt, Ess, Pqa, Yz for
+  // nf_max feet per node.
+  void resize_contact(const Model& model, int m_, int N_, double dt_, int nf_max_);
 
  private:
   void resize_layout(const Model& model, int m_, int N_, double dt_, bool semi_);
@@ -127,6 +140,12 @@ bool rnea_hessian_recursion();
 // (nv, nv) column-major: sum_i mu_i X(i, j, l) at j + nv l for X = d2tau_dqdq, d2tau_dvdv,
 // d2tau_dqdv, d2tau_dadq). Keeps one work and Data per thread and set of terms (rigid_body/rnea_hessian.cpp).
 void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4);
+// The same from any node's terms made for a model of t.model's tree (the contact schedule's
+// impulse and point-mass models share it): node points at rnea_hessian_node_size(*t.model) doubles.
+void rnea_hessian_from_terms(const SecondOrderTerms& t, const double* node, const double* mu, double* r4);
+// For a contact node k: adds to Hqq (nv, nv, column-major) the point-force recursion's contraction
+// (rnea_hessian_point_force) with mu of each of its nf feet's J_w,i^T lambda_i, from t.force.
+void point_forces_at_node(const SecondOrderTerms& t, int k, int nf, const double* mu, double* Hqq);
 
 }  // namespace dyn
 }  // namespace geoddp

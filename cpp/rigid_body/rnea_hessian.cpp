@@ -214,6 +214,62 @@ void rnea_hessian_contract(const pinocchio::Model& model, RneaHessianWork& w, co
   }
 }
 
+void rnea_hessian_point_force(const pinocchio::Model& model, const TreeDofs& tree, const double* node_, int joint,
+                              const double* p_, const double* lambda, const double* mu, double* Hqq) {
+  const int nv = model.nv;
+  const NodeView n{const_cast<double*>(node_), model.njoints};
+  const Eigen::Map<const Eigen::Vector3d> p(p_);
+  // the point mass's spatial inertia on a motion x = [v; w]: [pv; p x pv], pv = v + w x p
+  auto inertia = [&](const V6& x) {
+    V6 out;
+    const Eigen::Vector3d pv = x.head<3>() + x.tail<3>().cross(p);
+    out.head<3>() = pv;
+    out.tail<3>() = p.cross(pv);
+    return out;
+  };
+  V6 A0;
+  A0 << lambda[0], lambda[1], lambda[2], 0.0, 0.0, 0.0;
+  const V6 f = inertia(A0);
+  // the chain's dofs, root first (a joint's dofs are consecutive)
+  thread_local std::vector<int> chain;
+  thread_local Eigen::Matrix<double, 6, Eigen::Dynamic> t, sp, dF, dP;
+  chain.clear();
+  for (const auto& run : tree.above[joint])
+    for (int l = run.first; l < run.second; ++l) chain.push_back(l);
+  for (int l = tree.first_dof[joint]; l < tree.own_end[joint]; ++l) chain.push_back(l);
+  const int m = (int)chain.size();
+  for (auto* c : {&t, &sp, &dF, &dP}) c->resize(6, m);
+  // t_k = xi_k x W_p (W_p: the mu-velocity of k's joint's parent), then P = I_p W at the foot's joint
+  V6 W = V6::Zero(), Wp = V6::Zero();
+  for (int i = 0, cur = -1; i < m; ++i) {
+    const int k = chain[(size_t)i];
+    if (tree.joint[(size_t)k] != cur) {
+      Wp = W;
+      cur = tree.joint[(size_t)k];
+    }
+    W += mu[k] * n.xi(k);
+    t.col(i) = mcross(n.xi(k), Wp);
+  }
+  const V6 P = inertia(W);
+  for (int i = 0; i < m; ++i) {
+    const V6 xk = n.xi(chain[(size_t)i]);
+    sp.col(i) = mcross(xk, A0);
+    dF.col(i) = fcross(xk, f) - inertia(sp.col(i));
+    dP.col(i) = fcross(xk, P) - inertia(t.col(i));
+  }
+  // pairs: l's joint supports k's or is it (j < i, or the same joint) as the recursion's first
+  // case, k's strictly supports l's as its last
+  for (int i = 0; i < m; ++i) {
+    const int k = chain[(size_t)i];
+    for (int j = 0; j < m; ++j) {
+      const int l = chain[(size_t)j];
+      const bool above = j < i || tree.joint[(size_t)l] == tree.joint[(size_t)k];
+      Hqq[(size_t)k + (size_t)nv * l] += above ? -dF.col(i).dot(t.col(j)) - dP.col(i).dot(sp.col(j))
+                                               : -t.col(i).dot(dF.col(j)) - sp.col(i).dot(dP.col(j));
+    }
+  }
+}
+
 void rnea_hessian(const pinocchio::Model& model, RneaHessianWork& w, const double* q, const double* v,
                   const double* a, const double* mu, double* Hqq, double* Hvv, double* Hqv, double* Dm) {
   rnea_hessian_node(model, w, q, v, a, w.node.data());

@@ -103,6 +103,17 @@ void rnea_hessian_node(const pinocchio::Model& model, RneaHessianWork& w, const 
 void rnea_hessian_contract(const pinocchio::Model& model, RneaHessianWork& w, const double* node, const double* mu,
                            double* Hqq, double* Hvv, double* Hqv, double* Dm);
 
+// The first contraction (Hqq) for a model whose only mass is a unit point mass at the world point p
+// (3) on joint `joint`'s body, at v = a = 0 under the gravity -lambda (3, world): the curvature of
+// J_p(q)^T lambda, the generalised force of a world force lambda held at the point, contracted with
+// mu: sum_i mu_i d_l d_j (J_p^T lambda)_i, added into Hqq (nv, nv, column-major as above). node holds
+// the terms of any model of the same tree at the same q (only its dofs' world columns xi are read),
+// so a contact node's feet need p and lambda alone. Only the dofs supporting the joint take part,
+// and every body velocity and acceleration vanishes, so this is the recursion above with u = z = 0,
+// A = (lambda, 0), F = I_p A and P = I_p W on the chain (I_p the point mass's spatial inertia).
+void rnea_hessian_point_force(const pinocchio::Model& model, const TreeDofs& tree, const double* node, int joint,
+                              const double* p, const double* lambda, const double* mu, double* Hqq);
+
 // Both at once at (q, v, a): the four contractions. `w` must have been made for `model`; its data's
 // kinematics are overwritten. Every joint must be one lie/joint_groups.hpp accepts.
 void rnea_hessian(const pinocchio::Model& model, RneaHessianWork& w, const double* q, const double* v,
