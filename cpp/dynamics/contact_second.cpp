@@ -42,10 +42,11 @@ namespace contact_second_detail {
 // One model's second-order RNEA tensors (Pinocchio's column-major (i, j, k) at i + nv (j + nv k)).
 struct Rnea2 {
   int nv = 0;
-  std::vector<double> qq, vv, qv, aq;
-  explicit Rnea2(int n) : nv(n), qq((size_t)n * n * n), vv(qq.size()), qv(qq.size()), aq(qq.size()) {}
+  std::vector<double> qq, vv, qv, aq;  // sized at the first call (only the dense expansions call it)
+  explicit Rnea2(int n) : nv(n) {}
   void at(const pinocchio::Model& m, pinocchio::Data& d, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
           const Eigen::VectorXd& a) {
+    for (auto* x : {&qq, &vv, &qv, &aq}) x->resize((size_t)nv * nv * nv);
     libpin::rnea_second_order_tensors(m, d, q, v, a, qq.data(), vv.data(), qv.data(), aq.data());
   }
   static double get(const std::vector<double>& T, int nv, int i, int j, int k) {
@@ -67,6 +68,29 @@ pinocchio::Model point_mass_model(const pinocchio::Model& model, int f) {
   return mf;
 }
 
+// The chain of joints that carries frame f (the root's free flyer and the joints down to the frame's
+// parent), as a model of its own with a unit point mass at the frame's origin and no gravity: the
+// point-mass model's terms restricted to the dofs that move the point (every other dof carries no
+// mass), nv_chain (9 on a quadruped's leg) instead of nv. qi, vi map its q and v entries to the
+// robot's.
+struct FootChain {
+  pinocchio::Model model;
+  std::vector<int> qi, vi;
+  FootChain(const pinocchio::Model& full, int f) {
+    const pinocchio::Frame& fr = full.frames[(size_t)f];
+    pinocchio::JointIndex parent = 0;
+    for (const pinocchio::JointIndex j : full.supports[fr.parentJoint]) {
+      if (j == 0) continue;
+      parent = model.addJoint(parent, full.joints[j], full.jointPlacements[j], full.names[j]);
+      for (int d = 0; d < full.nqs[j]; ++d) qi.push_back(full.idx_qs[j] + d);
+      for (int d = 0; d < full.nvs[j]; ++d) vi.push_back(full.idx_vs[j] + d);
+    }
+    for (auto& I : model.inertias) I = pinocchio::Inertia::Zero();
+    model.inertias[parent] = pinocchio::Inertia(1.0, fr.placement.translation(), Eigen::Matrix3d::Zero());
+    model.gravity.setZero();
+  }
+};
+
 // Crocoddyl's quadratic barrier's excess (0 inside [lb, ub]).
 double excess(double r, double lb, double ub) { return std::min(r - lb, 0.0) + std::max(r - ub, 0.0); }
 
@@ -84,16 +108,20 @@ struct ContactSecondWork {
   std::map<int, size_t> foot_index;  // frame id -> its point-mass model
   std::vector<pinocchio::Model> foot;
   std::vector<pinocchio::Data> foot_data;
+  // per foot (foot_index): its chain, the chain's Data and recursion work (point_terms)
+  std::vector<FootChain> chain;
+  std::vector<pinocchio::Data> chain_data;
+  std::vector<RneaHessianWork> chain_rh;
   Rnea2 t, tf;
-  // the feet's rows of the point-mass models' RNEA second order, by the contracted recursion
-  // (rigid_body/rnea_hessian.hpp: the point-mass models share the robot's tree), and its outputs
+  // the robot's recursion terms (rigid_body/rnea_hessian.hpp) for the factored expansion, and the
+  // chains' contraction outputs
   RneaHessianWork rh;
-  std::vector<double> rh_node, r4, unit;
+  std::vector<double> r4, unit;
   std::vector<double> total;  // force_terms' sum over the feet
   explicit ContactSecondWork(const ContactSetup& s)
       : groups(joint_groups(*s.model)),
         zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv),
-        rh(*s.model), rh_node(rnea_hessian_node_size(*s.model)), r4(4 * (size_t)s.model->nv * s.model->nv),
+        rh(*s.model), r4(4 * (size_t)s.model->nv * s.model->nv),
         unit((size_t)s.model->nv, 0.0) {
     zero_gravity.gravity.setZero();
     for (const ContactNode& n : s.nodes) {
@@ -106,6 +134,9 @@ struct ContactSecondWork {
     foot_index[f] = foot.size();
     foot.push_back(point_mass_model(model, f));
     foot_data.emplace_back(foot.back());
+    chain.emplace_back(model, f);
+    chain_data.emplace_back(chain.back().model);
+    chain_rh.emplace_back(chain.back().model);
   }
 };
 
@@ -119,57 +150,80 @@ void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
                  const Eigen::VectorXd& v, const Eigen::VectorXd& a, RowMat& Jw, RowMat& Pqq, RowMat& Pqv,
                  RowMat& Pqa, RowMat& Pvv) {
   const int nv = (int)v.size(), nf = (int)feet.size(), nn = nv * nv;
-  Jw.resize(3 * nf, nv);
-  for (RowMat* P : {&Pqq, &Pqv, &Pqa, &Pvv}) P->resize(3 * nf, nn);
+  Jw.setZero(3 * nf, nv);
+  for (RowMat* P : {&Pqq, &Pqv, &Pqa, &Pvv}) P->setZero(3 * nf, nn);
   const Eigen::Matrix3d R = Eigen::Quaterniond(q[6], q[3], q[4], q[5]).toRotationMatrix();
-  RowMat Lqq(3, nn), Lqv(3, nn), Lqa(3, nn), Lvv(3, nn);
   for (int i = 0; i < nf; ++i) {
+    // on the foot's chain (FootChain: the dofs that move it; the others' entries are zero)
     const size_t idx = w.foot_index.at(feet[(size_t)i]);
-    const pinocchio::Model& mf = w.foot[idx];
-    pinocchio::Data& df = w.foot_data[idx];
-    const Eigen::Vector3d W = libpin::rnea(mf, df, q, v, a).head<3>();
-    libpin::computeRNEADerivatives(mf, df, q, v, a);
+    const FootChain& ch = w.chain[idx];
+    const pinocchio::Model& mf = ch.model;
+    pinocchio::Data& df = w.chain_data[idx];
+    RneaHessianWork& rh = w.chain_rh[idx];
+    const int n = mf.nv, cn = n * n;
+    Eigen::VectorXd qc(mf.nq), vc(n), ac(n);
+    for (int j = 0; j < mf.nq; ++j) qc[j] = q[ch.qi[(size_t)j]];
+    for (int j = 0; j < n; ++j) {
+      vc[j] = v[ch.vi[(size_t)j]];
+      ac[j] = a[ch.vi[(size_t)j]];
+    }
+    RowMat Lqq(3, cn), Lqv(3, cn), Lqa(3, cn), Lvv(3, cn);
+    const Eigen::Vector3d W = libpin::rnea(mf, df, qc, vc, ac).head<3>();
+    libpin::computeRNEADerivatives(mf, df, qc, vc, ac);
     const Eigen::MatrixXd Wq = df.dtau_dq.topRows(3), Wv = df.dtau_dv.topRows(3);
     const Eigen::MatrixXd Wa = Eigen::MatrixXd(df.M.selfadjointView<Eigen::Upper>()).topRows(3);
     // only the three translational rows c of the base are needed: sum_i e_c,i X(i, j, l) for the four
-    // tensors X, by the recursion (a few nv^2 products) instead of Pinocchio's whole tensors (4 nv^3)
-    rnea_hessian_node(mf, w.rh, q.data(), v.data(), a.data(), w.rh_node.data());
-    const double *Hqq = w.r4.data(), *Hvv = Hqq + nn, *Hqv = Hvv + nn, *Dm = Hqv + nn;
+    // tensors X, by the recursion (a few n^2 products) instead of Pinocchio's whole tensors (4 n^3)
+    rnea_hessian_node(mf, rh, qc.data(), vc.data(), ac.data(), rh.node.data());
+    w.r4.resize(4 * (size_t)cn);
+    const double *Hqq = w.r4.data(), *Hvv = Hqq + cn, *Hqv = Hvv + cn, *Dm = Hqv + cn;
     for (int c = 0; c < 3; ++c) {
-      w.unit.assign((size_t)nv, 0.0);
+      w.unit.assign((size_t)n, 0.0);
       w.unit[(size_t)c] = 1.0;
-      rnea_hessian_contract(mf, w.rh, w.rh_node.data(), w.unit.data(), w.r4.data(), w.r4.data() + nn,
-                            w.r4.data() + 2 * nn, w.r4.data() + 3 * nn);
-      for (int j = 0; j < nv; ++j)
-        for (int l = 0; l < nv; ++l) {
-          Lqq(c, j * nv + l) = 0.5 * (Hqq[j + nv * l] + Hqq[l + nv * j]);
-          Lqv(c, j * nv + l) = Hqv[j + nv * l];
-          Lqa(c, j * nv + l) = Dm[l + nv * j];
-          Lvv(c, j * nv + l) = Hvv[j + nv * l];
+      rnea_hessian_contract(mf, rh, rh.node.data(), w.unit.data(), w.r4.data(), w.r4.data() + cn,
+                            w.r4.data() + 2 * cn, w.r4.data() + 3 * cn);
+      for (int j = 0; j < n; ++j)
+        for (int l = 0; l < n; ++l) {
+          Lqq(c, j * n + l) = 0.5 * (Hqq[j + n * l] + Hqq[l + n * j]);
+          Lqv(c, j * n + l) = Hqv[j + n * l];
+          Lqa(c, j * n + l) = Dm[l + n * j];
+          Lvv(c, j * n + l) = Hvv[j + n * l];
         }
     }
     // the product rule's terms: oR_b(q exp(eta)) = oR_b exp(eta_rot) on the base's rotational
-    // directions 3..5 (E_i = skew(e_i))
+    // directions 3..5 (E_i = skew(e_i)), the chain's dofs 3..5 as the robot's
     for (int e = 0; e < 3; ++e)
-      for (int j = 0; j < nv; ++j) {
+      for (int j = 0; j < n; ++j) {
         const Eigen::Vector3d gq = cross_e(e, Wq.col(j)), gv = cross_e(e, Wv.col(j)), ga = cross_e(e, Wa.col(j));
         for (int c = 0; c < 3; ++c) {
-          Lqq(c, (3 + e) * nv + j) += gq[c];
-          Lqq(c, j * nv + 3 + e) += gq[c];
-          Lqv(c, (3 + e) * nv + j) += gv[c];
-          Lqa(c, (3 + e) * nv + j) += ga[c];
+          Lqq(c, (3 + e) * n + j) += gq[c];
+          Lqq(c, j * n + 3 + e) += gq[c];
+          Lqv(c, (3 + e) * n + j) += gv[c];
+          Lqa(c, (3 + e) * n + j) += ga[c];
         }
       }
     for (int e = 0; e < 3; ++e)
       for (int f = 0; f < 3; ++f) {
         const Eigen::Vector3d gg = 0.5 * (cross_e(e, cross_e(f, W)) + cross_e(f, cross_e(e, W)));
-        for (int c = 0; c < 3; ++c) Lqq(c, (3 + e) * nv + 3 + f) += gg[c];
+        for (int c = 0; c < 3; ++c) Lqq(c, (3 + e) * n + 3 + f) += gg[c];
       }
-    Jw.middleRows(3 * i, 3) = R * Wa;
-    Pqq.middleRows(3 * i, 3) = R * Lqq;
-    Pqv.middleRows(3 * i, 3) = R * Lqv;
-    Pqa.middleRows(3 * i, 3) = R * Lqa;
-    Pvv.middleRows(3 * i, 3) = R * Lvv;
+    // rotated to the world and scattered to the robot's dofs
+    const Eigen::Matrix<double, 3, Eigen::Dynamic> RWa = R * Wa;
+    const RowMat RLqq = R * Lqq, RLqv = R * Lqv, RLqa = R * Lqa, RLvv = R * Lvv;
+    for (int c = 0; c < 3; ++c) {
+      const int r = 3 * i + c;
+      for (int j = 0; j < n; ++j) {
+        const int J = ch.vi[(size_t)j];
+        Jw(r, J) = RWa(c, j);
+        for (int l = 0; l < n; ++l) {
+          const int e = J * nv + ch.vi[(size_t)l];
+          Pqq(r, e) = RLqq(c, j * n + l);
+          Pqv(r, e) = RLqv(c, j * n + l);
+          Pqa(r, e) = RLqa(c, j * n + l);
+          Pvv(r, e) = RLvv(c, j * n + l);
+        }
+      }
+    }
   }
 }
 
