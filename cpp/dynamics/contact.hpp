@@ -178,6 +178,11 @@ void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const Cont
 // the forces' curvature).
 bool cone_active(const ContactSetup& s, const ContactNode& node, const ContactEval& ev);
 
+// The friction-cone barrier's weights on the KKT rows wy (ny: zero on the first nv, friction_cone dt
+// A^T excess on each active foot's three force rows), so that the barrier's curvature through the
+// forces is sum_r wy_r y''_r; whether any foot's barrier is active.
+bool cone_weights(const ContactSetup& s, const ContactNode& node, const ContactEval& ev, Eigen::VectorXd& wy);
+
 // Add to Hs (nz, nz), node k's Gauss-Newton Hessian at (q, v) from contact_node_cost, the
 // residuals' curvature: the exact Hessian (ContactProblem._cost_hessian). ev and Y (from
 // contact_node_second, its force rows computed wherever a friction-cone barrier is active): a

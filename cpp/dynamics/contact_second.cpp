@@ -515,14 +515,30 @@ void gravity_curvature(pinocchio::Model& model, pinocchio::Data& data, const Eig
 
 }  // namespace
 
-bool cone_active(const ContactSetup& s, const ContactNode& node, const ContactEval& ev) {
+bool cone_weights(const ContactSetup& s, const ContactNode& node, const ContactEval& ev, Eigen::VectorXd& wy) {
+  const int nv = s.model->nv, r = (int)s.cone_A.rows();
+  wy.setZero(kkt_rows(s, node));
   if (node.impulse) return false;  // an impulse node's cost has no friction cone
+  bool active = false;
   for (size_t i = 0; i < node.feet.size(); ++i) {
     const Eigen::VectorXd fr = s.cone_A * ev.forces.segment<3>(3 * (Eigen::Index)i);
-    for (Eigen::Index j = 0; j < fr.size(); ++j)
-      if (excess(fr[j], s.cone_lb[j], s.cone_ub[j]) != 0.0) return true;
+    Eigen::Vector3d exA = Eigen::Vector3d::Zero();
+    bool any = false;
+    for (int j = 0; j < r; ++j) {
+      const double e = excess(fr[j], s.cone_lb[j], s.cone_ub[j]);
+      if (e != 0.0) any = true;
+      exA += e * s.cone_A.row(j).transpose();
+    }
+    if (!any) continue;  // inside the cone the barrier is flat
+    active = true;
+    wy.segment<3>(nv + 3 * (Eigen::Index)i) = (s.w.friction_cone * s.dt) * exA;
   }
-  return false;
+  return active;
+}
+
+bool cone_active(const ContactSetup& s, const ContactNode& node, const ContactEval& ev) {
+  Eigen::VectorXd wy;
+  return cone_weights(s, node, ev, wy);
 }
 
 void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, const Eigen::VectorXd& q,
@@ -569,23 +585,12 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
   }
   feet(c.foot);
   Hs.topLeftCorner(nv, nv) += (terminal ? 1.0 : s.dt) * curv;
-  if (terminal || node.feet.empty()) return;
-  const int r = (int)s.cone_A.rows();
-  for (size_t i = 0; i < node.feet.size(); ++i) {
-    const Eigen::VectorXd fr = s.cone_A * ev->forces.segment<3>(3 * (Eigen::Index)i);
-    Eigen::Vector3d exA = Eigen::Vector3d::Zero();
-    bool any = false;
-    for (int j = 0; j < r; ++j) {
-      const double e = excess(fr[j], s.cone_lb[j], s.cone_ub[j]);
-      if (e != 0.0) any = true;
-      exA += e * s.cone_A.row(j).transpose();
-    }
-    if (!any) continue;  // inside the cone the barrier is flat
-    Eigen::Map<RowMat> H(Hs.data(), nz, nz);
-    for (int a = 0; a < 3; ++a)
-      H += (c.friction_cone * s.dt * exA[a]) *
-           Eigen::Map<const RowMat>(Y->row(nv + 3 * (Eigen::Index)i + a).data(), nz, nz);
-  }
+  if (terminal || node.feet.empty() || Y == nullptr) return;
+  Eigen::VectorXd wy;
+  if (!cone_weights(s, node, *ev, wy)) return;
+  Eigen::Map<RowMat> H(Hs.data(), nz, nz);
+  for (Eigen::Index r = nv; r < wy.size(); ++r)
+    if (wy[r] != 0.0) H += wy[r] * Eigen::Map<const RowMat>(Y->row(r).data(), nz, nz);
 }
 
 namespace {
@@ -640,10 +645,10 @@ struct DenseScratch {
 
 struct FactoredScratch {
   StepBlocks step;
-  NodeKkt kkt, dense;
+  NodeKkt kkt;
   PointTerms points;
-  RowMat Y, Kinv, rhs;
-  std::vector<double> hss, hsy;
+  RowMat Kinv, S;
+  Eigen::VectorXd wy, mu;
   FactoredScratch(int nv, int) : step(nv) {}
 };
 
@@ -699,22 +704,22 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
     node_factored(s, w, k, node, q, v, ev, x.points, x.kkt, t);
     x.Kinv = -kkt_matrix(x.kkt.M, x.kkt.Jw).partialPivLu().inverse();
     Eigen::Map<RowMat>(t.Yz.data() + (size_t)k * ny_max * nz, ny, nz) = x.kkt.Y1;
-    const bool cone = cone_active(s, node, ev);
-    if (cone) {
-      // the cost's force curvature reads the force rows of y'': only those are formed, from the
-      // dense KKT blocks (node_kkt)
-      x.hss.resize((size_t)ny * ns * ns);
-      x.hsy.resize((size_t)ny * nv * ny);
-      node_kkt(s, w, node, q, v, ev, x.hss.data(), x.hsy.data(), x.dense);
-      x.rhs.resize(ny, (Eigen::Index)ns * nz);
-      kkt_rhs(x.hss.data(), x.hsy.data(), x.dense.Y1, x.dense.M, x.dense.Jw, x.rhs.data(), x.Kinv);
-      x.Y.resize(ny, (Eigen::Index)nz * nz);
-      y_rows(x.rhs.data(), x.Kinv, nv, nz, nv, ny, x.Y);
-    }
-    contact_cost_curvature(s, w, k, q, v, &ev, cone ? &x.Y : nullptr, Hs);
-    store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
     t.ny[(size_t)k] = ny;
     t.impulse[(size_t)k] = node.impulse ? 1 : 0;
+    contact_cost_curvature(s, w, k, q, v, &ev, nullptr, Hs);
+    if (cone_weights(s, node, ev, x.wy)) {
+      // the friction cone's barrier reads the force rows of y'' = Kinv rhs as sum_r wy_r y''_r =
+      // sum_r mu_r rhs_r with mu = Kinv^T wy: the pass's contraction of this node's factors
+      x.mu.noalias() = x.Kinv.transpose() * x.wy;
+      x.S.setZero(nz, nz);
+      contact_kkt_upper(t, k, x.mu.data(), x.S.data());
+      for (int a = 0; a < nz; ++a)
+        for (int b = a; b < nz; ++b) {
+          Hs(a, b) += x.S(a, b);
+          if (b != a) Hs(b, a) += x.S(a, b);
+        }
+    }
+    store_node_expansion(k, n, nu, ev, g, Hs, Phi, B, lx, lu, lxx, lux, luu);
     Eigen::Map<RowMat>(t.Kt.data() + (size_t)k * nv * ny_max, nv, ny_max).leftCols(ny) = x.Kinv.topRows(nv);
     if (!node.impulse) {
       // the semi-implicit Euler step's chart factors, as the multibody expansion_contracted stores

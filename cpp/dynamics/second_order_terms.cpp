@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "linalg/small_gemm.hpp"
 #include "rigid_body/rnea_hessian.hpp"
 
 namespace geoddp {
@@ -148,6 +149,76 @@ void point_forces_at_node(const SecondOrderTerms& t, int k, int nf, const double
 
 void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4) {
   rnea_hessian_from_terms(t, t.rnea.data() + (size_t)k * rnea_hessian_node_size(*t.model), mu, r4);
+}
+
+void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, double* S_) {
+  const int nv = t.nv, nz = t.nz(), ns = 2 * nv, ny = t.ny[(size_t)k], nyx = t.ny_max, nc = ny - nv, nf = nc / 3;
+  const size_t nn = (size_t)nv * nv;
+  const bool impulse = t.impulse[(size_t)k] != 0;
+  const double* mu = mu_;
+  thread_local std::vector<double> A, Bq, P, r4, Fqq;
+  // the feet's rows of A (its upper triangle, packed row by row as stored)
+  const size_t su = (size_t)ns * (ns + 1) / 2;
+  const double* ess = t.Ess.data() + (size_t)k * 3 * t.nf_max * su;
+  A.assign(su, 0.0);
+  for (int r = 0; r < nc; ++r) {
+    const double m = mu[nv + r];
+    const double* x = ess + (size_t)r * su;
+    for (size_t e = 0; e < su; ++e) A[e] += m * x[e];
+  }
+  // the RNEA rows: the robot's recursion, and each foot's force curvature
+  r4.resize(4 * nn);
+  rnea_hessian_at_node(t, k, mu, r4.data());
+  const double *Hqq = r4.data(), *Hvv = Hqq + nn, *Hqv = Hvv + nn, *Dm = Hqv + nn;
+  Fqq.assign(nn, 0.0);
+  point_forces_at_node(t, k, nf, mu, Fqq.data());
+  double* Aa = A.data();
+  for (int a = 0; a < ns; ++a)
+    for (int b = a; b < ns; ++b, ++Aa) {
+      if (b < nv) {
+        *Aa += 0.5 * (Hqq[a + nv * b] + Hqq[b + nv * a]) - 0.5 * (Fqq[a + nv * b] + Fqq[b + nv * a]);
+      } else if (a < nv) {
+        const int l = b - nv;
+        *Aa += impulse ? -Dm[l + nv * a] : Hqv[a + nv * l];
+      } else if (!impulse) {
+        const int j = a - nv, l = b - nv;
+        *Aa += 0.5 * (Hvv[j + nv * l] + Hvv[l + nv * j]);
+      }
+    }
+  // Bq (nv, ny), row-major
+  Bq.assign((size_t)nv * ny, 0.0);
+  const double* pqa = t.Pqa.data() + (size_t)k * 3 * t.nf_max * nn;
+  for (int j = 0; j < nv; ++j) {
+    double* Bj = Bq.data() + (size_t)j * ny;
+    for (int l = 0; l < nv; ++l) Bj[l] = Dm[l + nv * j];
+    for (int r = 0; r < nc; ++r) {
+      const double* x = pqa + (size_t)r * nn + (size_t)j * nv;
+      const double m = mu[nv + r];
+      double s = 0.0;
+      for (int l = 0; l < nv; ++l) {
+        Bj[l] += m * x[l];
+        s += x[l] * mu[l];
+      }
+      Bj[nv + r] = -s;
+    }
+  }
+  P.resize((size_t)nv * nz);
+  gemm::gemm(false, nv, nz, ny, 1.0, Bq.data(), ny, t.Yz.data() + (size_t)k * nyx * nz, nz, false, P.data(), nz);
+  // the (s, s) block: A (symmetric) plus P~ + P~^T; the (s, u) block P~; the (u, u) block of y''
+  // is zero
+  const double* Ar = A.data();  // row a's entries b = a .. ns - 1
+  for (int a = 0; a < ns; ++a) {
+    double* Sa = S_ + (size_t)a * nz;
+    const double* Pa = a < nv ? P.data() + (size_t)a * nz : nullptr;
+    for (int b = a; b < ns; ++b) {
+      double x = *Ar++;
+      if (Pa) x += Pa[b];
+      if (b < nv) x += P[(size_t)b * nz + a];
+      Sa[b] += x;
+    }
+    if (Pa)
+      for (int b = ns; b < nz; ++b) Sa[b] += Pa[b];
+  }
 }
 
 }  // namespace dyn

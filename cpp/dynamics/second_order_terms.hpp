@@ -147,5 +147,22 @@ void rnea_hessian_from_terms(const SecondOrderTerms& t, const double* node, cons
 // (rnea_hessian_point_force) with mu of each of its nf feet's J_w,i^T lambda_i, from t.force.
 void point_forces_at_node(const SecondOrderTerms& t, int k, int nf, const double* mu, double* Hqq);
 
+// A contact node k's KKT second order contracted with mu (ny[k]): sum_r mu_r rhs_r (the (nz, nz)
+// symmetric matrix of sum_r mu_r E_y^-1-free right-hand sides, whose (u, u) block is zero), its upper
+// triangle added into S (nz, nz, row-major; the lower triangle is not written). With A = sum_r mu_r
+// E_ss,r (ns, ns), Bq = sum_r mu_r E_sy,r's q rows (nv, ny) and P = Bq Y1 (nv, nz), it is A + P~ +
+// P~^T on the (s, s) block and P~ on the (s, u) block (P~ = [P; 0]). From the factors, with
+// mu = (mu_a (nv), mu_c (3 nf)):
+// * the RNEA rows by the recursion (rigid_body/rnea_hessian.hpp) with mu_a: Hqq, Hvv, Hqv, Dm of the
+//   robot's terms, minus each foot's J_w^T lambda curvature (rnea_hessian_point_force);
+//   A gets sym(Hqq) - sum_f sym(Hqq_f), Hqv and sym(Hvv) at a contact node, and -Dm^T in the
+//   (q, v) block at an impulse node (its RNEA reads a = v+ - v); Bq's a columns get Dm^T;
+// * the feet's rows: A += sum_c mu_c Ess_c; with Pqa's rows (Pqa_c[j][l] = d J_w[c, l] / d q_j),
+//   Bq(j, l) += sum_c mu_c Pqa_c[j][l] (their E_sy) and Bq(j, nv + c) = -sum_l Pqa_c[j][l] mu_a,l
+//   (the RNEA rows' -J_w^T lambda along lambda).
+// The pass calls it with mu = Kt^T w (riccati/contracted.cpp), the expansion with the friction
+// cone's weights on the force rows (contact_second.cpp): one contraction for both.
+void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu, double* S);
+
 }  // namespace dyn
 }  // namespace geoddp

@@ -132,24 +132,13 @@ static void semi_implicit_weight(const dyn::SecondOrderTerms& t, int k, const CV
 // upper triangle of S: v+'' is the velocity rows of y'' = Kinv rhs (times dt at a contact node, whose
 // semi-implicit reconstruction also adds dt Jr v+'' to the q rows; an impulse node keeps q), so
 // both contract with w = dt c (c as for `semi` in contract_upper) or w = lv (impulse), and
-// sum_i w_i y''_i = sum_r mu_r rhs_r with mu = Kt^T w (Kt: Kinv's first nv rows). With A = sum_r
-// mu_r E_ss,r (ns, ns), Bq = sum_r mu_r E_sy,r's q rows (nv, ny) and P = Bq Y1 (nv, nz),
-// sum_r mu_r rhs_r = A + P~ + P~^T on the (s, s) block and P~ on the (s, u) block (P~ = [P; 0]).
-// From the factors (second_order_terms.hpp), with mu = (mu_a (nv), mu_c (3 nf)):
-// * the RNEA rows by the recursion (rigid_body/rnea_hessian.hpp) with mu_a: Hqq, Hvv, Hqv, Dm of the
-//   robot's terms, minus each foot's J_w^T lambda curvature (rnea_hessian_point_force);
-//   A gets sym(Hqq) - sum_f sym(Hqq_f), Hqv and sym(Hvv) at a contact node, and -Dm^T in the
-//   (q, v) block at an impulse node (its RNEA reads a = v+ - v); Bq's a columns get Dm^T;
-// * the feet's rows: A += sum_c mu_c Ess_c; with Pqa's rows (Pqa_c[j][l] = d J_w[c, l] / d q_j),
-//   Bq(j, l) += sum_c mu_c Pqa_c[j][l] (their E_sy) and Bq(j, nv + c) = -sum_l Pqa_c[j][l] mu_a,l
-//   (the RNEA rows' -J_w^T lambda along lambda).
+// sum_i w_i y''_i = sum_r mu_r rhs_r with mu = Kt^T w (Kt: Kinv's first nv rows), which
+// dyn::contact_kkt_upper forms from the factors.
 static void contact_upper(const dyn::SecondOrderTerms& t, int k, const double* Vx, RowMat& S) {
-  const int nv = t.nv, nz = t.nz(), ns = 2 * nv, ny = t.ny[(size_t)k], nyx = t.ny_max, nc = ny - nv, nf = nc / 3;
-  const size_t nn = (size_t)nv * nv;
+  const int nv = t.nv, ny = t.ny[(size_t)k], nyx = t.ny_max;
   const bool impulse = t.impulse[(size_t)k] != 0;
   const double dt = t.dt;
   thread_local Eigen::VectorXd c, mu;
-  thread_local std::vector<double> A, Bq, P, r4, Fqq;
   CVecMap lq(Vx, nv), lv(Vx + nv, nv);
   if (impulse) {
     c = lv;
@@ -164,68 +153,7 @@ static void contact_upper(const dyn::SecondOrderTerms& t, int k, const double* V
     const double* row = kt + (size_t)i * nyx;
     for (int r = 0; r < ny; ++r) mu[r] += ci * row[r];
   }
-  // the feet's rows of A (its upper triangle, packed row by row as stored)
-  const size_t su = (size_t)ns * (ns + 1) / 2;
-  const double* ess = t.Ess.data() + (size_t)k * 3 * t.nf_max * su;
-  A.assign(su, 0.0);
-  for (int r = 0; r < nc; ++r) {
-    const double m = mu[nv + r];
-    const double* x = ess + (size_t)r * su;
-    for (size_t e = 0; e < su; ++e) A[e] += m * x[e];
-  }
-  // the RNEA rows: the robot's recursion, and each foot's force curvature
-  r4.resize(4 * nn);
-  dyn::rnea_hessian_at_node(t, k, mu.data(), r4.data());
-  const double *Hqq = r4.data(), *Hvv = Hqq + nn, *Hqv = Hvv + nn, *Dm = Hqv + nn;
-  Fqq.assign(nn, 0.0);
-  dyn::point_forces_at_node(t, k, nf, mu.data(), Fqq.data());
-  double* Aa = A.data();
-  for (int a = 0; a < ns; ++a)
-    for (int b = a; b < ns; ++b, ++Aa) {
-      if (b < nv) {
-        *Aa += 0.5 * (Hqq[a + nv * b] + Hqq[b + nv * a]) - 0.5 * (Fqq[a + nv * b] + Fqq[b + nv * a]);
-      } else if (a < nv) {
-        const int l = b - nv;
-        *Aa += impulse ? -Dm[l + nv * a] : Hqv[a + nv * l];
-      } else if (!impulse) {
-        const int j = a - nv, l = b - nv;
-        *Aa += 0.5 * (Hvv[j + nv * l] + Hvv[l + nv * j]);
-      }
-    }
-  // Bq (nv, ny), row-major
-  Bq.assign((size_t)nv * ny, 0.0);
-  const double* pqa = t.Pqa.data() + (size_t)k * 3 * t.nf_max * nn;
-  for (int j = 0; j < nv; ++j) {
-    double* Bj = Bq.data() + (size_t)j * ny;
-    for (int l = 0; l < nv; ++l) Bj[l] = Dm[l + nv * j];
-    for (int r = 0; r < nc; ++r) {
-      const double* x = pqa + (size_t)r * nn + (size_t)j * nv;
-      const double m = mu[nv + r];
-      double s = 0.0;
-      for (int l = 0; l < nv; ++l) {
-        Bj[l] += m * x[l];
-        s += x[l] * mu[l];
-      }
-      Bj[nv + r] = -s;
-    }
-  }
-  P.resize((size_t)nv * nz);
-  gemm::gemm(false, nv, nz, ny, 1.0, Bq.data(), ny, t.Yz.data() + (size_t)k * nyx * nz, nz, false, P.data(), nz);
-  // the (s, s) block: A (symmetric) plus P~ + P~^T; the (s, u) block P~; the (u, u) block of y''
-  // is zero
-  const double* Ar = A.data();  // row a's entries b = a .. ns - 1
-  for (int a = 0; a < ns; ++a) {
-    double* Sa = S.data() + (size_t)a * nz;
-    const double* Pa = a < nv ? P.data() + (size_t)a * nz : nullptr;
-    for (int b = a; b < ns; ++b) {
-      double x = *Ar++;
-      if (Pa) x += Pa[b];
-      if (b < nv) x += P[(size_t)b * nz + a];
-      Sa[b] += x;
-    }
-    if (Pa)
-      for (int b = ns; b < nz; ++b) Sa[b] += Pa[b];
-  }
+  dyn::contact_kkt_upper(t, k, mu.data(), S.data());
   if (!impulse) reconstruction_upper(t, k, lq, S);
 }
 
