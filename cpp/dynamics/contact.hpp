@@ -26,6 +26,11 @@
 #include <pinocchio/multibody.hpp>
 
 #include <Eigen/Core>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <typeindex>
+#include <utility>
 #include <vector>
 
 #include "dynamics/second_order_terms.hpp"
@@ -51,8 +56,41 @@ struct GaitWeights {
   double com, friction_cone, foot, state, control, bounds, impulse_foot, impulse_state, impulse_control;
 };
 
+struct ContactSetup;
+
+// The node loops' per-worker work (for_each_node's Extra: Pinocchio Data, model copies, scratch),
+// kept between a setup's calls: building ContactSecondWork's Data and models took an eighth of the
+// trot's exact expansion. check_out hands worker w's object of type T over (or makes one from the
+// setup), check_in takes it back; two calls at once never share one (the second makes its own).
+class WorkCache {
+ public:
+  template <class T>
+  std::shared_ptr<T> check_out(const ContactSetup& s, int worker) {
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      auto it = slots_.find({std::type_index(typeid(T)), worker});
+      if (it != slots_.end() && it->second) {
+        std::shared_ptr<T> w = std::static_pointer_cast<T>(it->second);
+        it->second.reset();
+        return w;
+      }
+    }
+    return std::make_shared<T>(s);
+  }
+  template <class T>
+  void check_in(int worker, std::shared_ptr<T> w) {
+    std::lock_guard<std::mutex> lock(m_);
+    slots_[{std::type_index(typeid(T)), worker}] = std::move(w);
+  }
+
+ private:
+  std::mutex m_;
+  std::map<std::pair<std::type_index, int>, std::shared_ptr<void>> slots_;
+};
+
 // A whole problem: the robot, its contact model, the schedule (H running nodes then the terminal
-// node) and the costs' data.
+// node) and the costs' data. Filled once (bind_contact.cpp) and read-only afterwards; `works` keeps
+// the node loops' per-worker work between calls.
 struct ContactSetup {
   const pinocchio::Model* model = nullptr;
   double dt = 0.0, Kp = 0.0, Kd = 0.0, impulse_damping = 0.0;
@@ -63,6 +101,7 @@ struct ContactSetup {
   Eigen::VectorXd q_ref, v_ref, q_neutral;
   RowMat cone_A;                               // (r, 3): the linearised friction cone
   Eigen::VectorXd cone_lb, cone_ub;            // (r)
+  std::shared_ptr<WorkCache> works = std::make_shared<WorkCache>();
   int horizon() const { return (int)nodes.size() - 1; }
   int nv() const { return model->nv; }
   int nu() const { return model->nv - 6; }
@@ -99,8 +138,9 @@ double contact_node_cost(const ContactSetup& s, ContactWork& w, int k, const Eig
 double contact_step(const ContactSetup& s, ContactWork& w, int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                     const Eigen::VectorXd& u, bool derivatives, ContactEval& ev, Eigen::VectorXd& g, RowMat& Hs);
 
-// The node loop of the whole-trajectory kernels (node-parallel): per worker a ContactWork and an
-// Extra(s) (the kernel's own work and scratch); every node k = 0 .. H at (Q[k], V[k]) (and U[k],
+// The node loop of the whole-trajectory kernels (node-parallel): per worker an Extra(s) (the
+// kernel's own work and scratch, with its ContactWork at node_work()), kept in s.works between
+// calls; every node k = 0 .. H at (Q[k], V[k]) (and U[k],
 // k < H) evaluated, with derivatives if `derivatives`: the terminal's cost into costs[H], then
 // terminal(q, v, g, Hs, extra); a running node (contact_step) into costs[k], then
 // running(k, q, v, ev, g, Hs, extra).
@@ -110,9 +150,10 @@ inline void for_each_node(const ContactSetup& s, const double* Q, const double* 
   const pinocchio::Model& m = *s.model;
   const int H = s.horizon(), nq = m.nq, nv = m.nv, nu = s.nu();
   CMatMap Qm(Q, H + 1, nq), Vm(V, H + 1, nv), Um(U, H, nu);
-  parallel_for(H + 1, threads, [&](int b, int e, int) {
-    ContactWork w(m);
-    Extra extra(s);
+  parallel_for(H + 1, threads, [&](int b, int e, int worker) {
+    std::shared_ptr<Extra> kept = s.works->check_out<Extra>(s, worker);
+    Extra& extra = *kept;
+    ContactWork& w = extra.node_work();
     ContactEval ev;
     Eigen::VectorXd g, q(nq), v(nv), u(nu);
     RowMat Hs;
@@ -128,6 +169,7 @@ inline void for_each_node(const ContactSetup& s, const double* Q, const double* 
       costs[k] = contact_step(s, w, k, q, v, u, derivatives, ev, g, Hs);
       running(k, q, v, ev, g, Hs, extra);
     }
+    s.works->check_in<Extra>(worker, std::move(kept));
   });
 }
 

@@ -601,9 +601,12 @@ namespace {
 // which adds its second order.
 template <class Scratch>
 struct SecondOrderExtra {
+  ContactWork node;
   ContactSecondWork w;
   Scratch scratch;
-  explicit SecondOrderExtra(const ContactSetup& s) : w(s), scratch(s.model->nv, 2 * s.model->nv + s.nu()) {}
+  explicit SecondOrderExtra(const ContactSetup& s)
+      : node(*s.model), w(s), scratch(s.model->nv, 2 * s.model->nv + s.nu()) {}
+  ContactWork& node_work() { return node; }
 };
 
 template <class Scratch, class NodeFn>

@@ -87,8 +87,11 @@ bool contact_rollout_closed_loop(const ContactSetup& s, const double* Qbar, cons
 }
 
 namespace {
+// The first-order kernels' per-worker work: the node's own (kept between calls, WorkCache).
 struct NoExtra {
-  explicit NoExtra(const ContactSetup&) {}
+  ContactWork node;
+  explicit NoExtra(const ContactSetup& s) : node(*s.model) {}
+  ContactWork& node_work() { return node; }
 };
 }  // namespace
 
