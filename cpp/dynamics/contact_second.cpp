@@ -23,6 +23,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <map>
+#include <memory>
 
 #include "dynamics/contact.hpp"
 #include "dynamics/euler.hpp"
@@ -102,13 +103,13 @@ using contact_second_detail::Rnea2;  // named, not anonymous: ContactSecondWork 
 // A worker's models and scratch for the second order (its own copies: the force and curvature
 // terms set a model's gravity).
 struct ContactSecondWork {
+  const pinocchio::Model* robot;
   std::vector<JointGroup> groups;  // the robot's joints as Lie groups (once per worker, not per node)
   pinocchio::Model zero_gravity;
   pinocchio::Data zero_data, data;
-  std::map<int, size_t> foot_index;  // frame id -> its point-mass model
-  std::vector<pinocchio::Model> foot;
-  std::vector<pinocchio::Data> foot_data;
-  // per foot (foot_index): its chain, the chain's Data and recursion work (point_terms)
+  std::map<int, size_t> foot_index;  // frame id -> its index in chain (and point_mass)
+  // per foot: its chain, the chain's Data and recursion work (point_terms, the swing feet's
+  // curvature)
   std::vector<FootChain> chain;
   std::vector<pinocchio::Data> chain_data;
   std::vector<RneaHessianWork> chain_rh;
@@ -119,7 +120,7 @@ struct ContactSecondWork {
   std::vector<double> r4, unit;
   std::vector<double> total;  // force_terms' sum over the feet
   explicit ContactSecondWork(const ContactSetup& s)
-      : groups(joint_groups(*s.model)),
+      : robot(s.model), groups(joint_groups(*s.model)),
         zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv),
         rh(*s.model), r4(4 * (size_t)s.model->nv * s.model->nv),
         unit((size_t)s.model->nv, 0.0) {
@@ -131,13 +132,28 @@ struct ContactSecondWork {
   }
   void add_foot(const pinocchio::Model& model, int f) {
     if (foot_index.count(f)) return;
-    foot_index[f] = foot.size();
-    foot.push_back(point_mass_model(model, f));
-    foot_data.emplace_back(foot.back());
+    foot_index[f] = chain.size();
+    frames.push_back(f);
     chain.emplace_back(model, f);
     chain_data.emplace_back(chain.back().model);
     chain_rh.emplace_back(chain.back().model);
+    point_models.emplace_back();
+    point_data.emplace_back();
   }
+  // Foot idx's point-mass copy of the whole robot and its Data, made at the first call: only the
+  // dense expansion's force terms read them (the factored one works on the chains).
+  std::pair<pinocchio::Model&, pinocchio::Data&> point_mass(size_t idx) {
+    if (!point_models[idx]) {
+      point_models[idx] = std::make_unique<pinocchio::Model>(point_mass_model(*robot, frames[idx]));
+      point_data[idx] = std::make_unique<pinocchio::Data>(*point_models[idx]);
+    }
+    return {*point_models[idx], *point_data[idx]};
+  }
+
+ private:
+  std::vector<int> frames;
+  std::vector<std::unique_ptr<pinocchio::Model>> point_models;
+  std::vector<std::unique_ptr<pinocchio::Data>> point_data;
 };
 
 namespace {
@@ -237,10 +253,9 @@ void force_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
   std::vector<double>& total = w.total;
   total.assign((size_t)nv * nv * nv, 0.0);
   for (int i = 0; i < nf; ++i) {
-    const size_t idx = w.foot_index.at(feet[(size_t)i]);
-    pinocchio::Model& mf = w.foot[idx];
+    auto [mf, df] = w.point_mass(w.foot_index.at(feet[(size_t)i]));
     mf.gravity = pinocchio::Motion(-forces.segment<3>(3 * i), Eigen::Vector3d::Zero());
-    w.tf.at(mf, w.foot_data[idx], q, zero, zero);
+    w.tf.at(mf, df, q, zero, zero);
     mf.gravity.setZero();
     for (size_t x = 0; x < total.size(); ++x) total[x] += w.tf.qq[x];
   }
@@ -513,6 +528,23 @@ void gravity_curvature(pinocchio::Model& model, pinocchio::Data& data, const Eig
   out += weight * 0.5 * (dg + dg.transpose());
 }
 
+// gravity_curvature of a foot's point mass (a foot-tracking residual's curvature), on its chain
+// (FootChain: the other dofs' entries are zero), scattered into out.
+void chain_gravity_curvature(ContactSecondWork& w, size_t idx, const Eigen::VectorXd& q, const Eigen::Vector3d& force,
+                             double weight, Eigen::MatrixXd& out) {
+  FootChain& ch = w.chain[idx];
+  pinocchio::Model& mc = ch.model;
+  const int n = mc.nv;
+  Eigen::VectorXd qc(mc.nq);
+  for (int j = 0; j < mc.nq; ++j) qc[j] = q[ch.qi[(size_t)j]];
+  Eigen::MatrixXd dg = Eigen::MatrixXd::Zero(n, n);
+  mc.gravity = pinocchio::Motion(-force, Eigen::Vector3d::Zero());
+  libpin::computeGeneralizedGravityDerivatives(mc, w.chain_data[idx], qc, dg);
+  mc.gravity.setZero();
+  for (int j = 0; j < n; ++j)
+    for (int l = 0; l < n; ++l) out(ch.vi[(size_t)j], ch.vi[(size_t)l]) += weight * 0.5 * (dg(j, l) + dg(l, j));
+}
+
 }  // namespace
 
 bool cone_weights(const ContactSetup& s, const ContactNode& node, const ContactEval& ev, Eigen::VectorXd& wy) {
@@ -557,9 +589,8 @@ void contact_cost_curvature(const ContactSetup& s, ContactSecondWork& w, int k, 
   libpin::difference(m, s.q_ref, q, rq);
   auto feet = [&](double weight) {
     for (size_t i = 0; i < node.swing.size(); ++i) {
-      const size_t idx = w.foot_index.at(node.swing[i]);
-      gravity_curvature(w.foot[idx], w.foot_data[idx], q,
-                        d.oMf[(size_t)node.swing[i]].translation() - node.swing_target[i], weight, curv);
+      chain_gravity_curvature(w, w.foot_index.at(node.swing[i]), q,
+                              d.oMf[(size_t)node.swing[i]].translation() - node.swing_target[i], weight, curv);
     }
   };
   if (node.impulse && !terminal) {
