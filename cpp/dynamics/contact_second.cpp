@@ -22,6 +22,7 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <stdexcept>
 #include <map>
 #include <memory>
 
@@ -74,6 +75,14 @@ pinocchio::Model point_mass_model(const pinocchio::Model& model, int f) {
 // point-mass model's terms restricted to the dofs that move the point (every other dof carries no
 // mass), nv_chain (9 on a quadruped's leg) instead of nv. qi, vi map its q and v entries to the
 // robot's.
+// The dofs that move frame f (its parent joint's supports'), increasing.
+std::vector<int> chain_dofs(const pinocchio::Model& model, int f) {
+  std::vector<int> vi;
+  for (const pinocchio::JointIndex j : model.supports[model.frames[(size_t)f].parentJoint])
+    for (int d = 0; d < model.nvs[j]; ++d) vi.push_back(model.idx_vs[j] + d);
+  return vi;
+}
+
 struct FootChain {
   pinocchio::Model model;
   std::vector<int> qi, vi;
@@ -159,15 +168,22 @@ struct ContactSecondWork {
 namespace {
 
 // The feet's world accelerations p''(q, v, a) (3 rows per foot) and their derivatives in the right
-// chart: Jw (3 nf, nv) = P_a and P_qq (symmetric), P_qv, P_qa, P_vv, each (3 nf, nv * nv) row-major
-// [c][j][l] (P_qa[c][j][l] = d J_w[c, l] / d q_j). From the point-mass model's RNEA: tau =
-// J_w^T p'', whose free-flyer translational rows are oR_b^T p'' (ContactDynamics._point_terms).
+// chart: Jw (3 nf, nv) = P_a and P_qq (symmetric), P_qv, P_qa, P_vv on each foot's chain
+// (FootChain: every other entry is zero), each (3 nf, nmax^2) with foot i's rows [c][j][l]
+// row-major over its chain's n_i dofs (P_qa[c][j][l] = d J_w[c, vi[l]] / d q_vi[j]; chain_of(w,
+// foot) gives vi). From the point-mass model's RNEA: tau = J_w^T p'', whose free-flyer
+// translational rows are oR_b^T p'' (ContactDynamics._point_terms).
+// Foot frame f's chain dofs (FootChain::vi: the robot's dofs that move it, increasing).
+const std::vector<int>& chain_of(const ContactSecondWork& w, int f) { return w.chain[w.foot_index.at(f)].vi; }
+
 void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen::VectorXd& q,
                  const Eigen::VectorXd& v, const Eigen::VectorXd& a, RowMat& Jw, RowMat& Pqq, RowMat& Pqv,
                  RowMat& Pqa, RowMat& Pvv) {
-  const int nv = (int)v.size(), nf = (int)feet.size(), nn = nv * nv;
+  const int nv = (int)v.size(), nf = (int)feet.size();
+  int nmax = 0;
+  for (int f : feet) nmax = std::max(nmax, (int)chain_of(w, f).size());
   Jw.setZero(3 * nf, nv);
-  for (RowMat* P : {&Pqq, &Pqv, &Pqa, &Pvv}) P->setZero(3 * nf, nn);
+  for (RowMat* P : {&Pqq, &Pqv, &Pqa, &Pvv}) P->resize(3 * nf, (Eigen::Index)nmax * nmax);
   const Eigen::Matrix3d R = Eigen::Quaterniond(q[6], q[3], q[4], q[5]).toRotationMatrix();
   for (int i = 0; i < nf; ++i) {
     // on the foot's chain (FootChain: the dofs that move it; the others' entries are zero)
@@ -223,23 +239,14 @@ void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen
         const Eigen::Vector3d gg = 0.5 * (cross_e(e, cross_e(f, W)) + cross_e(f, cross_e(e, W)));
         for (int c = 0; c < 3; ++c) Lqq(c, (3 + e) * n + 3 + f) += gg[c];
       }
-    // rotated to the world and scattered to the robot's dofs
+    // rotated to the world; Jw scattered to the robot's dofs
     const Eigen::Matrix<double, 3, Eigen::Dynamic> RWa = R * Wa;
-    const RowMat RLqq = R * Lqq, RLqv = R * Lqv, RLqa = R * Lqa, RLvv = R * Lvv;
-    for (int c = 0; c < 3; ++c) {
-      const int r = 3 * i + c;
-      for (int j = 0; j < n; ++j) {
-        const int J = ch.vi[(size_t)j];
-        Jw(r, J) = RWa(c, j);
-        for (int l = 0; l < n; ++l) {
-          const int e = J * nv + ch.vi[(size_t)l];
-          Pqq(r, e) = RLqq(c, j * n + l);
-          Pqv(r, e) = RLqv(c, j * n + l);
-          Pqa(r, e) = RLqa(c, j * n + l);
-          Pvv(r, e) = RLvv(c, j * n + l);
-        }
-      }
-    }
+    for (int c = 0; c < 3; ++c)
+      for (int j = 0; j < n; ++j) Jw(3 * i + c, ch.vi[(size_t)j]) = RWa(c, j);
+    Pqq.block(3 * i, 0, 3, cn).noalias() = R * Lqq;
+    Pqv.block(3 * i, 0, 3, cn).noalias() = R * Lqv;
+    Pqa.block(3 * i, 0, 3, cn).noalias() = R * Lqa;
+    Pvv.block(3 * i, 0, 3, cn).noalias() = R * Lvv;
   }
 }
 
@@ -364,15 +371,18 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
     point_terms(w, node.feet, q, v, ev.acc + Kd * v, Jw, Pqq, Pqv, Pqa, Pvv);
     for (int c = 0; c < nc; ++c) {
       const int r = nv + c;
-      for (int a = 0; a < nv; ++a)
-        for (int b = 0; b < nv; ++b) {
-          hss(r, a, b) = Pqq(c, a * nv + b) + Kp * 0.5 * (Pqa(c, a * nv + b) + Pqa(c, b * nv + a));
-          const double qv = Pqv(c, a * nv + b) + Kd * Pqa(c, a * nv + b);
+      const std::vector<int>& vi = chain_of(w, node.feet[(size_t)(c / 3)]);
+      const int n = (int)vi.size();
+      for (int j = 0; j < n; ++j)
+        for (int l = 0; l < n; ++l) {
+          const int a = vi[(size_t)j], b = vi[(size_t)l];
+          hss(r, a, b) = Pqq(c, j * n + l) + Kp * 0.5 * (Pqa(c, j * n + l) + Pqa(c, l * n + j));
+          const double qv = Pqv(c, j * n + l) + Kd * Pqa(c, j * n + l);
           hss(r, a, nv + b) = qv;
           hss(r, nv + b, a) = qv;
-          hss(r, nv + a, nv + b) = Pvv(c, a * nv + b);
-          hsy(r, a, b) = Pqa(c, a * nv + b);
-          hsy(b, a, nv + c) = -Pqa(c, a * nv + b);
+          hss(r, nv + a, nv + b) = Pvv(c, j * n + l);
+          hsy(r, a, b) = Pqa(c, j * n + l);
+          hsy(b, a, nv + c) = -Pqa(c, j * n + l);
         }
     }
   } else {
@@ -389,11 +399,14 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
     point_terms(w, node.feet, q, zero, ev.v_next, Jw, Pqq, Pqv, Pqa, Pvv);
     for (int c = 0; c < nc; ++c) {
       const int r = nv + c;
-      for (int a = 0; a < nv; ++a)
-        for (int b = 0; b < nv; ++b) {
-          hss(r, a, b) = Pqq(c, a * nv + b);
-          hsy(r, a, b) = Pqa(c, a * nv + b);
-          hsy(b, a, nv + c) = -Pqa(c, a * nv + b);
+      const std::vector<int>& vi = chain_of(w, node.feet[(size_t)(c / 3)]);
+      const int n = (int)vi.size();
+      for (int j = 0; j < n; ++j)
+        for (int l = 0; l < n; ++l) {
+          const int a = vi[(size_t)j], b = vi[(size_t)l];
+          hss(r, a, b) = Pqq(c, j * n + l);
+          hsy(r, a, b) = Pqa(c, j * n + l);
+          hsy(b, a, nv + c) = -Pqa(c, j * n + l);
         }
     }
   }
@@ -430,6 +443,13 @@ struct PointTerms {
   RowMat Pqq, Pqv, Pqa, Pvv;
 };
 
+// The index of a chain in t.chains (contact_linearise_contracted lists every foot's).
+int chain_index(const SecondOrderTerms& t, const std::vector<int>& vi) {
+  for (size_t c = 0; c < t.chains.size(); ++c)
+    if (t.chains[c] == vi) return (int)c;
+  throw std::logic_error("contact second order: a foot's chain was not listed");
+}
+
 // Node k's second order in factored form (SecondOrderTerms, contact = true; see second_order_terms.hpp)
 // and its KKT blocks M, Jw, Y1 (into out): the RNEA rows as the recursion's mu-free terms of the robot
 // (or, at an impulse node, of the robot without gravity at (q, 0, v+ - v)), each foot's point and
@@ -439,8 +459,8 @@ void node_factored(const ContactSetup& s, ContactSecondWork& w, int k, const Con
                    const Eigen::VectorXd& q, const Eigen::VectorXd& v, const ContactEval& ev, PointTerms& pt,
                    NodeKkt& out, SecondOrderTerms& t) {
   const pinocchio::Model& m = *s.model;
-  const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc, ns = 2 * nv, nn = nv * nv;
-  const size_t size = rnea_hessian_node_size(m), su = (size_t)ns * (ns + 1) / 2;
+  const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc;
+  const size_t size = rnea_hessian_node_size(m);
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
   double* rnea = t.rnea.data() + (size_t)k * size;
   if (!node.impulse) {
@@ -459,22 +479,30 @@ void node_factored(const ContactSetup& s, ContactSecondWork& w, int k, const Con
   }
   if (!node.impulse) point_terms(w, node.feet, q, v, ev.acc + s.Kd * v, out.Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
   else point_terms(w, node.feet, q, zero, ev.v_next, out.Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
-  // the feet's rows of E_ss, symmetrised, upper triangle row by row (node_kkt's entries)
+  // the feet's rows of E_ss on their chains, symmetrised, upper triangle row by row (node_kkt's
+  // entries), and Pqa
   const double Kp = node.impulse ? 0.0 : s.Kp, Kd = node.impulse ? 0.0 : s.Kd;
-  double* packed = t.Ess.data() + (size_t)k * 3 * t.nf_max * su;
-  for (int c = 0; c < nc; ++c) {
-    const double *Pqq = pt.Pqq.row(c).data(), *Pqv = pt.Pqv.row(c).data(), *Pqa = pt.Pqa.row(c).data(),
-                 *Pvv = pt.Pvv.row(c).data();
-    for (int a = 0; a < nv; ++a) {
-      for (int b = a; b < nv; ++b)
-        *packed++ = 0.5 * (Pqq[a * nv + b] + Pqq[b * nv + a]) + Kp * 0.5 * (Pqa[a * nv + b] + Pqa[b * nv + a]);
-      for (int b = 0; b < nv; ++b) *packed++ = node.impulse ? 0.0 : Pqv[a * nv + b] + Kd * Pqa[a * nv + b];
+  const size_t cu = t.chain_upper(), cm = (size_t)t.chain_max * t.chain_max;
+  for (int i = 0; i < nf; ++i) {
+    const size_t slot = (size_t)k * t.nf_max + i;
+    const std::vector<int>& vi = chain_of(w, node.feet[(size_t)i]);
+    const int n = (int)vi.size();
+    t.foot_chain[slot] = chain_index(t, vi);
+    for (int c = 0; c < 3; ++c) {
+      const int r = 3 * i + c;
+      const double *Pqq = pt.Pqq.row(r).data(), *Pqv = pt.Pqv.row(r).data(), *Pqa = pt.Pqa.row(r).data(),
+                   *Pvv = pt.Pvv.row(r).data();
+      double* packed = t.Ess.data() + (slot * 3 + c) * cu;
+      for (int a = 0; a < n; ++a) {
+        for (int b = a; b < n; ++b)
+          *packed++ = 0.5 * (Pqq[a * n + b] + Pqq[b * n + a]) + Kp * 0.5 * (Pqa[a * n + b] + Pqa[b * n + a]);
+        for (int b = 0; b < n; ++b) *packed++ = node.impulse ? 0.0 : Pqv[a * n + b] + Kd * Pqa[a * n + b];
+      }
+      for (int a = 0; a < n; ++a)
+        for (int b = a; b < n; ++b) *packed++ = node.impulse ? 0.0 : 0.5 * (Pvv[a * n + b] + Pvv[b * n + a]);
+      std::copy(Pqa, Pqa + (size_t)n * n, t.Pqa.data() + (slot * 3 + c) * cm);
     }
-    for (int a = 0; a < nv; ++a)
-      for (int b = a; b < nv; ++b) *packed++ = node.impulse ? 0.0 : 0.5 * (Pvv[a * nv + b] + Pvv[b * nv + a]);
   }
-  if (nc > 0)
-    Eigen::Map<RowMat>(t.Pqa.data() + (size_t)k * 3 * t.nf_max * nn, nc, nn) = pt.Pqa;
   libpin::crba(m, w.data, q);
   out.M = w.data.M.selfadjointView<Eigen::Upper>();
   out.Y1.resize(ny, ev.Az.cols());
@@ -727,8 +755,18 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
   const int H = s.horizon(), nv = m.nv, nu = s.nu(), n = 2 * nv, nz = n + nu, ns = n;
   const double dt = s.dt;
   int nf_max = 0;
-  for (const ContactNode& node : s.nodes) nf_max = std::max(nf_max, (int)node.feet.size());
-  t.resize_contact(m, nu, H, dt, nf_max);
+  std::vector<std::vector<int>> chains;  // every contact foot's chain dofs (FootChain::vi)
+  std::vector<int> listed;
+  for (const ContactNode& node : s.nodes) {
+    nf_max = std::max(nf_max, (int)node.feet.size());
+    for (int f : node.feet) {
+      if (std::find(listed.begin(), listed.end(), f) != listed.end()) continue;
+      listed.push_back(f);
+      std::vector<int> vi = chain_dofs(m, f);
+      if (std::find(chains.begin(), chains.end(), vi) == chains.end()) chains.push_back(std::move(vi));
+    }
+  }
+  t.resize_contact(m, nu, H, dt, nf_max, std::move(chains));
   const int ny_max = t.ny_max;
   second_order_nodes<FactoredScratch>(s, Q, V, U, threads, lfx, lfxx, costs, [&](int k, const Eigen::VectorXd& q,
                                       const Eigen::VectorXd& v, const ContactEval& ev, const Eigen::VectorXd& g,

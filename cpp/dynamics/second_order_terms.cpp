@@ -2,6 +2,7 @@
 // second_order_terms.hpp). Compiled inside dynamics/core_algorithms.cpp.
 #include "dynamics/second_order_terms.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <memory>
 #include <vector>
@@ -35,6 +36,9 @@ void SecondOrderTerms::resize_layout(const Model& model_, int m_, int N_, double
   ny.clear();
   impulse.clear();
   foot_joint.clear();
+  foot_chain.clear();
+  chains.clear();
+  chain_max = 0;
   for (Buffer* x : {&Kt, &Ess, &Pqa, &Yz, &force}) x->resize(0);
   groups.clear();
   for (const JointGroup& g : joint_groups(model_))
@@ -76,7 +80,8 @@ void SecondOrderTerms::resize(const Model& model, int m_, int N_, double dt_, bo
   Ts.resize(variational ? (size_t)N * variational_upper_size(nv) * nv : 0);
 }
 
-void SecondOrderTerms::resize_contact(const Model& model, int m_, int N_, double dt_, int nf_max_) {
+void SecondOrderTerms::resize_contact(const Model& model, int m_, int N_, double dt_, int nf_max_,
+                                      std::vector<std::vector<int>> chains_) {
   resize_layout(model, m_, N_, dt_, true);  // a contact node's step is semi-implicit Euler
   variational = recursion = one_body = one_body_gravity = false;
   for (Buffer* x : {&Iqq, &Ivv, &Iqv, &dM, &Minv, &az, &Ts}) x->resize(0);  // the RNEA rows: by the recursion
@@ -85,13 +90,17 @@ void SecondOrderTerms::resize_contact(const Model& model, int m_, int N_, double
   ny_max = nv + 3 * nf_max;
   ny.assign((size_t)N, 0);
   impulse.assign((size_t)N, 0);
-  const size_t ns = 2 * (size_t)nv, node = rnea_hessian_node_size(model);
+  chains = std::move(chains_);
+  chain_max = 0;
+  for (const std::vector<int>& c : chains) chain_max = std::max(chain_max, (int)c.size());
+  const size_t node = rnea_hessian_node_size(model), slots = (size_t)N * nf_max;
   rnea.resize((size_t)N * node);
-  force.resize((size_t)N * nf_max * 6);
-  foot_joint.assign((size_t)N * nf_max, 0);
+  force.resize(slots * 6);
+  foot_joint.assign(slots, 0);
+  foot_chain.assign(slots, 0);
   Kt.resize((size_t)N * nv * ny_max);
-  Ess.resize((size_t)N * 3 * nf_max * (ns * (ns + 1) / 2));
-  Pqa.resize((size_t)N * 3 * nf_max * nv * nv);
+  Ess.resize(slots * 3 * chain_upper());
+  Pqa.resize(slots * 3 * chain_max * chain_max);
   Yz.resize((size_t)N * ny_max * nz());
 }
 
@@ -156,16 +165,30 @@ void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, doub
   const size_t nn = (size_t)nv * nv;
   const bool impulse = t.impulse[(size_t)k] != 0;
   const double* mu = mu_;
-  thread_local std::vector<double> A, Bq, P, r4, Fqq;
-  // the feet's rows of A (its upper triangle, packed row by row as stored)
-  const size_t su = (size_t)ns * (ns + 1) / 2;
-  const double* ess = t.Ess.data() + (size_t)k * 3 * t.nf_max * su;
-  A.assign(su, 0.0);
-  for (int r = 0; r < nc; ++r) {
-    const double m = mu[nv + r];
-    const double* x = ess + (size_t)r * su;
-    for (size_t e = 0; e < su; ++e) A[e] += m * x[e];
+  thread_local std::vector<double> A, Bq, P, r4, Fqq, x;
+  thread_local Eigen::MatrixXd D;
+  // the feet's rows on their chains, summed in each chain's (q, v) coordinates, then scattered into
+  // D (ns, ns; upper triangle: the chains' dofs are increasing)
+  const size_t su = (size_t)ns * (ns + 1) / 2, cu = t.chain_upper(), cm = (size_t)t.chain_max * t.chain_max;
+  D.setZero(ns, ns);
+  for (int f = 0; f < nf; ++f) {
+    const size_t slot = (size_t)k * t.nf_max + f;
+    const std::vector<int>& vi = t.chains[(size_t)t.foot_chain[slot]];
+    const int n = (int)vi.size(), cn = 2 * n;
+    const double* ess = t.Ess.data() + slot * 3 * cu;
+    x.assign((size_t)cn * (cn + 1) / 2, 0.0);
+    for (int c = 0; c < 3; ++c) {
+      const double m = mu[nv + 3 * f + c];
+      const double* row = ess + (size_t)c * cu;
+      for (size_t e = 0; e < x.size(); ++e) x[e] += m * row[e];
+    }
+    const double* xe = x.data();
+    for (int a = 0; a < cn; ++a) {
+      const int fa = a < n ? vi[(size_t)a] : nv + vi[(size_t)(a - n)];
+      for (int b = a; b < cn; ++b) D(fa, b < n ? vi[(size_t)b] : nv + vi[(size_t)(b - n)]) += *xe++;
+    }
   }
+  A.resize(su);
   // the RNEA rows: the robot's recursion, and each foot's force curvature
   r4.resize(4 * nn);
   rnea_hessian_at_node(t, k, mu, r4.data());
@@ -175,6 +198,7 @@ void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, doub
   double* Aa = A.data();
   for (int a = 0; a < ns; ++a)
     for (int b = a; b < ns; ++b, ++Aa) {
+      *Aa = D(a, b);
       if (b < nv) {
         *Aa += 0.5 * (Hqq[a + nv * b] + Hqq[b + nv * a]) - 0.5 * (Fqq[a + nv * b] + Fqq[b + nv * a]);
       } else if (a < nv) {
@@ -187,19 +211,28 @@ void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, doub
     }
   // Bq (nv, ny), row-major
   Bq.assign((size_t)nv * ny, 0.0);
-  const double* pqa = t.Pqa.data() + (size_t)k * 3 * t.nf_max * nn;
   for (int j = 0; j < nv; ++j) {
     double* Bj = Bq.data() + (size_t)j * ny;
     for (int l = 0; l < nv; ++l) Bj[l] = Dm[l + nv * j];
-    for (int r = 0; r < nc; ++r) {
-      const double* x = pqa + (size_t)r * nn + (size_t)j * nv;
+  }
+  for (int f = 0; f < nf; ++f) {
+    const size_t slot = (size_t)k * t.nf_max + f;
+    const std::vector<int>& vi = t.chains[(size_t)t.foot_chain[slot]];
+    const int n = (int)vi.size();
+    const double* pqa = t.Pqa.data() + slot * 3 * cm;
+    for (int c = 0; c < 3; ++c) {
+      const int r = 3 * f + c;
       const double m = mu[nv + r];
-      double s = 0.0;
-      for (int l = 0; l < nv; ++l) {
-        Bj[l] += m * x[l];
-        s += x[l] * mu[l];
+      for (int j = 0; j < n; ++j) {
+        const double* xr = pqa + (size_t)c * cm + (size_t)j * n;
+        double* Bj = Bq.data() + (size_t)vi[(size_t)j] * ny;
+        double s = 0.0;
+        for (int l = 0; l < n; ++l) {
+          Bj[vi[(size_t)l]] += m * xr[l];
+          s += xr[l] * mu[vi[(size_t)l]];
+        }
+        Bj[nv + r] = -s;
       }
-      Bj[nv + r] = -s;
     }
   }
   P.resize((size_t)nv * nz);

@@ -100,19 +100,22 @@ struct SecondOrderTerms {
   //   curvature J_w,i^T lambda_i on the RNEA rows as the point-force recursion reads it
   //   (rnea_hessian_point_force): the foot's world point p and lambda (`force`, N x nf_max x 6) and
   //   its joint (foot_joint, N x nf_max);
-  //   the feet's rows (3 nf) of E_ss, symmetrised, their upper triangle row by row (Ess, (3 nf,
-  //   ns (ns + 1) / 2)), and of their acceleration's q-a derivative Pqa (3 nf, nv, nv):
-  //   Pqa[c][j][l] = d J_w[c, l] / d q_j, which is also E_sy's entry between the q rows and
+  //   the feet's rows (3 per foot) of E_ss and of their acceleration's q-a derivative Pqa on the
+  //   foot's chain (the dofs that move it, `chains[foot_chain[k nf_max + i]]`, increasing: every
+  //   other entry is zero), n of them, sized for chain_max: Ess (3, 2n (2n + 1) / 2) per foot, E_ss
+  //   over the chain's (q, v) symmetrised, its upper triangle row by row; Pqa (3, n, n) per foot,
+  //   Pqa[c][j][l] = d J_w[c, vi[l]] / d q_vi[j], which is also E_sy's entry between the q rows and
   //   lambda's columns of the RNEA rows (with a minus sign);
   // the pass contracts the RNEA rows by the recursion (nv^2 work per model instead of the ny ns^2
   // entries of stored rows) and the feet's rows from Ess and Pqa (contracted.cpp, contact_upper).
   // A contact node's step is semi-implicit Euler (F1, Jr, Dsym, As, JWs as for `semi`, v+'' =
   // dt a''); an impulse node's (impulse[k]) is x+ = (q, v+): no reconstruction, v+'' read directly.
   bool contact = false;
-  int ny_max = 0, nf_max = 0;
+  int ny_max = 0, nf_max = 0, chain_max = 0;
   std::vector<int> ny;
   std::vector<char> impulse;
-  std::vector<int> foot_joint;
+  std::vector<int> foot_joint, foot_chain;
+  std::vector<std::vector<int>> chains;
   Buffer Kt, Ess, Pqa, Yz, force;
   std::vector<JointGroup> groups;  // the SO(3)/SE(3) groups only
   int gJ = 0, gD = 0, gW = 0;      // per-node sizes of the group blocks (Jr and As: gJ each)
@@ -121,8 +124,11 @@ struct SecondOrderTerms {
   void resize(const Model& model, int m_, int N_, double dt_, bool semi_, bool variational_ = false,
               bool recursion_ = false, bool one_body_ = false, bool one_body_gravity_ = false);
   // For a contact schedule (contact = true): F1 and the group blocks, rnea, force, Kt, Ess, Pqa, Yz for
-  // nf_max feet per node.
-  void resize_contact(const Model& model, int m_, int N_, double dt_, int nf_max_);
+  // nf_max feet per node on the given chains (each foot's dofs, increasing).
+  void resize_contact(const Model& model, int m_, int N_, double dt_, int nf_max_,
+                      std::vector<std::vector<int>> chains_);
+  // Entries of a foot row of Ess: the upper triangle of the (2 chain_max)-square (q, v) block.
+  size_t chain_upper() const { return (size_t)chain_max * (2 * chain_max + 1); }
 
  private:
   void resize_layout(const Model& model, int m_, int N_, double dt_, bool semi_);
