@@ -76,27 +76,60 @@ def test_switch_expansion_reaches_the_same_minimum(solved):
     assert res.cost == pytest.approx(first.cost, rel=1e-12)
 
 
-def test_a_full_step_within_tolerance_ends_the_search():
-    """The trot's first-order solve ends where the model's full-step decrease (1.6e-12) is below the
-    cost tolerance (rtol |J| = 2.3e-9) and that step does not decrease J: one rollout (gamma = 1),
-    not a search down through eight shorter steps each worth less than tol. The point is then
-    certified by the exact check (Newton decrement below the threshold); tests/test_contact_crocoddyl.py
-    compares its J* with FDDP's."""
-    problem = anymal_trot(load_anymal())
-    trials = []  # (gamma, J of the trial) of every closed-loop rollout
-    rollout = problem.rollout_policy
+def recorded_trials(problem):
+    """Record (gamma, J of the trial) of every closed-loop rollout and the order of every
+    linearisation the solve makes on ``problem``."""
+    trials, orders = [], []
+    rollout, linearise = problem.rollout_policy, problem.linearise
 
     def recorded(nominal, k, K, gamma):
         traj = rollout(nominal, k, K, gamma)
         trials.append((gamma, problem.trajectory_cost(traj) if traj is not None else np.inf))
         return traj
 
-    problem.rollout_policy = recorded
-    res = solve(problem, SolverOptions(expansion="first"))
+    def counted(traj, order):
+        orders.append(order)
+        return linearise(traj, order)
+
+    problem.rollout_policy, problem.linearise = recorded, counted
+    return trials, orders
+
+
+def test_a_full_step_within_tolerance_ends_the_search():
+    """The trot's first-order solve, uncertified (no exact check, so no anticipated one either),
+    ends where the model's full-step decrease (1.6e-12) is below the cost tolerance (rtol |J| =
+    2.3e-9) and that step does not decrease J: one rollout (gamma = 1), not a search down through
+    eight shorter steps each worth less than tol."""
+    problem = anymal_trot(load_anymal())
+    trials, orders = recorded_trials(problem)
+    res = solve(problem, SolverOptions(expansion="first"), certify=False)
     assert res.converged and "predicted decrease of the full step" in res.message, res.message
     gamma, J_last = trials[-1]
     assert gamma == 1.0 and J_last > res.cost  # the last trial: the full step, rejected, and no other
     assert len(trials) == res.iterations + 1 + sum(
         round(np.log(g) / np.log(SolverOptions().step_factor)) for g in res.step_history)
+    assert set(orders) == {1}
+
+
+def test_first_order_checks_where_gauss_newton_predicts_convergence():
+    """Certified, the trot's first order stops at the same iterate one Gauss-Newton iteration
+    sooner: after a full step that cut the decrease 100x (3.1e-4 -> 4.4e-8), Gauss-Newton predicts
+    a next decrease of about 4.4e-8^2 / 3.1e-4 = 6e-12, below ANTICIPATE x the threshold, so the
+    exact check runs at that iterate before another Gauss-Newton expansion and certifies it: one
+    exact linearisation, no Gauss-Newton one and no rollout at the returned iterate, and the same
+    J* as the uncertified solve."""
+    from geoddp.solver.policy import ANTICIPATE, CERTIFY_EARLY
+
+    problem = anymal_trot(load_anymal())
+    trials, orders = recorded_trials(problem)
+    res = solve(problem, SolverOptions(expansion="first"))
+    assert res.converged and "Gauss-Newton's next decrease predicted below" in res.message, res.message
+    assert orders == [1] * res.iterations + [2]  # the exact one last, once: the check is the final check's
+    assert len(trials) == res.iterations + sum(
+        round(np.log(g) / np.log(SolverOptions().step_factor)) for g in res.step_history)
     opt = res.extra["optimality"]
-    assert opt["hessian_positive_definite"] and opt["newton_decrease"] <= opt["newton_threshold"]
+    assert opt["hessian_positive_definite"]
+    assert 0.0 <= opt["newton_decrease"] <= CERTIFY_EARLY * opt["newton_threshold"]
+    reference = solve(anymal_trot(load_anymal()), SolverOptions(expansion="first"), certify=False)
+    assert res.cost == reference.cost and res.iterations == reference.iterations
+    assert ANTICIPATE < CERTIFY_EARLY

@@ -793,9 +793,10 @@ class ContactProblem:
             return Linearisation(order=1, Phi=Phi, B=B, Theta=None, Gamma=None, Xi=None, l_x=lx, l_u=lu, l_xx=lxx,
                                  l_ux=lux, l_uu=luu, lf_x=gf, lf_xx=Hf, gauss_newton=True)
         if order == 2 and self.compiled and self.compiled_second_order:
-            # the dynamics' second order factored (per node the KKT system's E_ss, E_sy, dy/dz and
-            # its inverse's velocity rows): the backward pass contracts it with V_x' node by node instead of reading
-            # Theta, Gamma, Xi (Linearisation.tensors() forms them when asked)
+            # the dynamics' second order factored (per node the RNEA recursion's terms, the feet's
+            # rows on their chains, dy/dz and the KKT inverse's velocity rows): the backward pass
+            # contracts it with V_x' node by node instead of reading Theta, Gamma, Xi
+            # (Linearisation.tensors() forms them when asked)
             c64 = np.ascontiguousarray
             Phi, B, lx, lu, lxx, lux, luu, gf, Hf, _, terms = self.kernel().linearise_contracted(
                 c64(traj.q, dtype=float), c64(traj.v, dtype=float), c64(traj.u, dtype=float), self.threads)

@@ -66,7 +66,7 @@ from .backward import Workspace, backward, factorisable_gains, gradient, regular
 from .callbacks import Finish, History, Start, Step, VerboseTable
 from .forward import line_search
 from .options import SolverOptions
-from .policy import CERTIFY_EARLY, ExpansionPolicy
+from .policy import ANTICIPATE, CERTIFY_EARLY, ExpansionPolicy
 from .result import Result, result_class
 from .saddle import MAX_ESCAPES, escape_saddle
 from .status import (
@@ -133,6 +133,17 @@ class _Solve:
         """One iteration of Algorithm 1. Returns False when the solve stops (the status says why)."""
         opt = self.opt
         lam_in = self.lam
+        if self.certify and self.policy.anticipates_certificate(self.J, self.traj.u):
+            # first order, converging superlinearly, predicts a next decrease below ANTICIPATE of
+            # the final check's threshold: the check runs here, and certifies this iterate or not
+            # (then its linearisation is dropped: first order goes on with Gauss-Newton's)
+            if self.certified_deep():
+                d1, d2 = self.checked_d
+                return self.stop(STATUS_CONVERGED_COST, (
+                    f"Gauss-Newton's next decrease predicted below {ANTICIPATE:g} x "
+                    f"{self.policy.newton_threshold(self.J):.1e}, and the exact pass at this iterate gives "
+                    f"{d1 - 0.5 * d2:.1e} <= {CERTIFY_EARLY:g} x {self.policy.newton_threshold(self.J):.1e}"), True)
+            self.pending = None
         order = self.policy.order(self.it, self.J, self.traj.u)  # first or second order: the switch
         lin, gnorm = self.direction(order)  # expansion at the nominal, eq. (3); ||dJ/dU||, eq. (32)
         if not np.isfinite(gnorm):

@@ -23,7 +23,8 @@ paper's printed ones.
   CERTIFY_EARLY = 0.1 of the final check's threshold ends the solve at its iterate, before the
   step (the final check reuses it), and switch linearises exactly one iterate early when
   Gauss-Newton predicts that its next step would change J by less than ANTICIPATE = 0.01 of that
-  threshold (:meth:`ExpansionPolicy.converged_next`). Crocoddyl stops on the direction it computed
+  threshold (:meth:`ExpansionPolicy.converged_next`); first order runs the exact check there
+  instead of one more Gauss-Newton iteration (:meth:`ExpansionPolicy.anticipates_certificate`). Crocoddyl stops on the direction it computed
   at the previous iterate; here the certificate at the returned iterate costs one exact
   linearisation, and these rules keep it to one.
 """
@@ -159,6 +160,14 @@ class ExpansionPolicy:
             return False
         (d_prev, g_prev), (d_last, _) = self.first_steps[-2:]
         return g_prev == 1.0 and 0.0 < d_prev and d_last * d_last / d_prev <= ANTICIPATE * self.newton_threshold(J)
+
+    def anticipates_certificate(self, J: float, U: np.ndarray) -> bool:
+        """A first-order solve (not switch) at an iterate where Gauss-Newton predicts that its next
+        step changes J by less than ANTICIPATE of the final check's threshold
+        (:meth:`converged_next`): the exact check runs before another Gauss-Newton iteration, and a
+        certificate there ends the solve (the iteration it saves could change J by less than a
+        hundredth of the threshold)."""
+        return self.opt.expansion == "first" and self.converged_next(J, U)
 
     def cost_tol(self, J: float) -> float:
         """The threshold of the cost test at cost J: max(tol, rtol max(|J|, ZERO_COST |J_0|))
