@@ -5,13 +5,16 @@
 //
 // A node's KKT system E(s, y) = 0 (s = (q, v), y = (a, lambda) at a contact node, (v+, Lambda) at
 // an impulse node) is differentiated twice: E_y y'' = -E_ww[X, X], X = dw/dz (E is affine in y).
-// E_ww's blocks come from Pinocchio's second-order RNEA derivatives of three models: the robot
-// (its RNEA rows), the robot without gravity (the impulse's M(q) w), and per foot a massless copy
-// carrying a unit point mass at the foot's origin (its RNEA is J_w^T p'': the foot's acceleration
-// rows, and J_w^T lambda's q-q curvature under the gravity -lambda). The semi-implicit Euler step
-// then carries a'' into Theta, Gamma, Xi (dynamics/reconstruction.hpp), and each node's cost gets
-// its residuals' curvature (the SE(3) state difference's, the CoM's, the swing feet's and the
-// friction cone's through the forces' second derivatives).
+// E_ww's blocks are second-order RNEA derivatives of three kinds of model: the robot (its RNEA
+// rows), the robot without gravity (the impulse's M(q) w), and per foot a massless copy carrying a
+// unit point mass at the foot's origin (its RNEA is J_w^T p'': the foot's acceleration rows, and
+// J_w^T lambda's q-q curvature under the gravity -lambda). The dense expansion (node_kkt) forms
+// them from Pinocchio's tensors; the factored one (node_factored) keeps the robot's as the
+// contracted recursion's terms and each foot's force curvature as its point and force
+// (rigid_body/rnea_hessian.hpp), and works out the feet's rows on each foot's chain (FootChain).
+// The semi-implicit Euler step then carries a'' into Theta, Gamma, Xi (dynamics/reconstruction.hpp),
+// and each node's cost gets its residuals' curvature (the SE(3) state difference's, the CoM's, the
+// swing feet's and the friction cone's through the forces' second derivatives).
 #include <pinocchio/algorithm/center-of-mass.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/frames.hpp>
