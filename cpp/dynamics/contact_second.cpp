@@ -809,19 +809,23 @@ void contact_linearise_contracted(const ContactSetup& s, const double* Q, const 
 
 void contact_node_second_at(const ContactSetup& s, int k, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
                             const Eigen::VectorXd& u, RowMat& Y, RowMat& Hs) {
-  ContactWork cw(*s.model);
-  ContactSecondWork w(s);
+  // the dense expansion's first worker's work, kept between calls (the tests call this per node)
+  typedef SecondOrderExtra<DenseScratch> Extra;
+  std::shared_ptr<Extra> x = s.works->check_out<Extra>(s, 0);
+  ContactWork& cw = x->node;
+  ContactSecondWork& w = x->w;
   ContactEval ev;
   Eigen::VectorXd g;
   if (k == s.horizon()) {
     contact_node_cost(s, cw, k, q, v, Eigen::VectorXd::Zero(s.nu()), nullptr, true, g, Hs);
     contact_cost_curvature(s, w, k, q, v, nullptr, nullptr, Hs);
     Y.resize(0, 0);
-    return;
+  } else {
+    contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
+    contact_node_second(s, w, s.nodes[(size_t)k], q, v, ev, Y, true);
+    contact_cost_curvature(s, w, k, q, v, &ev, &Y, Hs);
   }
-  contact_step(s, cw, k, q, v, u, true, ev, g, Hs);
-  contact_node_second(s, w, s.nodes[(size_t)k], q, v, ev, Y, true);
-  contact_cost_curvature(s, w, k, q, v, &ev, &Y, Hs);
+  s.works->check_in<Extra>(0, std::move(x));
 }
 
 }  // namespace dyn
