@@ -241,8 +241,8 @@ void contact_linearise_second(const ContactSetup& s, const double* Q, const doub
                               double* lxx, double* lux, double* luu, double* lfx, double* lfxx, double* costs);
 
 // contact_linearise_second with the dynamics' second order left factored in t (SecondOrderTerms,
-// contact = true: per node the RNEA recursion's mu-free terms of the robot and of each foot's
-// point-mass model, the feet's rows of E_ss and Pqa, dy/dz and the KKT inverse's first nv rows, and
+// contact = true: per node the RNEA recursion's mu-free terms of the robot, each foot's point and
+// force, the feet's rows of E_ss and Pqa on their chains, dy/dz and the KKT inverse's first nv rows, and
 // the reconstruction's group blocks), contracted with V_x' in the backward pass (riccati/contracted.hpp) instead of
 // forming Theta, Gamma, Xi; every other output as contact_linearise_second's. Node-parallel.
 void contact_linearise_contracted(const ContactSetup& s, const double* Q, const double* V, const double* U, int threads,

@@ -73,11 +73,6 @@ pinocchio::Model point_mass_model(const pinocchio::Model& model, int f) {
   return mf;
 }
 
-// The chain of joints that carries frame f (the root's free flyer and the joints down to the frame's
-// parent), as a model of its own with a unit point mass at the frame's origin and no gravity: the
-// point-mass model's terms restricted to the dofs that move the point (every other dof carries no
-// mass), nv_chain (9 on a quadruped's leg) instead of nv. qi, vi map its q and v entries to the
-// robot's.
 // The dofs that move frame f (its parent joint's supports'), increasing.
 std::vector<int> chain_dofs(const pinocchio::Model& model, int f) {
   std::vector<int> vi;
@@ -86,17 +81,21 @@ std::vector<int> chain_dofs(const pinocchio::Model& model, int f) {
   return vi;
 }
 
+// The chain of joints that carries frame f (the root's free flyer and the joints down to the frame's
+// parent), as a model of its own with a unit point mass at the frame's origin and no gravity: the
+// point-mass model's terms restricted to the dofs that move the point (every other dof carries no
+// mass), nv_chain (9 on a quadruped's leg) instead of nv. qi, vi (chain_dofs) map its q and v
+// entries to the robot's.
 struct FootChain {
   pinocchio::Model model;
   std::vector<int> qi, vi;
-  FootChain(const pinocchio::Model& full, int f) {
+  FootChain(const pinocchio::Model& full, int f) : vi(chain_dofs(full, f)) {
     const pinocchio::Frame& fr = full.frames[(size_t)f];
     pinocchio::JointIndex parent = 0;
     for (const pinocchio::JointIndex j : full.supports[fr.parentJoint]) {
       if (j == 0) continue;
       parent = model.addJoint(parent, full.joints[j], full.jointPlacements[j], full.names[j]);
       for (int d = 0; d < full.nqs[j]; ++d) qi.push_back(full.idx_qs[j] + d);
-      for (int d = 0; d < full.nvs[j]; ++d) vi.push_back(full.idx_vs[j] + d);
     }
     for (auto& I : model.inertias) I = pinocchio::Inertia::Zero();
     model.inertias[parent] = pinocchio::Inertia(1.0, fr.placement.translation(), Eigen::Matrix3d::Zero());
@@ -127,15 +126,14 @@ struct ContactSecondWork {
   std::vector<RneaHessianWork> chain_rh;
   Rnea2 t, tf;
   // the robot's recursion terms (rigid_body/rnea_hessian.hpp) for the factored expansion, and the
-  // chains' contraction outputs
+  // chains' contraction outputs (sized by point_terms)
   RneaHessianWork rh;
   std::vector<double> r4, unit;
   std::vector<double> total;  // force_terms' sum over the feet
   explicit ContactSecondWork(const ContactSetup& s)
       : robot(s.model), groups(joint_groups(*s.model)),
         zero_gravity(*s.model), zero_data(*s.model), data(*s.model), t(s.model->nv), tf(s.model->nv),
-        rh(*s.model), r4(4 * (size_t)s.model->nv * s.model->nv),
-        unit((size_t)s.model->nv, 0.0) {
+        rh(*s.model) {
     zero_gravity.gravity.setZero();
     for (const ContactNode& n : s.nodes) {
       for (int f : n.feet) add_foot(*s.model, f);
@@ -170,15 +168,15 @@ struct ContactSecondWork {
 
 namespace {
 
+// Foot frame f's chain dofs (FootChain::vi: the robot's dofs that move it, increasing).
+const std::vector<int>& chain_of(const ContactSecondWork& w, int f) { return w.chain[w.foot_index.at(f)].vi; }
+
 // The feet's world accelerations p''(q, v, a) (3 rows per foot) and their derivatives in the right
 // chart: Jw (3 nf, nv) = P_a and P_qq (symmetric), P_qv, P_qa, P_vv on each foot's chain
 // (FootChain: every other entry is zero), each (3 nf, nmax^2) with foot i's rows [c][j][l]
 // row-major over its chain's n_i dofs (P_qa[c][j][l] = d J_w[c, vi[l]] / d q_vi[j]; chain_of(w,
 // foot) gives vi). From the point-mass model's RNEA: tau = J_w^T p'', whose free-flyer
 // translational rows are oR_b^T p'' (ContactDynamics._point_terms).
-// Foot frame f's chain dofs (FootChain::vi: the robot's dofs that move it, increasing).
-const std::vector<int>& chain_of(const ContactSecondWork& w, int f) { return w.chain[w.foot_index.at(f)].vi; }
-
 void point_terms(ContactSecondWork& w, const std::vector<int>& feet, const Eigen::VectorXd& q,
                  const Eigen::VectorXd& v, const Eigen::VectorXd& a, RowMat& Jw, RowMat& Pqq, RowMat& Pqv,
                  RowMat& Pqa, RowMat& Pvv) {
@@ -334,9 +332,9 @@ void y_rows(const double* rhs, const RowMat& Kinv, int nv, int nz, int r0, int r
 
 namespace {
 
-// A node's KKT system's second-order blocks (see kkt_rhs): Y1 = dy/dz, M and the feet's
-// acceleration Jacobian Jw (3 nf, nv); Hss (ny, ns * ns) and Hsy (ny, nv * ny, E_sy's q rows) are
-// written where node_kkt's caller points (its own arrays, or the factored terms' buffer for Hsy).
+// A node's KKT system's first-order blocks (see kkt_rhs): Y1 = dy/dz, M and the feet's acceleration
+// Jacobian Jw (3 nf, nv). node_kkt writes the second-order ones, Hss (ny, ns * ns) and Hsy (ny,
+// nv * ny, E_sy's q rows), into its caller's arrays; node_factored keeps them factored.
 struct NodeKkt {
   RowMat Y1, Jw;
   Eigen::MatrixXd M;
@@ -344,6 +342,31 @@ struct NodeKkt {
 
 // The rows y of a node's KKT system: nv + 3 per foot.
 int kkt_rows(const ContactSetup& s, const ContactNode& node) { return s.model->nv + 3 * (int)node.feet.size(); }
+
+// The point terms' outputs (point_terms), kept per worker.
+struct PointTerms {
+  RowMat Pqq, Pqv, Pqa, Pvv;
+};
+
+// point_terms at a node: the feet's accelerations at (q, v, a + Kd v) at a contact node (Kd v: the
+// Baumgarte drift's velocity term), their velocity jumps at (q, 0, v+) at an impulse node.
+void node_point_terms(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+                      const Eigen::VectorXd& v, const ContactEval& ev, RowMat& Jw, PointTerms& pt) {
+  if (!node.impulse) point_terms(w, node.feet, q, v, ev.acc + s.Kd * v, Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
+  else point_terms(w, node.feet, q, Eigen::VectorXd::Zero(v.size()), ev.v_next, Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
+}
+
+// NodeKkt's M and Y1 at q (Jw: node_point_terms'; emptied to (0, nv) at a node without feet).
+void kkt_blocks(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
+                const ContactEval& ev, NodeKkt& out) {
+  const int nv = s.model->nv, nc = 3 * (int)node.feet.size();
+  libpin::crba(*s.model, w.data, q);
+  out.M = w.data.M.selfadjointView<Eigen::Upper>();
+  out.Y1.resize(nv + nc, ev.Az.cols());
+  out.Y1.topRows(nv) = ev.Az;
+  if (nc > 0) out.Y1.bottomRows(nc) = ev.Lz;
+  if (nc == 0) out.Jw.resize(0, nv);
+}
 
 void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& node, const Eigen::VectorXd& q,
               const Eigen::VectorXd& v, const ContactEval& ev, double* hss_out, double* hsy_out, NodeKkt& out) {
@@ -356,8 +379,9 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
   auto hsy = [&](int r, int a, int y) -> double& { return Hsy(r, a * ny + y); };
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
   Rnea2& T = w.t;
-  RowMat& Jw = out.Jw;
-  RowMat Pqq, Pqv, Pqa, Pvv;
+  PointTerms pt;
+  node_point_terms(s, w, node, q, v, ev, out.Jw, pt);
+  const RowMat &Pqq = pt.Pqq, &Pqv = pt.Pqv, &Pqa = pt.Pqa, &Pvv = pt.Pvv;
   if (!node.impulse) {
     const double Kp = s.Kp, Kd = s.Kd;
     T.at(m, w.data, q, v, ev.acc);
@@ -371,7 +395,6 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
           hsy(i, a, b) = Rnea2::get(T.aq, nv, i, b, a);
         }
     force_terms(w, node.feet, q, ev.forces, Hss);
-    point_terms(w, node.feet, q, v, ev.acc + Kd * v, Jw, Pqq, Pqv, Pqa, Pvv);
     for (int c = 0; c < nc; ++c) {
       const int r = nv + c;
       const std::vector<int>& vi = chain_of(w, node.feet[(size_t)(c / 3)]);
@@ -399,7 +422,6 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
           hss(i, a, nv + b) = -Rnea2::get(T.aq, nv, i, b, a);
         }
     force_terms(w, node.feet, q, ev.forces, Hss);
-    point_terms(w, node.feet, q, zero, ev.v_next, Jw, Pqq, Pqv, Pqa, Pvv);
     for (int c = 0; c < nc; ++c) {
       const int r = nv + c;
       const std::vector<int>& vi = chain_of(w, node.feet[(size_t)(c / 3)]);
@@ -413,13 +435,7 @@ void node_kkt(const ContactSetup& s, ContactSecondWork& w, const ContactNode& no
         }
     }
   }
-  libpin::crba(m, w.data, q);
-  out.M = w.data.M.selfadjointView<Eigen::Upper>();
-  RowMat& Y1 = out.Y1;
-  Y1.resize(ny, ev.Az.cols());
-  Y1.topRows(nv) = ev.Az;
-  if (nc > 0) Y1.bottomRows(nc) = ev.Lz;
-  if (nc == 0) Jw.resize(0, nv);
+  kkt_blocks(s, w, node, q, ev, out);
 }
 
 }  // namespace
@@ -441,11 +457,6 @@ void contact_node_second(const ContactSetup& s, ContactSecondWork& w, const Cont
 
 namespace {
 
-// The point terms' outputs (point_terms), kept per worker.
-struct PointTerms {
-  RowMat Pqq, Pqv, Pqa, Pvv;
-};
-
 // The index of a chain in t.chains (contact_linearise_contracted lists every foot's).
 int chain_index(const SecondOrderTerms& t, const std::vector<int>& vi) {
   for (size_t c = 0; c < t.chains.size(); ++c)
@@ -462,7 +473,7 @@ void node_factored(const ContactSetup& s, ContactSecondWork& w, int k, const Con
                    const Eigen::VectorXd& q, const Eigen::VectorXd& v, const ContactEval& ev, PointTerms& pt,
                    NodeKkt& out, SecondOrderTerms& t) {
   const pinocchio::Model& m = *s.model;
-  const int nv = m.nv, nf = (int)node.feet.size(), nc = 3 * nf, ny = nv + nc;
+  const int nv = m.nv, nf = (int)node.feet.size();
   const size_t size = rnea_hessian_node_size(m);
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(nv);
   double* rnea = t.rnea.data() + (size_t)k * size;
@@ -480,8 +491,7 @@ void node_factored(const ContactSetup& s, ContactSecondWork& w, int k, const Con
     Eigen::Map<Eigen::Vector3d>(t.force.data() + 6 * f) = w.rh.data.oMi[fr.parentJoint].act(fr.placement).translation();
     Eigen::Map<Eigen::Vector3d>(t.force.data() + 6 * f + 3) = ev.forces.segment<3>(3 * i);
   }
-  if (!node.impulse) point_terms(w, node.feet, q, v, ev.acc + s.Kd * v, out.Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
-  else point_terms(w, node.feet, q, zero, ev.v_next, out.Jw, pt.Pqq, pt.Pqv, pt.Pqa, pt.Pvv);
+  node_point_terms(s, w, node, q, v, ev, out.Jw, pt);
   // the feet's rows of E_ss on their chains, symmetrised, upper triangle row by row (node_kkt's
   // entries), and Pqa
   const double Kp = node.impulse ? 0.0 : s.Kp, Kd = node.impulse ? 0.0 : s.Kd;
@@ -506,12 +516,7 @@ void node_factored(const ContactSetup& s, ContactSecondWork& w, int k, const Con
       std::copy(Pqa, Pqa + (size_t)n * n, t.Pqa.data() + (slot * 3 + c) * cm);
     }
   }
-  libpin::crba(m, w.data, q);
-  out.M = w.data.M.selfadjointView<Eigen::Upper>();
-  out.Y1.resize(ny, ev.Az.cols());
-  out.Y1.topRows(nv) = ev.Az;
-  if (nc > 0) out.Y1.bottomRows(nc) = ev.Lz;
-  if (nc == 0) out.Jw.resize(0, nv);
+  kkt_blocks(s, w, node, q, ev, out);
 }
 
 }  // namespace

@@ -141,11 +141,6 @@ static RneaHessianWork& pass_work(const SecondOrderTerms& t) {
   return *c.work;
 }
 
-void rnea_hessian_from_terms(const SecondOrderTerms& t, const double* node, const double* mu, double* r4) {
-  const size_t nn = (size_t)t.model->nv * t.model->nv;
-  rnea_hessian_contract(*t.model, pass_work(t), node, mu, r4, r4 + nn, r4 + 2 * nn, r4 + 3 * nn);
-}
-
 void point_forces_at_node(const SecondOrderTerms& t, int k, int nf, const double* mu, double* Hqq) {
   const RneaHessianWork& w = pass_work(t);
   const double* node = t.rnea.data() + (size_t)k * rnea_hessian_node_size(*t.model);
@@ -157,7 +152,9 @@ void point_forces_at_node(const SecondOrderTerms& t, int k, int nf, const double
 }
 
 void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4) {
-  rnea_hessian_from_terms(t, t.rnea.data() + (size_t)k * rnea_hessian_node_size(*t.model), mu, r4);
+  const size_t nn = (size_t)t.model->nv * t.model->nv;
+  rnea_hessian_contract(*t.model, pass_work(t), t.rnea.data() + (size_t)k * rnea_hessian_node_size(*t.model), mu, r4,
+                        r4 + nn, r4 + 2 * nn, r4 + 3 * nn);
 }
 
 void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, double* S_) {
@@ -165,11 +162,11 @@ void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, doub
   const size_t nn = (size_t)nv * nv;
   const bool impulse = t.impulse[(size_t)k] != 0;
   const double* mu = mu_;
-  thread_local std::vector<double> A, Bq, P, r4, Fqq, x;
+  thread_local std::vector<double> Bq, P, r4, Fqq, x;
   thread_local Eigen::MatrixXd D;
   // the feet's rows on their chains, summed in each chain's (q, v) coordinates, then scattered into
   // D (ns, ns; upper triangle: the chains' dofs are increasing)
-  const size_t su = (size_t)ns * (ns + 1) / 2, cu = t.chain_upper(), cm = (size_t)t.chain_max * t.chain_max;
+  const size_t cu = t.chain_upper(), cm = (size_t)t.chain_max * t.chain_max;
   D.setZero(ns, ns);
   for (int f = 0; f < nf; ++f) {
     const size_t slot = (size_t)k * t.nf_max + f;
@@ -188,27 +185,26 @@ void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, doub
       for (int b = a; b < cn; ++b) D(fa, b < n ? vi[(size_t)b] : nv + vi[(size_t)(b - n)]) += *xe++;
     }
   }
-  A.resize(su);
   // the RNEA rows: the robot's recursion, and each foot's force curvature
   r4.resize(4 * nn);
   rnea_hessian_at_node(t, k, mu, r4.data());
   const double *Hqq = r4.data(), *Hvv = Hqq + nn, *Hqv = Hvv + nn, *Dm = Hqv + nn;
   Fqq.assign(nn, 0.0);
   point_forces_at_node(t, k, nf, mu, Fqq.data());
-  double* Aa = A.data();
-  for (int a = 0; a < ns; ++a)
-    for (int b = a; b < ns; ++b, ++Aa) {
-      *Aa = D(a, b);
-      if (b < nv) {
-        *Aa += 0.5 * (Hqq[a + nv * b] + Hqq[b + nv * a]) - 0.5 * (Fqq[a + nv * b] + Fqq[b + nv * a]);
-      } else if (a < nv) {
-        const int l = b - nv;
-        *Aa += impulse ? -Dm[l + nv * a] : Hqv[a + nv * l];
-      } else if (!impulse) {
-        const int j = a - nv, l = b - nv;
-        *Aa += 0.5 * (Hvv[j + nv * l] + Hvv[l + nv * j]);
-      }
+  // sum_r mu_r E_ss,r (a <= b): the feet's D plus the RNEA rows'
+  auto ess = [&](int a, int b) {
+    double x = D(a, b);
+    if (b < nv) {
+      x += 0.5 * (Hqq[a + nv * b] + Hqq[b + nv * a]) - 0.5 * (Fqq[a + nv * b] + Fqq[b + nv * a]);
+    } else if (a < nv) {
+      const int l = b - nv;
+      x += impulse ? -Dm[l + nv * a] : Hqv[a + nv * l];
+    } else if (!impulse) {
+      const int j = a - nv, l = b - nv;
+      x += 0.5 * (Hvv[j + nv * l] + Hvv[l + nv * j]);
     }
+    return x;
+  };
   // Bq (nv, ny), row-major
   Bq.assign((size_t)nv * ny, 0.0);
   for (int j = 0; j < nv; ++j) {
@@ -237,14 +233,13 @@ void contact_kkt_upper(const SecondOrderTerms& t, int k, const double* mu_, doub
   }
   P.resize((size_t)nv * nz);
   gemm::gemm(false, nv, nz, ny, 1.0, Bq.data(), ny, t.Yz.data() + (size_t)k * nyx * nz, nz, false, P.data(), nz);
-  // the (s, s) block: A (symmetric) plus P~ + P~^T; the (s, u) block P~; the (u, u) block of y''
-  // is zero
-  const double* Ar = A.data();  // row a's entries b = a .. ns - 1
+  // the (s, s) block: sum_r mu_r E_ss,r (symmetric) plus P~ + P~^T; the (s, u) block P~; the (u, u)
+  // block of y'' is zero
   for (int a = 0; a < ns; ++a) {
     double* Sa = S_ + (size_t)a * nz;
     const double* Pa = a < nv ? P.data() + (size_t)a * nz : nullptr;
     for (int b = a; b < ns; ++b) {
-      double x = *Ar++;
+      double x = ess(a, b);
       if (Pa) x += Pa[b];
       if (b < nv) x += P[(size_t)b * nz + a];
       Sa[b] += x;

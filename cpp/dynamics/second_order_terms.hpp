@@ -146,9 +146,6 @@ bool rnea_hessian_recursion();
 // (nv, nv) column-major: sum_i mu_i X(i, j, l) at j + nv l for X = d2tau_dqdq, d2tau_dvdv,
 // d2tau_dqdv, d2tau_dadq). Keeps one work and Data per thread and set of terms (rigid_body/rnea_hessian.cpp).
 void rnea_hessian_at_node(const SecondOrderTerms& t, int k, const double* mu, double* r4);
-// The same from any node's terms made for a model of t.model's tree (the contact schedule's
-// impulse and point-mass models share it): node points at rnea_hessian_node_size(*t.model) doubles.
-void rnea_hessian_from_terms(const SecondOrderTerms& t, const double* node, const double* mu, double* r4);
 // For a contact node k: adds to Hqq (nv, nv, column-major) the point-force recursion's contraction
 // (rnea_hessian_point_force) with mu of each of its nf feet's J_w,i^T lambda_i, from t.force.
 void point_forces_at_node(const SecondOrderTerms& t, int k, int nf, const double* mu, double* Hqq);
