@@ -112,6 +112,7 @@ class _Solve:
                              "rollout or the cost overflowed; start from smaller controls or check the model")
         self.policy = ExpansionPolicy(opt, self.J, self.bounds)
         self.pending: Linearisation | None = None  # exact linearisation at the iterate, for its next direction
+        self.anticipated_at = -1  # the iteration whose iterate first order's anticipated check has seen
         self.lam = opt.reg_init
         self.it = 0
         self.gnorm: float | None = None  # ||dJ/dU|| of the iterate, as first computed there (None: not yet)
@@ -133,10 +134,13 @@ class _Solve:
         """One iteration of Algorithm 1. Returns False when the solve stops (the status says why)."""
         opt = self.opt
         lam_in = self.lam
-        if self.certify and self.policy.anticipates_certificate(self.J, self.traj.u):
+        if self.certify and self.anticipated_at != self.it and \
+                self.policy.anticipates_certificate(self.J, self.traj.u):
             # first order, converging superlinearly, predicts a next decrease below ANTICIPATE of
             # the final check's threshold: the check runs here, and certifies this iterate or not
-            # (then its linearisation is dropped: first order goes on with Gauss-Newton's)
+            # (then its linearisation is dropped: first order goes on with Gauss-Newton's, and a
+            # step the line search refuses does not run the check again at the same iterate)
+            self.anticipated_at = self.it
             if self.certified_deep():
                 d1, d2 = self.checked_d
                 return self.stop(STATUS_CONVERGED_COST, (
